@@ -1,0 +1,96 @@
+"""Shared pieces of the command line: the Typer app, JSON output, error handling."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections.abc import Callable
+from functools import wraps
+from typing import Any, TypeVar
+
+import typer
+
+from braidsim.errors import InputError, SimulationError
+
+app = typer.Typer(
+    name="braidsim",
+    help="Carrier-track contact dynamics of maypole braiding machines.",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _clean(obj: Any) -> Any:
+    """NaN and inf become null so that the output is strict JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    if hasattr(obj, "item") and callable(obj.item):  # numpy scalars
+        return _clean(obj.item())
+    return obj
+
+
+def print_json(obj: Any) -> None:
+    """One strict JSON object on stdout, nothing else."""
+    sys.stdout.write(json.dumps(_clean(obj), allow_nan=False) + "\n")
+    sys.stdout.flush()
+
+
+def fail(message: str, code: int) -> None:
+    """One line on stderr and exit with ``code``."""
+    sys.stderr.write(f"braidsim: error: {message}\n")
+    raise typer.Exit(code)
+
+
+def guarded(func: F) -> F:
+    """Turn braidsim's errors into one-line messages and exit codes (2 input, 1 numerics)."""
+
+    @wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except InputError as exc:
+            fail(str(exc), 2)
+        except SimulationError as exc:
+            fail(f"simulation failed: {exc}", 1)
+        except KeyboardInterrupt:
+            fail("interrupted", 130)
+        return None
+
+    return wrapper  # type: ignore[return-value]
+
+
+def parse_sets(sets: list[str] | None) -> dict[str, Any]:
+    """``--set KEY=VALUE`` options to an overrides mapping."""
+    from braidsim.params import parse_assignment, parse_set_value
+
+    out: dict[str, Any] = {}
+    for item in sets or []:
+        key, value = parse_assignment(item)
+        out[key] = parse_set_value(key, value)
+    return out
+
+
+def run_app(argv: list[str] | None) -> int:
+    """Run the Typer app; return the exit code."""
+    import click
+
+    try:
+        app(args=argv, standalone_mode=False)
+    except click.exceptions.Exit as exc:
+        return int(exc.exit_code or 0)
+    except click.exceptions.Abort:
+        sys.stderr.write("braidsim: error: aborted\n")
+        return 130
+    except click.ClickException as exc:
+        # usage errors: one line, exit code 2
+        sys.stderr.write(f"braidsim: error: {exc.format_message()}\n")
+        return 2
+    return 0

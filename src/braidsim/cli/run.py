@@ -1,0 +1,208 @@
+"""Verbs ``run``, ``impact``, ``models`` and ``scenarios``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from braidsim.cli.common import app, guarded, parse_sets, print_json
+
+
+@app.command()
+@guarded
+def run(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    set_: Annotated[
+        list[str] | None, typer.Option("--set", help="KEY=VALUE override (repeatable).")
+    ] = None,
+    duration: Annotated[float | None, typer.Option(help="Simulated time [s].")] = None,
+    window: Annotated[
+        tuple[float, float] | None, typer.Option(help="T0 T1: ranges over this window [s].")
+    ] = None,
+    out: Annotated[Path | None, typer.Option(help="Write plots, series and summary here.")] = None,
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Simulate one carrier and report depth and force ranges and the impacts."""
+    import braidsim
+    from braidsim.io import atomic_write_text
+
+    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
+    windows = [window] if window else None
+    res = braidsim.simulate(sc, duration=duration, windows=windows)
+    summary = res.summary(window=window)
+    if out is not None:
+        import json
+
+        from braidsim.plotting import run_figures
+
+        out.mkdir(parents=True, exist_ok=True)
+        res.to_csv(out)
+        run_figures(res, out)
+        res.to_xarray().to_netcdf(out / ".series.nc.tmp")
+        (out / ".series.nc.tmp").replace(out / "series.nc")
+        from braidsim.cli.common import _clean
+
+        atomic_write_text(out / "summary.json", json.dumps(_clean(summary), indent=1))
+    if json_:
+        print_json(summary)
+        return
+    _print_summary(summary, out)
+
+
+def _print_summary(summary: dict, out: Path | None) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    con = Console()
+    con.print(f"[bold]{summary['scenario']}[/bold]  window {summary['window'][0]:g}-{summary['window'][1]:g} s")
+    tab = Table("track (x)", "min", "max")
+    scale = {"depth": (1e3, "mm"), "stiffness_force": (1, "N"), "damping_force": (1, "N"), "contact_force": (1, "N")}
+    for k, (f, u) in scale.items():
+        lo, hi = summary["x"][k]
+        tab.add_row(escape(f"{k} [{u}]"), f"{lo * f:.6g}", f"{hi * f:.6g}")
+    con.print(tab)
+    imp = summary["impacts"]
+    con.print(f"{len(imp)} impacts; final x = {summary['final']['x'] * 1e3:.6g} mm")
+    if imp:
+        t2 = Table(*(escape(h) for h in ("t [s]", "pair", "wall", "v [m/s]", "rebound [m/s]", "peak F [N]",
+                                         "depth [mm]")))
+        for r in imp[:12]:
+            reb = r["rebound_velocity"]
+            t2.add_row(
+                f"{r['t']:.6f}",
+                r["pair"],
+                r["wall"],
+                f"{r['velocity']:.4g}",
+                "-" if reb is None else f"{reb:.4g}",
+                f"{r['peak_force']:.5g}",
+                f"{r['max_depth'] * 1e3:.4g}",
+            )
+        con.print(t2)
+        if len(imp) > 12:
+            con.print(f"... {len(imp) - 12} more (--json for all)")
+    if out is not None:
+        con.print(f"written to {out}")
+
+
+@app.command()
+@guarded
+def impact(
+    model: Annotated[str, typer.Option(help="Contact law (braidsim models).")] = "hunt_crossley",
+    restitution: Annotated[str, typer.Option(help="Coefficient of restitution in (0, 1].")] = "0.5555555555555556",
+    velocity: Annotated[str, typer.Option(help="Approach speed, e.g. 0.5 or '0.5 m/s'.")] = "0.5",
+    mass: Annotated[str, typer.Option(help="Mass, e.g. 1.2 or '1.2 kg'.")] = "1.2",
+    stiffness: Annotated[float | None, typer.Option(help="K [N/m^n]; Eq. (4) by default.")] = None,
+    exponent: Annotated[float | None, typer.Option(help="Force exponent n.")] = None,
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """One impact of a free mass on a fixed wall."""
+    from braidsim.impact import single_impact
+
+    def num(text: str) -> float | str:
+        try:
+            return float(text)
+        except ValueError:
+            return text
+
+    res = single_impact(model, num(restitution), num(velocity), num(mass), stiffness, exponent)
+    if json_:
+        print_json(res)
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    tab = Table("quantity", "value")
+    for k, v in res.items():
+        if isinstance(v, dict):
+            for k2, v2 in v.items():
+                tab.add_row(f"closed form {k2}", f"{v2:.8g}")
+        else:
+            tab.add_row(k, f"{v:.8g}" if isinstance(v, float) else str(v))
+    Console().print(tab)
+
+
+@app.command()
+@guarded
+def models(json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False) -> None:
+    """List the contact force laws with their damping factor D(c_r)."""
+    from braidsim.contact import _LAWS
+
+    rows = []
+    for law in _LAWS.values():
+        d = law.damping_factor(5.0 / 9.0)
+        from braidsim.contact import effective_restitution
+
+        rows.append(
+            {
+                "name": law.name,
+                "equation": law.equation,
+                "reference": law.reference,
+                "formula": law.formula,
+                "default_exponent": law.default_exponent,
+                "dissipative": law.dissipative,
+                "damping_factor_at_5_9": d,
+                "effective_restitution_at_5_9": effective_restitution(d),
+            }
+        )
+    if json_:
+        print_json({"models": rows})
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    tab = Table("name", "paper", "n", "D(5/9)", "e(5/9)", "reference")
+    for r in rows:
+        tab.add_row(
+            r["name"],
+            r["equation"],
+            f"{r['default_exponent']:g}",
+            f"{r['damping_factor_at_5_9']:.4f}",
+            f"{r['effective_restitution_at_5_9']:.4f}",
+            r["reference"],
+        )
+    Console().print(tab)
+
+
+@app.command()
+@guarded
+def scenarios(
+    keys: Annotated[bool, typer.Option("--keys", help="List every parameter key instead.")] = False,
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """List the built-in scenarios (or, with --keys, every parameter key)."""
+    import braidsim
+    from braidsim.params import SCHEMA
+
+    if keys:
+        rows = [
+            {"key": s.key, "unit": s.unit, "default": s.default, "allowed": s.range_text(), "doc": s.doc}
+            for s in SCHEMA.values()
+        ]
+        if json_:
+            print_json({"keys": rows})
+            return
+        from rich.console import Console
+        from rich.table import Table
+
+        tab = Table("key", "unit", "default", "allowed", "meaning")
+        for r in rows:
+            tab.add_row(r["key"], r["unit"], str(r["default"]), r["allowed"], r["doc"])
+        Console().print(tab)
+        return
+    rows = []
+    for name in braidsim.builtin_names():
+        sc = braidsim.load_scenario(name)
+        rows.append({"name": name, "description": sc.description, "source": sc.source})
+    if json_:
+        print_json({"scenarios": rows})
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    tab = Table("name", "description", "source")
+    for r in rows:
+        tab.add_row(r["name"], r["description"], r["source"])
+    Console().print(tab)

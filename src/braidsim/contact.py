@@ -1,0 +1,311 @@
+"""Contact force laws: Hertz stiffness (Eq. 4) and the laws of Eqs. (3)-(13).
+
+Every law of the paper has the form
+
+    F_n = K p^n (1 + D(c_r) pdot / v0)                                   [N]
+
+with p >= 0 the penetration [m], pdot its rate [m/s], v0 > 0 the approach speed latched at
+contact onset [m/s], K the contact stiffness [N/m^n], n the exponent, and D the
+dimensionless *damping factor* of the law, a function of the coefficient of restitution
+c_r only. The stiffness-related force of the paper is F_kg = K p^n and the damping-related
+force F_cg = K p^n D pdot / v0. An elastic law has D = 0.
+
+Because all laws share this form, one impact of a free mass obeys (divide
+m v dv/dp = -K p^n (1 + D v / v0) by 1 + D v / v0 and integrate over the whole impact)
+
+    1 - D e = (1 + D) exp(-D (1 + e))                                     (exact)
+
+for the effective restitution e = -v_rebound / v0, whatever m, K, n and v0. Its solution is
+``e = (1 + W0(-(1 + D) exp(-(1 + D)))) / D`` with W0 the principal branch of the Lambert W
+function (:func:`effective_restitution`). The laws differ only in D(c_r); a law whose e
+equals c_r exactly is obtained by solving this relation for D (:func:`exact_damping_factor`,
+law ``carvalho_martins``).
+
+References
+----------
+.. [HC] Hunt K.H., Crossley F.R.E. (1975) J. Appl. Mech. 42:440-445.
+.. [HM] Herbert R.G., McWhannell D.C. (1977) J. Eng. Ind. 99:513-518.
+.. [LW] Lee T.W., Wang A.C. (1983) J. Mech. Trans. Autom. Des. 105:534-540.
+.. [LN] Lankarani H.M., Nikravesh P.E. (1994) Nonlinear Dyn. 5:193-207.
+.. [GO] Gonthier Y., McPhee J., Lange C., Piedboeuf J.-C. (2004) Multibody Syst. Dyn. 11:209-233.
+.. [ZQ] Zhiying Q., Qishao L. (2006) J. Dyn. Control 4:294-298.
+.. [FL] Flores P., Machado M., Silva M.T., Martins J.M. (2011) Multibody Syst. Dyn. 25:357-375.
+.. [CM] Carvalho A.S., Martins J.M. (2019) Exact restitution and generalizations for the
+   Hunt-Crossley contact model. Mech. Mach. Theory 139:174-194.
+.. [BR] Braendlein J. et al. (1999) Ball and Roller Bearings, Wiley (n = 1.08 line contact).
+.. [JO] Johnson K.L. (1985) Contact Mechanics, Cambridge University Press.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, special
+
+from braidsim.errors import InputError
+
+# ----------------------------------------------------------------------------------------
+# Damping factors D(c_r), one small function each (Eqs. 5-13 of the paper)
+# ----------------------------------------------------------------------------------------
+
+
+def damping_elastic(c_r: float) -> float:
+    """Elastic contact (Hertz, Eq. 3; Braendlein): D = 0, no dissipation."""
+    return 0.0
+
+
+def damping_hunt_crossley(c_r: float) -> float:
+    """Hunt & Crossley (1975), Eq. (5): D = 3 (1 - c_r) / 2."""
+    return 1.5 * (1.0 - c_r)
+
+
+def damping_herbert_mcwhannell(c_r: float) -> float:
+    """Herbert & McWhannell (1977), Eqs. (6)-(7): D = 6 (1 - c_r) / ((2 c_r - 1)^2 + 3)."""
+    return 6.0 * (1.0 - c_r) / ((2.0 * c_r - 1.0) ** 2 + 3.0)
+
+
+def damping_lee_wang(c_r: float) -> float:
+    """Lee & Wang (1983), Eq. (8): D = 3 (1 - c_r) / 4."""
+    return 0.75 * (1.0 - c_r)
+
+
+def damping_lankarani_nikravesh(c_r: float) -> float:
+    """Lankarani & Nikravesh (1994), Eq. (9): D = 3 (1 - c_r^2) / 4."""
+    return 0.75 * (1.0 - c_r**2)
+
+
+def damping_gonthier(c_r: float) -> float:
+    """Gonthier et al. (2004), Eq. (10): D = (1 - c_r^2) / c_r."""
+    return (1.0 - c_r**2) / c_r
+
+
+def damping_zhiying_qishao(c_r: float) -> float:
+    """Zhiying & Qishao (2006), Eqs. (11)-(12): D = 3 (1 - c_r^2) exp(2 (1 - c_r)) / 4."""
+    return 0.75 * (1.0 - c_r**2) * math.exp(2.0 * (1.0 - c_r))
+
+
+def damping_flores(c_r: float) -> float:
+    """Flores et al. (2011), Eq. (13): D = 8 (1 - c_r) / (5 c_r)."""
+    return 8.0 * (1.0 - c_r) / (5.0 * c_r)
+
+
+def effective_restitution(damping_factor: float) -> float:
+    """Exact restitution e of one impact under ``F = K p^n (1 + D pdot / v0)``.
+
+    ``e = (1 + W0(-(1 + D) exp(-(1 + D)))) / D`` for D > 0 and e = 1 for D = 0; it does not
+    depend on mass, stiffness, exponent or approach speed (see the module docstring).
+
+    Parameters
+    ----------
+    damping_factor : float
+        D >= 0 [-].
+    """
+    d = float(damping_factor)
+    if d < 0.0:
+        raise InputError(f"damping factor: {d} is negative; allowed D >= 0")
+    if d < 1e-8:
+        # Series of the exact relation about D = 0: e = 1 - 2D/3 + O(D^2).
+        return 1.0 - 2.0 * d / 3.0
+    z = -(1.0 + d) * math.exp(-(1.0 + d))
+    w = special.lambertw(z, 0).real
+    return float((1.0 + w) / d)
+
+
+def exact_damping_factor(c_r: float) -> float:
+    """Damping factor D whose exact restitution equals ``c_r`` (Carvalho & Martins 2019).
+
+    Solves ``1 - D c_r = (1 + D) exp(-D (1 + c_r))`` for D > 0 (D = 0 at c_r = 1). The root is
+    bracketed because e(D) falls monotonically from 1 (D = 0) towards 0 (D -> inf).
+    """
+    if c_r >= 1.0:
+        return 0.0
+    # e(D) ~ 1/D for large D, so D = 2/c_r brackets from above.
+    hi = 2.0 / c_r + 10.0
+    return float(optimize.brentq(lambda d: effective_restitution(d) - c_r, 1e-10, hi, xtol=1e-15, rtol=1e-15))
+
+
+def damping_carvalho_martins(c_r: float) -> float:
+    """Carvalho & Martins (2019): the D that makes the Hunt-Crossley form restitute exactly c_r.
+
+    D solves ``1 - D c_r = (1 + D) exp(-D (1 + c_r))``; see :func:`exact_damping_factor`.
+    """
+    return exact_damping_factor(c_r)
+
+
+@dataclass(frozen=True)
+class ContactLaw:
+    """A named contact force law ``F = K p^n (1 + D(c_r) pdot / v0)``.
+
+    Attributes
+    ----------
+    name : str
+        Registry name (``braidsim models``).
+    damping : callable
+        D(c_r) [-].
+    default_exponent : float
+        n used when ``contact.<pair>.exponent`` is not set.
+    dissipative : bool
+        False for the elastic laws (no restitution parameter used).
+    equation : str
+        Where the law stands in the paper.
+    reference : str
+        Citation.
+    """
+
+    name: str
+    damping: Callable[[float], float]
+    default_exponent: float
+    dissipative: bool
+    equation: str
+    reference: str
+
+    def damping_factor(self, c_r: float) -> float:
+        """D(c_r) of this law [-]."""
+        return float(self.damping(c_r)) if self.dissipative else 0.0
+
+    @property
+    def formula(self) -> str:
+        """First line of the damping function's docstring: the formula of D."""
+        doc = self.damping.__doc__ or ""
+        return doc.strip().splitlines()[0]
+
+
+_LAWS: dict[str, ContactLaw] = {
+    law.name: law
+    for law in (
+        ContactLaw("hertz", damping_elastic, 1.5, False, "Eq. (3)", "Johnson (1985), Hertz (1882)"),
+        ContactLaw(
+            "brandlein", damping_elastic, 1.08, False, "Eq. (3), n = 1.08", "Braendlein et al. (1999)"
+        ),
+        ContactLaw("hunt_crossley", damping_hunt_crossley, 1.5, True, "Eq. (5)", "Hunt & Crossley (1975)"),
+        ContactLaw(
+            "herbert_mcwhannell",
+            damping_herbert_mcwhannell,
+            1.5,
+            True,
+            "Eqs. (6)-(7)",
+            "Herbert & McWhannell (1977)",
+        ),
+        ContactLaw("lee_wang", damping_lee_wang, 1.5, True, "Eq. (8)", "Lee & Wang (1983)"),
+        ContactLaw(
+            "lankarani_nikravesh",
+            damping_lankarani_nikravesh,
+            1.5,
+            True,
+            "Eq. (9)",
+            "Lankarani & Nikravesh (1994)",
+        ),
+        ContactLaw("gonthier", damping_gonthier, 1.5, True, "Eq. (10)", "Gonthier et al. (2004)"),
+        ContactLaw(
+            "zhiying_qishao", damping_zhiying_qishao, 1.5, True, "Eqs. (11)-(12)", "Zhiying & Qishao (2006)"
+        ),
+        ContactLaw("flores", damping_flores, 1.5, True, "Eq. (13)", "Flores et al. (2011)"),
+        ContactLaw(
+            "carvalho_martins",
+            damping_carvalho_martins,
+            1.5,
+            True,
+            "not in the paper (exact restitution)",
+            "Carvalho & Martins (2019)",
+        ),
+    )
+}
+
+
+def law_names() -> list[str]:
+    """Names of all contact laws, in registry order."""
+    return list(_LAWS)
+
+
+def get_law(name: str) -> ContactLaw:
+    """The law called ``name``; an :class:`InputError` naming the closest law otherwise."""
+    try:
+        return _LAWS[name]
+    except KeyError:
+        import difflib
+
+        close = difflib.get_close_matches(name, list(_LAWS), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise InputError(
+            f"contact model: unknown law {name!r}{hint}; known: {', '.join(_LAWS)}"
+        ) from None
+
+
+# ----------------------------------------------------------------------------------------
+# Stiffness, Eq. (4)
+# ----------------------------------------------------------------------------------------
+
+GEOMETRIES = ("concave", "convex", "flat")
+
+
+def effective_modulus(e1: float, nu1: float, e2: float, nu2: float) -> float:
+    """E* = ((1 - nu1^2)/E1 + (1 - nu2^2)/E2)^-1 [Pa] (Eq. 4)."""
+    return 1.0 / ((1.0 - nu1**2) / e1 + (1.0 - nu2**2) / e2)
+
+
+def effective_radius(r1: float, r2: float, geometry: str) -> float:
+    """Effective radius of two curved bodies [m] (Eq. 4).
+
+    ``concave``: a body of radius r1 inside a hollow of radius r2 > r1 (the guide pad in the
+    track), R = (1/r1 - 1/r2)^-1. ``convex``: two convex bodies, R = (1/r1 + 1/r2)^-1.
+    ``flat``: a body of radius r1 on a plane, R = r1 (r2 is not used).
+    """
+    if geometry == "flat":
+        return r1
+    if geometry == "convex":
+        return 1.0 / (1.0 / r1 + 1.0 / r2)
+    if geometry == "concave":
+        if r2 <= r1:
+            raise InputError(
+                f"contact geometry: concave contact needs the hollow radius ({r2} m) larger than "
+                f"the body radius ({r1} m)"
+            )
+        return 1.0 / (1.0 / r1 - 1.0 / r2)
+    raise InputError(f"contact geometry: unknown {geometry!r}; allowed: {', '.join(GEOMETRIES)}")
+
+
+def hertz_stiffness(e1: float, nu1: float, r1: float, e2: float, nu2: float, r2: float, geometry: str) -> float:
+    """Hertz contact stiffness K = 4/3 E* R^(1/2) [N/m^1.5] (Eq. 4 of the paper, Johnson 1985)."""
+    return 4.0 / 3.0 * effective_modulus(e1, nu1, e2, nu2) * math.sqrt(effective_radius(r1, r2, geometry))
+
+
+# ----------------------------------------------------------------------------------------
+# Closed forms of an elastic impact (tests, `braidsim impact` cross-checks)
+# ----------------------------------------------------------------------------------------
+
+
+def hertz_impact_closed_form(mass: float, stiffness: float, exponent: float, velocity: float) -> dict[str, float]:
+    """Closed forms of one elastic impact ``m p'' = -K p^n`` with approach speed v0.
+
+    max depth      p_m = ((n + 1) m v0^2 / (2 K))^(1/(n+1))                       [m]
+    peak force     F_m = K p_m^n                                                 [N]
+    duration       T = 2 p_m / v0 * B(1/(n+1), 1/2) / (n + 1)                     [s]
+
+    (T follows from dt = dp / sqrt(v0^2 - 2 K p^(n+1) / ((n+1) m)); for n = 3/2 the factor
+    2 B(2/5, 1/2) / (5/2) is 2.9432, Johnson 1985, Sect. 11.4.)
+    """
+    n1 = exponent + 1.0
+    p_m = (n1 * mass * velocity**2 / (2.0 * stiffness)) ** (1.0 / n1)
+    duration = 2.0 * p_m / velocity * special.beta(1.0 / n1, 0.5) / n1
+    return {"max_depth": p_m, "max_force": stiffness * p_m**exponent, "contact_duration": float(duration)}
+
+
+def resting_depth(load: float, stiffness: float, exponent: float) -> float:
+    """Static penetration under a constant load: (F / K)^(1/n) [m]."""
+    return float((load / stiffness) ** (1.0 / exponent))
+
+
+def damping_factors(c_r: float) -> dict[str, float]:
+    """D(c_r) of every law, keyed by name."""
+    return {name: law.damping_factor(c_r) for name, law in _LAWS.items()}
+
+
+def restitution_table(c_values: np.ndarray) -> dict[str, np.ndarray]:
+    """Exact effective restitution of every law over the nominal values ``c_values``."""
+    return {
+        name: np.array([effective_restitution(law.damping_factor(float(c))) for c in c_values])
+        for name, law in _LAWS.items()
+    }

@@ -1,0 +1,33 @@
+"""Exceptions of braidsim.
+
+Two kinds of failure reach a user, and the command line maps them to exit codes:
+
+* :class:`InputError` (exit code 2): the input is wrong. The message is one line that
+  names the parameter and the allowed range or the closest known name.
+* :class:`SimulationError` (exit code 1): the numbers went wrong. The message says what
+  failed, at what simulated time, and what to change.
+"""
+
+from __future__ import annotations
+
+
+class BraidsimError(Exception):
+    """Base class of every error braidsim raises on purpose."""
+
+
+class InputError(BraidsimError, ValueError):
+    """Bad input: unknown key, wrong unit, value out of range, malformed file."""
+
+
+class SimulationError(BraidsimError, RuntimeError):
+    """A numerical failure of the integrator.
+
+    Attributes
+    ----------
+    time : float
+        Simulated time [s] at which the failure happened (NaN when unknown).
+    """
+
+    def __init__(self, message: str, time: float = float("nan")) -> None:
+        super().__init__(message)
+        self.time = time

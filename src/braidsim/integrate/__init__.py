@@ -1,0 +1,1 @@
+"""Integrators: the compiled Dormand-Prince kernel and the SciPy reference backend."""

@@ -1,0 +1,1000 @@
+"""Compiled core: equations of motion and an event-exact Dormand-Prince 5(4) integrator.
+
+Everything here is numba ``njit`` code on plain float64 arrays (no units, no objects); the
+layers above (:mod:`braidsim.model`, :mod:`braidsim.simulate`) build the arrays and read the
+results. The layout of the parameter vector ``P`` is given by the ``P_*`` constants.
+
+Equations of motion (MODEL_NOTES sections 2-3; x radial, y tangential)::
+
+    m x'' = -s_t N_t - f_x(x') - T1 cos(phi) - m r_c omega(t)^2
+    m y'' = -s_s N_s - f_y(y') + T1 sin(phi)
+
+with the track walls at x = h(t) (inner) and x = h(t) + eps_g (outer), the slot walls at
+y = s(t) (rear) and y = s(t) + eps_h (front), s(t) = r_c int omega dt, s_t, s_s the side of
+the wall in contact (-1 inner/rear, +1 outer/front, 0 free), and the normal force
+
+    N = max(0, K p^n (1 + D pdot / v0))
+
+(see :mod:`braidsim.contact`), p the penetration into the wall, pdot its rate relative to the
+moving wall, v0 the approach speed latched at contact onset. Friction (Eq. 14):
+f_x = mu1 |m g - T2| phi(x'), f_y = mu2 N_t phi(y'), phi the regularised sign function.
+
+The integrator is the Dormand-Prince 5(4) pair (Hairer, Norsett & Wanner, Solving ODEs I,
+Sect. II.5, code DOPRI5) with its 4th-order continuous extension. In every accepted step the
+event functions (wall gaps in free flight, penetrations in contact) are sampled at
+``N_SUB`` interior points of the interpolant; a sign change is located by the Illinois method
+on the interpolant, and an interior minimum that does not change sign at the samples is
+searched for by golden section, so that a contact cannot hide inside a step. The step is then
+recomputed from its start to the event time exactly (full 5th-order accuracy at the event), the
+mode is switched and the integration restarts there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---- parameter vector layout ---------------------------------------------------------
+P_MASS = 0
+P_LOAD_X = 1  # T1 cos(phi) [N]
+P_MRC = 2  # m r_c [kg m]
+P_T_Y = 3  # T1 sin(phi) [N]
+P_EPS_G = 4
+P_EPS_H = 5
+P_K_T = 6
+P_N_T = 7
+P_D_T = 8
+P_K_S = 9
+P_N_S = 10
+P_D_S = 11
+P_FRIC_LAW = 12  # 0 arctan, 1 tanh, 2 stribeck, 3 none
+P_MU1 = 13
+P_MU2 = 14
+P_NX = 15  # |m g - T2| [N]
+P_VHAT = 16
+P_MUS_RATIO = 17
+P_VSTRIBECK = 18
+P_VMIN = 19
+P_VINIT = 20  # <= 0: energy-equivalent policy
+P_ALLOW_TENSION = 21
+P_DOF = 22  # 1: x only, 2: x and y
+P_RC = 23
+P_RTOL = 24
+P_ATOL_X = 25
+P_ATOL_V = 26
+P_HMAX = 27
+P_MAXSTEPS = 28
+P_T_END = 29
+P_TRANSFER_SPEED = 30
+P_OMEGA0 = 31
+P_RECORD_EVENTS = 32  # 1: write onset/exit/peak rows into the series; 0: samples only
+P_SIZE = 33
+
+# ---- state vector layout ---------------------------------------------------------------
+# x, vx, y, vy, dissipated energy of the track and slot contacts, friction work x and y
+NY = 8
+
+# ---- sampled series columns --------------------------------------------------------------
+COLUMNS = (
+    "t",
+    "x",
+    "vx",
+    "y",
+    "vy",
+    "track_depth",
+    "track_stiffness_force",
+    "track_damping_force",
+    "track_contact_force",
+    "slot_depth",
+    "slot_stiffness_force",
+    "slot_damping_force",
+    "slot_contact_force",
+    "friction_x",
+    "friction_y",
+    "track_dissipated",
+    "slot_dissipated",
+    "friction_work_x",
+    "friction_work_y",
+    "track_position",
+    "slot_position",
+    "omega",
+    "kind",
+)
+NCOL = len(COLUMNS)
+KIND_SAMPLE, KIND_ONSET, KIND_EXIT, KIND_PEAK, KIND_TRANSFER, KIND_START, KIND_END = range(7)
+
+# ---- episode (impact) table columns ------------------------------------------------------
+EPISODE_COLUMNS = (
+    "t",
+    "t_end",
+    "pair",  # 0 track, 1 slot
+    "wall",  # -1 inner/rear, +1 outer/front
+    "velocity",  # approach speed at onset (raw, relative, >= 0 when approaching)
+    "latched_velocity",  # v0 used in the force law (floored, or the t = 0 policy)
+    "rebound_velocity",  # separation speed at exit, NaN while ongoing
+    "max_depth",
+    "t_max_depth",
+    "peak_force",
+    "t_peak_force",
+    "min_damping_force",
+    "max_damping_force",
+    "dissipated_energy",
+    "end_reason",  # 0 exit, 1 still in contact at the end, 2 cut by a transfer
+    "initial",  # 1 when the contact existed at the start (t = 0 or right after a transfer)
+)
+NEP = len(EPISODE_COLUMNS)
+
+# ---- status codes ---------------------------------------------------------------------------
+ST_OK = 0
+ST_STEP_COLLAPSE = 1
+ST_NONFINITE = 2
+ST_MAX_STEPS = 3
+ST_CAPACITY_ROWS = 4
+ST_CAPACITY_EPISODES = 5
+ST_ZENO = 6
+
+N_SUB = 8  # interior samples of the interpolant per step for events and extremes
+N_STATS = 8  # steps, rejected, events, rhs evaluations, transfers, min h, max h, t_fail
+
+# ---- Dormand-Prince 5(4) coefficients (Hairer's DOPRI5) ------------------------------
+C2, C3, C4, C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
+A21 = 1.0 / 5.0
+A31, A32 = 3.0 / 40.0, 9.0 / 40.0
+A41, A42, A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
+A51, A52, A53, A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
+A61, A62, A63, A64, A65 = (
+    9017.0 / 3168.0,
+    -355.0 / 33.0,
+    46732.0 / 5247.0,
+    49.0 / 176.0,
+    -5103.0 / 18656.0,
+)
+A71, A73, A74, A75, A76 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
+E1, E3, E4, E5, E6, E7 = (
+    71.0 / 57600.0,
+    -71.0 / 16695.0,
+    71.0 / 1920.0,
+    -17253.0 / 339200.0,
+    22.0 / 525.0,
+    -1.0 / 40.0,
+)
+D1, D3, D4, D5, D6, D7 = (
+    -12715105075.0 / 11282082432.0,
+    87487479700.0 / 32700410799.0,
+    -10690763975.0 / 1880347072.0,
+    701980252875.0 / 199316789632.0,
+    -1453857185.0 / 822651844.0,
+    69997945.0 / 29380423.0,
+)
+GOLD = 0.3819660112501051  # 2 - golden ratio
+
+
+# =======================================================================================
+# Excitation: track vibration h(t), horn-gear speed omega(t) and slot position s(t)
+# =======================================================================================
+
+
+@njit(cache=True)
+def track_h(t, TH):
+    """Track wall displacement h(t) = sum a cos(w t + phi) [m] and its rate [m/s]."""
+    h = 0.0
+    hd = 0.0
+    for i in range(TH.shape[0]):
+        arg = TH[i, 1] * t + TH[i, 2]
+        h += TH[i, 0] * math.cos(arg)
+        hd -= TH[i, 0] * TH[i, 1] * math.sin(arg)
+    return h, hd
+
+
+@njit(cache=True)
+def horn_gear(t, P, WH, PT, PW, PI):
+    """Horn-gear speed omega(t) [rad/s] and slot travel s(t) = r_c int_0^t omega [m]."""
+    rc = P[P_RC]
+    npf = PT.shape[0]
+    if npf >= 2:
+        # periodic piecewise-linear profile; PI holds int omega from PT[0] to each node
+        period = PT[npf - 1] - PT[0]
+        tau = t - PT[0]
+        k = math.floor(tau / period)
+        tau -= k * period
+        base = k * PI[npf - 1]
+        j = 0
+        while j < npf - 2 and PT[j + 1] - PT[0] <= tau:
+            j += 1
+        dt = tau - (PT[j] - PT[0])
+        slope = (PW[j + 1] - PW[j]) / (PT[j + 1] - PT[j])
+        om = PW[j] + slope * dt
+        integral = base + PI[j] + PW[j] * dt + 0.5 * slope * dt * dt
+        # offset so that s(0) = 0
+        tau0 = -PT[0]
+        k0 = math.floor(tau0 / period)
+        tau0 -= k0 * period
+        j0 = 0
+        while j0 < npf - 2 and PT[j0 + 1] - PT[0] <= tau0:
+            j0 += 1
+        dt0 = tau0 - (PT[j0] - PT[0])
+        slope0 = (PW[j0 + 1] - PW[j0]) / (PT[j0 + 1] - PT[j0])
+        integral0 = k0 * PI[npf - 1] + PI[j0] + PW[j0] * dt0 + 0.5 * slope0 * dt0 * dt0
+        return om, rc * (integral - integral0)
+    om = P[P_OMEGA0]
+    integral = P[P_OMEGA0] * t
+    for i in range(WH.shape[0]):
+        a = WH[i, 0]
+        w = WH[i, 1]
+        ph = WH[i, 2]
+        om += a * math.cos(w * t + ph)
+        if w > 0.0:
+            integral += a / w * (math.sin(w * t + ph) - math.sin(ph))
+        else:
+            integral += a * math.cos(ph) * t
+    return om, rc * integral
+
+
+# =======================================================================================
+# Contact and friction laws
+# =======================================================================================
+
+
+@njit(cache=True)
+def friction(v, normal, mu, P):
+    """Regularised friction force [N] opposing the sliding speed v (Eq. 14 and variants)."""
+    law = int(P[P_FRIC_LAW])
+    vhat = P[P_VHAT]
+    if law == 0:
+        return mu * normal * (2.0 / math.pi) * math.atan(v / vhat)
+    if law == 1:
+        return mu * normal * math.tanh(v / vhat)
+    if law == 2:
+        vs = P[P_VSTRIBECK]
+        mu_eff = mu * (1.0 + (P[P_MUS_RATIO] - 1.0) * math.exp(-((v / vs) ** 2)))
+        return mu_eff * normal * math.tanh(v / vhat)
+    return 0.0
+
+
+@njit(cache=True)
+def contact(mode, gap_rel, rate_rel, k, n, d, v0, allow_tension):
+    """Penetration, stiffness force, damping force and normal force of one contact pair.
+
+    ``gap_rel`` is the coordinate relative to the wall pair (x - h for the track), ``rate_rel``
+    its rate; ``mode`` = -1 (inner wall at 0) or +1 (outer wall at the clearance, passed in
+    ``gap_rel`` already shifted). Returns (p, pdot, F_k, F_c, N) with F_k = K p^n >= 0,
+    F_c = K p^n D pdot / v0 and N = F_k + F_c clamped at 0 unless tension is allowed.
+    """
+    if mode < 0:
+        p = -gap_rel
+        pd = -rate_rel
+    else:
+        p = gap_rel
+        pd = rate_rel
+    if p < 0.0:
+        p = 0.0
+    fk = k * p**n
+    fc = fk * d * pd / v0
+    nn = fk + fc
+    if nn < 0.0 and allow_tension == 0.0:
+        nn = 0.0
+    return p, pd, fk, fc, nn
+
+
+@njit(cache=True)
+def pair_state(t, Y, pair, P, TH, WH, PT, PW, PI):
+    """Coordinate and rate of the carrier relative to the inner/rear wall of a pair."""
+    if pair == 0:
+        h, hd = track_h(t, TH)
+        return Y[0] - h, Y[1] - hd, P[P_EPS_G]
+    om, s = horn_gear(t, P, WH, PT, PW, PI)
+    return Y[2] - s, Y[3] - P[P_RC] * om, P[P_EPS_H]
+
+
+@njit(cache=True)
+def pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI):
+    """(p, pdot, F_k, F_c, N) of a pair in contact mode ``mode`` (zeros when free)."""
+    if mode == 0:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    u, ud, eps = pair_state(t, Y, pair, P, TH, WH, PT, PW, PI)
+    if mode > 0:
+        u = u - eps
+    base = P_K_T if pair == 0 else P_K_S
+    return contact(mode, u, ud, P[base], P[base + 1], P[base + 2], v0, P[P_ALLOW_TENSION])
+
+
+@njit(cache=True)
+def rhs(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, out):
+    """Time derivative of the state ``Y`` in the contact modes (mt, ms)."""
+    m = P[P_MASS]
+    om, _ = horn_gear(t, P, WH, PT, PW, PI)
+    _, pdt, fkt, fct, nt = pair_forces(t, Y, 0, mt, v0t, P, TH, WH, PT, PW, PI)
+    fx = friction(Y[1], P[P_NX], P[P_MU1], P)
+    out[0] = Y[1]
+    out[1] = (-mt * nt - fx - P[P_LOAD_X] - P[P_MRC] * om * om) / m
+    out[4] = (nt - fkt) * pdt
+    out[6] = fx * Y[1]
+    if P[P_DOF] > 1.5:
+        _, pds, fks, fcs, ns = pair_forces(t, Y, 1, ms, v0s, P, TH, WH, PT, PW, PI)
+        fy = friction(Y[3], abs(nt), P[P_MU2], P)
+        out[2] = Y[3]
+        out[3] = (-ms * ns - fy + P[P_T_Y]) / m
+        out[5] = (ns - fks) * pds
+        out[7] = fy * Y[3]
+    else:
+        out[2] = 0.0
+        out[3] = 0.0
+        out[5] = 0.0
+        out[7] = 0.0
+
+
+# =======================================================================================
+# Dense output
+# =======================================================================================
+
+
+@njit(cache=True)
+def dense_eval(theta, RC, out):
+    """State at fraction theta of the step from the continuous extension coefficients."""
+    th1 = 1.0 - theta
+    for i in range(NY):
+        out[i] = RC[0, i] + theta * (
+            RC[1, i] + th1 * (RC[2, i] + theta * (RC[3, i] + th1 * RC[4, i]))
+        )
+
+
+@njit(cache=True)
+def event_value(j, t, Y, mt, ms, P, TH, WH, PT, PW, PI):
+    """Event function j (>= 0 allowed, < 0 means the event happened); +1 when inactive.
+
+    j = 0, 1: track inner / outer onset (free) or exit (contact on that wall);
+    j = 2, 3: the same for the slot (only with two DOFs).
+    """
+    pair = 0 if j < 2 else 1
+    side = -1 if j % 2 == 0 else 1
+    mode = mt if pair == 0 else ms
+    if pair == 1 and P[P_DOF] < 1.5:
+        return 1.0
+    u, _, eps = pair_state(t, Y, pair, P, TH, WH, PT, PW, PI)
+    if mode == 0:
+        return u if side < 0 else eps - u
+    if mode != side:
+        return 1.0
+    return -u if side < 0 else u - eps
+
+
+@njit(cache=True)
+def quantity(q, t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI):
+    """Scalar tracked for extremes: q = 4*pair + {0: p, 1: F_c, 2: -F_c, 3: N}."""
+    pair = q // 4
+    kind = q % 4
+    mode = mt if pair == 0 else ms
+    v0 = v0t if pair == 0 else v0s
+    p, _, _, fc, nn = pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI)
+    if kind == 0:
+        return p
+    if kind == 1:
+        return fc
+    if kind == 2:
+        return -fc
+    return nn
+
+
+# =======================================================================================
+# The integrator
+# =======================================================================================
+
+
+@njit(cache=True)
+def _step(t, Y, h, K, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Yt, Y1):
+    """One Dormand-Prince step of size h from (t, Y) with K[0] = f(t, Y); fills K[1..6], Y1."""
+    for i in range(NY):
+        Yt[i] = Y[i] + h * A21 * K[0, i]
+    rhs(t + C2 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[1])
+    for i in range(NY):
+        Yt[i] = Y[i] + h * (A31 * K[0, i] + A32 * K[1, i])
+    rhs(t + C3 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[2])
+    for i in range(NY):
+        Yt[i] = Y[i] + h * (A41 * K[0, i] + A42 * K[1, i] + A43 * K[2, i])
+    rhs(t + C4 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[3])
+    for i in range(NY):
+        Yt[i] = Y[i] + h * (A51 * K[0, i] + A52 * K[1, i] + A53 * K[2, i] + A54 * K[3, i])
+    rhs(t + C5 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[4])
+    for i in range(NY):
+        Yt[i] = Y[i] + h * (
+            A61 * K[0, i] + A62 * K[1, i] + A63 * K[2, i] + A64 * K[3, i] + A65 * K[4, i]
+        )
+    rhs(t + h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[5])
+    for i in range(NY):
+        Y1[i] = Y[i] + h * (
+            A71 * K[0, i] + A73 * K[2, i] + A74 * K[3, i] + A75 * K[4, i] + A76 * K[5, i]
+        )
+    rhs(t + h, Y1, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[6])
+
+
+@njit(cache=True)
+def _error_norm(Y, Y1, h, K, P):
+    """RMS of the embedded error estimate scaled by atol + rtol |y| over the active DOFs."""
+    rtol = P[P_RTOL]
+    nd = 4 if P[P_DOF] > 1.5 else 2
+    acc = 0.0
+    for i in range(nd):
+        atol = P[P_ATOL_X] if i % 2 == 0 else P[P_ATOL_V]
+        err = h * (
+            E1 * K[0, i] + E3 * K[2, i] + E4 * K[3, i] + E5 * K[4, i] + E6 * K[5, i] + E7 * K[6, i]
+        )
+        sc = atol + rtol * max(abs(Y[i]), abs(Y1[i]))
+        acc += (err / sc) ** 2
+    return math.sqrt(acc / nd)
+
+
+@njit(cache=True)
+def _dense_coeffs(Y, Y1, h, K, RC):
+    for i in range(NY):
+        ydiff = Y1[i] - Y[i]
+        bspl = h * K[0, i] - ydiff
+        RC[0, i] = Y[i]
+        RC[1, i] = ydiff
+        RC[2, i] = bspl
+        RC[3, i] = ydiff - h * K[6, i] - bspl
+        RC[4, i] = h * (
+            D1 * K[0, i] + D3 * K[2, i] + D4 * K[3, i] + D5 * K[4, i] + D6 * K[5, i] + D7 * K[6, i]
+        )
+
+
+@njit(cache=True)
+def _event_at(j, t0, h, theta, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
+    dense_eval(theta, RC, Ys)
+    return event_value(j, t0 + theta * h, Ys, mt, ms, P, TH, WH, PT, PW, PI)
+
+
+@njit(cache=True)
+def event_active(j, mt, ms, P):
+    """Whether event function j can fire in the modes (mt, ms)."""
+    pair = 0 if j < 2 else 1
+    if pair == 1 and P[P_DOF] < 1.5:
+        return False
+    side = -1 if j % 2 == 0 else 1
+    mode = mt if pair == 0 else ms
+    return mode == 0 or mode == side
+
+
+@njit(cache=True)
+def _golden_dip(j, t0, h, a, b, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
+    """Golden-section search of event function j on [a, b] for a value below zero.
+
+    Returns the first theta found with a negative value, or 2.0 when the minimum is >= 0.
+    """
+    c = a + GOLD * (b - a)
+    d = b - GOLD * (b - a)
+    fc = _event_at(j, t0, h, c, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    fd = _event_at(j, t0, h, d, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    for _ in range(80):
+        if fc < 0.0:
+            return c
+        if fd < 0.0:
+            return d
+        if b - a < 1e-13:
+            break
+        if fc < fd:
+            b = d
+            d = c
+            fd = fc
+            c = a + GOLD * (b - a)
+            fc = _event_at(j, t0, h, c, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+        else:
+            a = c
+            c = d
+            fc = fd
+            d = b - GOLD * (b - a)
+            fd = _event_at(j, t0, h, d, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    return 2.0
+
+
+@njit(cache=True)
+def _locate_event(j, t0, h, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
+    """Earliest theta in (0, 1] where event function j turns negative; 2.0 when none.
+
+    Samples N_SUB points; a sign change is refined by the Illinois method, an interior
+    local minimum of the samples by golden section (a contact between two samples).
+    """
+    if not event_active(j, mt, ms, P):
+        return 2.0
+    gs = np.empty(N_SUB + 1)
+    gs[0] = max(_event_at(j, t0, h, 0.0, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys), 0.0)
+    for k in range(1, N_SUB + 1):
+        gs[k] = _event_at(j, t0, h, k / N_SUB, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    lo = -1.0
+    hi = -1.0
+    for k in range(1, N_SUB + 1):
+        if gs[k] < 0.0:
+            lo = (k - 1) / N_SUB
+            hi = k / N_SUB
+            break
+        if k < N_SUB and gs[k] < gs[k - 1] and gs[k] <= gs[k + 1]:
+            # interior local minimum of the samples: golden section for a dip below zero
+            dip = _golden_dip(j, t0, h, (k - 1) / N_SUB, (k + 1) / N_SUB, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+            if dip < 2.0:
+                lo = (k - 1) / N_SUB
+                hi = dip
+                break
+    if hi < 0.0:
+        return 2.0
+    # Illinois on [lo, hi] with g(lo) >= 0 > g(hi)
+    glo = max(_event_at(j, t0, h, lo, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys), 0.0)
+    ghi = _event_at(j, t0, h, hi, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    side = 0
+    for _ in range(200):
+        if hi - lo <= 1e-15 * max(1.0, abs(t0) / max(h, 1e-300)) or hi - lo < 1e-16:
+            break
+        denom = glo - ghi
+        mid = hi - ghi * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
+        if not (lo < mid < hi):
+            mid = 0.5 * (lo + hi)
+        gm = _event_at(j, t0, h, mid, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+        if gm < 0.0:
+            hi = mid
+            ghi = gm
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        else:
+            lo = mid
+            glo = gm
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+    return hi
+
+
+@njit(cache=True)
+def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, TH, WH, PT, PW, PI):
+    """Append one row of the sampled series (state plus derived contact quantities)."""
+    if kind != KIND_SAMPLE and P[P_RECORD_EVENTS] == 0.0:
+        return nrow
+    if nrow >= rows.shape[0]:
+        return nrow + 1
+    r = rows[nrow]
+    r[0] = t
+    for i in range(4):
+        r[1 + i] = Y[i]
+    for pair in range(2):
+        mode = mt if pair == 0 else ms
+        v0 = v0t if pair == 0 else v0s
+        p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI)
+        sgn = float(mode)
+        r[5 + 4 * pair] = sgn * p
+        r[6 + 4 * pair] = sgn * fk
+        r[7 + 4 * pair] = sgn * fc
+        r[8 + 4 * pair] = sgn * nn
+    _, _, _, _, nt = pair_forces(t, Y, 0, mt, v0t, P, TH, WH, PT, PW, PI)
+    r[13] = friction(Y[1], P[P_NX], P[P_MU1], P)
+    r[14] = friction(Y[3], abs(nt), P[P_MU2], P) if P[P_DOF] > 1.5 else 0.0
+    for i in range(4):
+        r[15 + i] = Y[4 + i]
+    h, _ = track_h(t, TH)
+    om, s = horn_gear(t, P, WH, PT, PW, PI)
+    r[19] = h
+    r[20] = s
+    r[21] = om
+    r[22] = kind
+    return nrow + 1
+
+
+@njit(cache=True)
+def _update_ranges(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES):
+    """Fold the contact quantities at time t into the [min, max] of each window containing t.
+
+    RANGES[w, pair, q, 0/1] with q = 0 depth, 1 F_kg, 2 F_cg, 3 contact force (paper signs).
+    """
+    for pair in range(2):
+        mode = mt if pair == 0 else ms
+        v0 = v0t if pair == 0 else v0s
+        p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI)
+        sgn = float(mode)
+        vals = (sgn * p, sgn * fk, sgn * fc, sgn * nn)
+        for w in range(WIN.shape[0]):
+            if WIN[w, 0] <= t <= WIN[w, 1]:
+                for q in range(4):
+                    v = vals[q]
+                    if v < RANGES[w, pair, q, 0]:
+                        RANGES[w, pair, q, 0] = v
+                    if v > RANGES[w, pair, q, 1]:
+                        RANGES[w, pair, q, 1] = v
+
+
+@njit(cache=True)
+def _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Ys):
+    """Maximise quantity q over theta in [a, b] on the interpolant (golden section)."""
+    c = a + GOLD * (b - a)
+    d = b - GOLD * (b - a)
+    dense_eval(c, RC, Ys)
+    fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+    dense_eval(d, RC, Ys)
+    fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+    for _ in range(80):
+        if b - a < 1e-12:
+            break
+        if fc > fd:
+            b = d
+            d = c
+            fd = fc
+            c = a + GOLD * (b - a)
+            dense_eval(c, RC, Ys)
+            fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+        else:
+            a = c
+            c = d
+            fc = fd
+            d = b - GOLD * (b - a)
+            dense_eval(d, RC, Ys)
+            fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+    return 0.5 * (a + b)
+
+
+@njit(cache=True)
+def _episode_update(EP, ie, q, val, t):
+    """Fold a value of quantity q (per pair) into the open episode ie."""
+    kind = q % 4
+    if kind == 0:
+        if val > EP[ie, 7]:
+            EP[ie, 7] = val
+            EP[ie, 8] = t
+    elif kind == 1:
+        if val > EP[ie, 12]:
+            EP[ie, 12] = val
+        if val < EP[ie, 11]:
+            EP[ie, 11] = val
+    elif kind == 2:
+        if -val < EP[ie, 11]:
+            EP[ie, 11] = -val
+        if -val > EP[ie, 12]:
+            EP[ie, 12] = -val
+    else:
+        if val > EP[ie, 9]:
+            EP[ie, 9] = val
+            EP[ie, 10] = t
+
+
+@njit(cache=True)
+def _scan_step(t0, h, RC, Y0, Y1, mt, ms, v0t, v0s, open_ep, EP, P, TH, WH, PT, PW, PI, WIN, RANGES,
+               rows, nrow, ST, isamp, Ys):
+    """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks."""
+    t1 = t0 + h
+    # sampled series
+    while isamp < ST.shape[0] and ST[isamp] <= t1:
+        if ST[isamp] > t0:
+            theta = (ST[isamp] - t0) / h if h > 0 else 1.0
+            dense_eval(theta, RC, Ys)
+            nrow = _write_row(rows, nrow, ST[isamp], Ys, mt, ms, v0t, v0s, KIND_SAMPLE, P, TH, WH, PT, PW, PI)
+        isamp += 1
+    # ranges at the end point and at window boundaries inside the step
+    _update_ranges(t1, Y1, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES)
+    for w in range(WIN.shape[0]):
+        for e in range(2):
+            tb = WIN[w, e]
+            if t0 < tb < t1:
+                dense_eval((tb - t0) / h, RC, Ys)
+                _update_ranges(tb, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES)
+    if mt == 0 and ms == 0:
+        return nrow, isamp
+    # extremes inside the step for each pair in contact
+    for pair in range(2):
+        mode = mt if pair == 0 else ms
+        if mode == 0:
+            continue
+        ie = open_ep[pair]
+        for kind in range(4):
+            q = 4 * pair + kind
+            vals = np.empty(N_SUB + 1)
+            for k in range(N_SUB + 1):
+                theta = k / N_SUB
+                dense_eval(theta, RC, Ys)
+                vals[k] = quantity(q, t0 + theta * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+            kb = 0
+            for k in range(1, N_SUB + 1):
+                if vals[k] > vals[kb]:
+                    kb = k
+            if ie >= 0:
+                _episode_update(EP, ie, q, vals[kb], t0 + kb / N_SUB * h)
+                _episode_update(EP, ie, q, vals[0], t0)
+            if 0 < kb < N_SUB or (kb == N_SUB and kind == 0):
+                a = (kb - 1) / N_SUB
+                b = min(kb + 1, N_SUB) / N_SUB
+                theta = _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Ys)
+                if kb == N_SUB and theta > 1.0 - 1e-9:
+                    continue  # still rising at the end of the step: the next step has the peak
+                dense_eval(theta, RC, Ys)
+                tq = t0 + theta * h
+                val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+                if ie >= 0:
+                    _episode_update(EP, ie, q, val, tq)
+                _update_ranges(tq, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES)
+                if kind == 0 or kind == 3:
+                    nrow = _write_row(rows, nrow, tq, Ys, mt, ms, v0t, v0s, KIND_PEAK, P, TH, WH, PT, PW, PI)
+    return nrow, isamp
+
+
+@njit(cache=True)
+def _open_episode(EP, nep, t, pair, wall, vel, v0, initial):
+    if nep >= EP.shape[0]:
+        return nep + 1
+    e = EP[nep]
+    e[0] = t
+    e[1] = math.nan
+    e[2] = pair
+    e[3] = wall
+    e[4] = vel
+    e[5] = v0
+    e[6] = math.nan
+    e[7] = 0.0
+    e[8] = t
+    e[9] = 0.0
+    e[10] = t
+    e[11] = 0.0
+    e[12] = 0.0
+    e[13] = 0.0
+    e[14] = 1.0
+    e[15] = initial
+    return nep + 1
+
+
+@njit(cache=True)
+def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, TH, WH, PT, PW, PI):
+    """Contact policy at t = 0 and right after a transfer.
+
+    A pair whose carrier overlaps a wall starts in contact. Such a contact has no approach
+    speed; by default it is released elastically (v0 = inf, so the damping term vanishes until
+    the next onset), which reproduces the paper's sections 3.3-3.4 (MODEL_NOTES section 4);
+    ``contact.initial_impact_velocity`` gives a finite v0 instead. A carrier exactly on a
+    wall and moving into it starts in contact with its approach rate latched (floored at
+    ``contact.min_impact_velocity``), as after a transfer (section 3.2).
+    """
+    for pair in range(npair):
+        u, ud, eps = pair_state(t, Y, pair, P, TH, WH, PT, PW, PI)
+        base = P_K_T if pair == 0 else P_K_S
+        k = P[base]
+        n = P[base + 1]
+        mode = 0
+        p = 0.0
+        pd = 0.0
+        if u < 0.0 or (u == 0.0 and ud < 0.0):
+            mode = -1
+            p = -u
+            pd = -ud
+        elif u > eps or (u == eps and ud > 0.0):
+            mode = 1
+            p = u - eps
+            pd = ud
+        if mode == 0:
+            mt_ms[pair] = 0
+            continue
+        if p > 0.0:
+            # an overlap with no approach history: released elastically (v0 = inf, no damping
+            # term) unless contact.initial_impact_velocity gives a speed
+            v0 = P[P_VINIT] if P[P_VINIT] > 0.0 else math.inf
+        else:
+            v0 = pd if pd > P[P_VMIN] else P[P_VMIN]
+        mt_ms[pair] = mode
+        v0s_arr[pair] = v0
+        nep_new = _open_episode(EP, nep, t, pair, mode, pd, v0, 1.0 if p > 0.0 else 0.0)
+        if nep < EP.shape[0]:
+            open_ep[pair] = nep
+            EP[nep, 13] = ED[pair]
+            EP[nep, 7] = p
+        nep = nep_new
+    return nep
+
+
+@njit(cache=True)
+def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
+    """Integrate from t = 0 to P[P_T_END]; returns (status, number of rows, number of episodes).
+
+    Outputs are written into the preallocated ``rows`` (series), ``EP`` (episodes),
+    ``RANGES`` (window extremes, initialised by the caller to +inf/-inf) and ``STATS``.
+    A status of ST_CAPACITY_* asks the caller to retry with larger arrays.
+    """
+    t_end = P[P_T_END]
+    hmax = P[P_HMAX]
+    max_steps = int(P[P_MAXSTEPS])
+    Y = Y0.copy()
+    Y1 = np.empty(NY)
+    Yt = np.empty(NY)
+    Ys = np.empty(NY)
+    Ye = np.empty(NY)
+    K = np.empty((7, NY))
+    Ke = np.empty((7, NY))
+    RC = np.empty((5, NY))
+    modes = np.zeros(2, dtype=np.int64)
+    v0 = np.ones(2)
+    open_ep = -np.ones(2, dtype=np.int64)
+    ED = np.zeros(2)
+    nrow = 0
+    nep = 0
+    isamp = 0
+    itr = 0
+    t = 0.0
+    status = ST_OK
+    for i in range(STATS.shape[0]):
+        STATS[i] = 0.0
+    STATS[5] = math.inf
+
+    nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 2 if P[P_DOF] > 1.5 else 1, P, TH, WH, PT,
+                          PW, PI)
+    nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_START, P, TH, WH, PT, PW, PI)
+    _update_ranges(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, WIN, RANGES)
+    while isamp < ST.shape[0] and ST[isamp] <= 0.0:
+        nrow = _write_row(rows, nrow, 0.0, Y, modes[0], modes[1], v0[0], v0[1], KIND_SAMPLE, P, TH, WH, PT, PW, PI)
+        isamp += 1
+    while itr < TR.shape[0] and TR[itr] <= 0.0:
+        itr += 1
+
+    rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, K[0])
+    STATS[3] += 1
+    h = min(1e-6, hmax, t_end)
+    nsteps = 0
+    same_time_events = 0
+    last_event_t = -1.0
+    reject_streak = 0
+    while t < t_end:
+        if nsteps >= max_steps:
+            status = ST_MAX_STEPS
+            break
+        t_stop = t_end
+        if itr < TR.shape[0] and TR[itr] < t_stop:
+            t_stop = TR[itr]
+        hits_stop = False
+        if h >= t_stop - t:
+            h = t_stop - t
+            hits_stop = True
+        if h < 4e-16 * max(1.0, abs(t)) * 8:
+            status = ST_STEP_COLLAPSE
+            break
+        _step(t, Y, h, K, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, Yt, Y1)
+        STATS[3] += 6
+        nsteps += 1
+        err = _error_norm(Y, Y1, h, K, P)
+        finite = True
+        for i in range(NY):
+            if not math.isfinite(Y1[i]):
+                finite = False
+        if not finite or not math.isfinite(err):
+            if h < 1e-14 * max(1.0, t):
+                status = ST_NONFINITE
+                break
+            h *= 0.1
+            hits_stop = False
+            STATS[1] += 1
+            continue
+        if err > 1.0:
+            fac = max(0.2, 0.9 * err ** (-0.2))
+            h *= fac
+            STATS[1] += 1
+            reject_streak += 1
+            continue
+        reject_streak = 0
+        fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-0.2)))
+        h_next = min(h * fac, hmax)
+        _dense_coeffs(Y, Y1, h, K, RC)
+        # ---- events on the interpolant
+        theta_ev = 2.0
+        j_ev = -1
+        for j in range(4):
+            th = _locate_event(j, t, h, RC, modes[0], modes[1], P, TH, WH, PT, PW, PI, Ys)
+            if th < theta_ev:
+                theta_ev = th
+                j_ev = j
+        if j_ev >= 0:
+            # recompute the step exactly to the event time
+            he = theta_ev * h
+            if he <= 0.0:
+                he = 1e-16 * max(1.0, t)
+            for i in range(NY):
+                Ke[0, i] = K[0, i]
+            _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, Yt, Ye)
+            STATS[3] += 6
+            _dense_coeffs(Y, Ye, he, Ke, RC)
+            nrow, isamp = _scan_step(t, he, RC, Y, Ye, modes[0], modes[1], v0[0], v0[1], open_ep, EP, P, TH,
+                                     WH, PT, PW, PI, WIN, RANGES, rows, nrow, ST, isamp, Ys)
+            t_ev = t + he
+            for i in range(NY):
+                Y[i] = Ye[i]
+            ED[0] = Y[4]
+            ED[1] = Y[5]
+            pair = 0 if j_ev < 2 else 1
+            side = -1 if j_ev % 2 == 0 else 1
+            u, ud, eps = pair_state(t_ev, Y, pair, P, TH, WH, PT, PW, PI)
+            rate = -ud if side < 0 else ud  # penetration rate into this wall
+            if modes[pair] == 0:
+                # onset: latch the approach speed
+                vlat = rate if rate > P[P_VMIN] else P[P_VMIN]
+                modes[pair] = side
+                v0[pair] = vlat
+                nep_new = _open_episode(EP, nep, t_ev, pair, side, rate, vlat, 0.0)
+                if nep < EP.shape[0]:
+                    open_ep[pair] = nep
+                    EP[nep, 13] = ED[pair]
+                nep = nep_new
+                nrow = _write_row(rows, nrow, t_ev, Y, modes[0], modes[1], v0[0], v0[1], KIND_ONSET, P, TH, WH,
+                                  PT, PW, PI)
+            else:
+                # exit
+                nrow = _write_row(rows, nrow, t_ev, Y, modes[0], modes[1], v0[0], v0[1], KIND_EXIT, P, TH, WH,
+                                  PT, PW, PI)
+                ie = open_ep[pair]
+                if ie >= 0:
+                    EP[ie, 1] = t_ev
+                    EP[ie, 6] = -rate
+                    EP[ie, 13] = ED[pair] - EP[ie, 13]
+                    EP[ie, 14] = 0.0
+                open_ep[pair] = -1
+                modes[pair] = 0
+            _update_ranges(t_ev, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, WIN, RANGES)
+            STATS[0] += 1
+            STATS[2] += 1
+            if t_ev - last_event_t <= 1e-12 * max(1.0, t_ev):
+                same_time_events += 1
+                if same_time_events > 50:
+                    status = ST_ZENO
+                    t = t_ev
+                    break
+            else:
+                same_time_events = 0
+            last_event_t = t_ev
+            t = t_ev
+            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, K[0])
+            STATS[3] += 1
+            STATS[5] = min(STATS[5], he)
+            continue
+        # ---- accepted step without event
+        nrow, isamp = _scan_step(t, h, RC, Y, Y1, modes[0], modes[1], v0[0], v0[1], open_ep, EP, P, TH, WH,
+                                 PT, PW, PI, WIN, RANGES, rows, nrow, ST, isamp, Ys)
+        STATS[0] += 1
+        STATS[5] = min(STATS[5], h)
+        STATS[6] = max(STATS[6], h)
+        t = t_stop if hits_stop else t + h
+        for i in range(NY):
+            Y[i] = Y1[i]
+            K[0, i] = K[6, i]
+        ED[0] = Y[4]
+        ED[1] = Y[5]
+        if hits_stop and itr < TR.shape[0] and t >= TR[itr]:
+            # transfer to the next horn gear: the wall the carrier leans on becomes the far wall
+            itr += 1
+            STATS[4] += 1
+            for pair in range(1):
+                ie = open_ep[pair]
+                if ie >= 0:
+                    EP[ie, 1] = t
+                    EP[ie, 13] = ED[pair] - EP[ie, 13]
+                    EP[ie, 14] = 2.0
+                    open_ep[pair] = -1
+            hh, hd = track_h(t, TH)
+            xr = Y[0] - hh
+            eps = P[P_EPS_G]
+            if xr < 0.0:
+                xr = 0.0
+            if xr > eps:
+                xr = eps
+            Y[0] = hh + eps - xr
+            Y[1] = 2.0 * hd - Y[1] + P[P_TRANSFER_SPEED]
+            modes[0] = 0
+            nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_TRANSFER, P, TH, WH, PT,
+                              PW, PI)
+            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 1, P, TH, WH, PT, PW, PI)
+            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, K[0])
+            STATS[3] += 1
+        h = h_next
+    STATS[7] = t
+    if status == ST_OK:
+        nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_END, P, TH, WH, PT, PW, PI)
+        for pair in range(2):
+            ie = open_ep[pair]
+            if ie >= 0:
+                EP[ie, 1] = t
+                EP[ie, 13] = Y[4 + pair] - EP[ie, 13]
+                EP[ie, 14] = 1.0
+        if nrow > rows.shape[0]:
+            status = ST_CAPACITY_ROWS
+        elif nep > EP.shape[0]:
+            status = ST_CAPACITY_EPISODES
+    for i in range(NY):
+        Y0[i] = Y[i]
+    return status, nrow, nep

@@ -1,0 +1,576 @@
+"""Parameters: the schema of every scenario key, validation, and the frozen Scenario.
+
+A scenario is a TOML file, a built-in name, or a mapping of dotted keys. Values are numbers
+in SI or strings with units. :func:`load_scenario` reads one, applies overrides, checks every
+key against :data:`SCHEMA` (unknown key -> the closest known name; wrong unit; out of range;
+NaN or inf) and returns a frozen :class:`Scenario` whose values are plain SI floats.
+
+The key names are the public interface of ``../shared/CONTRACT.md``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from braidsim.contact import GEOMETRIES, law_names
+from braidsim.errors import InputError
+from braidsim.units import to_si
+
+PI = math.pi
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One scenario key.
+
+    Attributes
+    ----------
+    key : str
+        Dotted name.
+    kind : str
+        ``float``, ``int``, ``bool``, ``choice``, ``floats`` (a list of quantities),
+        ``harmonics`` (a list of [amplitude, frequency, phase]) or ``profile``
+        (a table ``{times = [...], speeds = [...]}``).
+    unit : str
+        SI unit of the value (pint expression; "" for dimensionless).
+    default : Any
+        Default in SI (None: absent unless set).
+    low, high : float
+        Allowed range; ``low_open``/``high_open`` make the bound strict.
+    choices : tuple of str
+        Allowed values of a ``choice``.
+    doc : str
+        What it is, with the paper's symbol.
+    """
+
+    key: str
+    kind: str
+    unit: str
+    default: Any
+    doc: str
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = False
+    choices: tuple[str, ...] = ()
+    allow_inf: bool = False
+
+    def range_text(self) -> str:
+        """The allowed range in words, for error messages."""
+        u = f" {self.unit}" if self.unit else ""
+        if self.kind == "choice":
+            return "one of " + ", ".join(self.choices)
+        parts = []
+        if self.low > -math.inf:
+            parts.append(f"{'>' if self.low_open else '>='} {self.low:g}{u}")
+        if self.high < math.inf:
+            parts.append(f"{'<' if self.high_open else '<='} {self.high:g}{u}")
+        return " and ".join(parts) if parts else f"any finite value in {self.unit or 'no unit'}"
+
+    def check_number(self, value: float) -> float:
+        """Validate one float against the range; return it."""
+        if math.isnan(value) or (math.isinf(value) and not self.allow_inf):
+            raise InputError(f"{self.key}: {value} is not a finite number; allowed {self.range_text()}")
+        bad_low = value <= self.low if self.low_open else value < self.low
+        bad_high = value >= self.high if self.high_open else value > self.high
+        if bad_low or bad_high:
+            u = f" {self.unit}" if self.unit else ""
+            raise InputError(f"{self.key}: {value:g}{u} is out of range; allowed {self.range_text()}")
+        return value
+
+
+def _f(key: str, unit: str, default: Any, doc: str, **kw: Any) -> ParamSpec:
+    return ParamSpec(key, "float", unit, default, doc, **kw)
+
+
+def _positive(key: str, unit: str, default: Any, doc: str, **kw: Any) -> ParamSpec:
+    return ParamSpec(key, "float", unit, default, doc, low=0.0, low_open=True, **kw)
+
+
+def _nonneg(key: str, unit: str, default: Any, doc: str, **kw: Any) -> ParamSpec:
+    return ParamSpec(key, "float", unit, default, doc, low=0.0, **kw)
+
+
+def _material(part: str, radius: float, doc_radius: str) -> list[ParamSpec]:
+    return [
+        _positive(
+            f"materials.{part}.youngs_modulus",
+            "Pa",
+            200e9,
+            f"E of the {part.replace('_', ' ')} [Pa] (Eq. 4; 200 GPa reproduces the paper, "
+            "it prints 2 GPa)",
+        ),
+        ParamSpec(
+            f"materials.{part}.poisson_ratio",
+            "float",
+            "",
+            0.3,
+            f"nu of the {part.replace('_', ' ')} (Eq. 4)",
+            low=-1.0,
+            high=0.5,
+            low_open=True,
+            high_open=True,
+        ),
+        _positive(f"materials.{part}.radius", "m", radius, doc_radius, allow_inf=True),
+    ]
+
+
+def _contact(pair: str, geometry: str) -> list[ParamSpec]:
+    return [
+        ParamSpec(
+            f"contact.{pair}.model",
+            "choice",
+            "",
+            "hunt_crossley",
+            f"contact force law of the {pair} pair (Eqs. 3-13; `braidsim models`)",
+            choices=tuple(law_names()),
+        ),
+        ParamSpec(
+            f"contact.{pair}.restitution",
+            "float",
+            "",
+            5.0 / 9.0,
+            f"coefficient of restitution c_r of the {pair} pair",
+            low=0.0,
+            high=1.0,
+            low_open=True,
+        ),
+        _positive(
+            f"contact.{pair}.exponent",
+            "",
+            None,
+            f"force exponent n of the {pair} pair (default: the law's, 1.5 or 1.08)",
+            high=4.0,
+        ),
+        _positive(
+            f"contact.{pair}.stiffness",
+            "",
+            None,
+            f"contact stiffness K of the {pair} pair [N/m^n]; from Eq. (4) when absent",
+        ),
+        ParamSpec(
+            f"contact.{pair}.geometry",
+            "choice",
+            "",
+            geometry,
+            f"curvature of the {pair} contact for Eq. (4): concave, convex or flat",
+            choices=GEOMETRIES,
+        ),
+    ]
+
+
+SCHEMA_LIST: list[ParamSpec] = [
+    _positive("carrier.mass", "kg", 1.2, "carrier mass m [kg]"),
+    _positive("carrier.turning_radius", "m", 0.065, "turning radius r_c of the carrier [m]"),
+    _nonneg("horn_gear.angular_velocity", "rad/s", 4 * PI, "mean horn-gear speed omega [rad/s]"),
+    ParamSpec(
+        "horn_gear.speed_harmonics",
+        "harmonics",
+        "rad/s",
+        (),
+        "extra terms of omega(t): [[amplitude, angular frequency, phase], ...]",
+    ),
+    ParamSpec(
+        "horn_gear.speed_profile",
+        "profile",
+        "rad/s",
+        None,
+        "periodic piecewise-linear omega(t): {times = [...], speeds = [...]}; replaces the "
+        "constant speed and the harmonics",
+    ),
+    _nonneg("yarn.tension_horizontal", "N", 5.0, "yarn tension T1 [N]"),
+    _nonneg("yarn.tension_vertical", "N", 3.0, "yarn tension T2 [N]"),
+    _f("yarn.angle", "rad", PI / 6, "angle phi of T1 to the x direction [rad]", low=-PI, high=PI),
+    _nonneg("friction.carrier_horn_gear", "", 0.1, "mu1, carrier / horn gear (f_x of Eq. 14)"),
+    _nonneg("friction.pad_track", "", 0.1, "mu2, guide pad / track (f_y of Eq. 14)"),
+    _positive(
+        "friction.regularization_velocity",
+        "m/s",
+        1e-3,
+        "x_hat = y_hat of Eq. (14) [m/s] (not given by the paper)",
+    ),
+    ParamSpec(
+        "friction.law",
+        "choice",
+        "",
+        "arctan",
+        "friction law: arctan (Eq. 14), tanh, stribeck, none",
+        choices=("arctan", "tanh", "stribeck", "none"),
+    ),
+    ParamSpec(
+        "friction.static_ratio",
+        "float",
+        "",
+        1.5,
+        "stribeck law: static over kinetic friction coefficient",
+        low=1.0,
+    ),
+    _positive("friction.stribeck_velocity", "m/s", 0.01, "stribeck law: Stribeck velocity [m/s]"),
+    *_material("guide_pad", 0.020, "guide pad radius R1 [m]"),
+    *_material("track", 0.065, "track radius R2 [m] (concave)"),
+    *_material("carrier", 0.010, "carrier contact radius R3 [m]"),
+    *_material("horn_gear", math.inf, "horn-gear slot radius R4 [m] (not given; flat)"),
+    _positive("track.clearance", "m", 3e-3, "clearance eps_g between guide pads and track [m]"),
+    _nonneg("track.vibration_amplitude", "m", 1e-4, "track vibration amplitude h_a [m]"),
+    _nonneg("track.vibration_frequency", "rad/s", 120 * PI, "track vibration omega_h [rad/s]"),
+    _f("track.vibration_phase", "rad", 0.0, "phase of h(t) = h_a cos(omega_h t + phase) [rad]"),
+    ParamSpec(
+        "track.harmonics",
+        "harmonics",
+        "m",
+        (),
+        "extra terms of h(t): [[amplitude, angular frequency, phase], ...]",
+    ),
+    _positive("slot.clearance", "m", 1e-4, "clearance eps_h between carrier and horn-gear slot [m]"),
+    *_contact("track", "concave"),
+    *_contact("slot", "flat"),
+    _positive(
+        "contact.min_impact_velocity",
+        "m/s",
+        1e-4,
+        "floor on the latched approach speed v0 of Eqs. (5)-(13) [m/s]",
+    ),
+    _positive(
+        "contact.initial_impact_velocity",
+        "m/s",
+        None,
+        "v0 for a contact present at t = 0 [m/s]; default: none, the overlap is released "
+        "elastically (no damping until the next onset), as the paper's sections 3.3-3.4 show",
+    ),
+    ParamSpec(
+        "contact.allow_tension",
+        "bool",
+        "",
+        False,
+        "let the total normal force turn negative (adhesive) instead of clamping it at 0",
+    ),
+    _f("initial.x", "m", 0.0, "x0 [m] (the inner track wall is at x = h(t))"),
+    _f("initial.vx", "m/s", 0.0, "dx0/dt [m/s]"),
+    _f("initial.y", "m", 0.0, "y0 [m] (the rear slot wall is at y = s(t), s(0) = 0)"),
+    _f("initial.vy", "m/s", 0.0, "dy0/dt [m/s]"),
+    _nonneg("gravity", "m/s**2", 9.81, "g [m/s^2]"),
+    _positive("simulation.duration", "s", 0.5, "simulated time [s]"),
+    ParamSpec(
+        "simulation.dof",
+        "choice",
+        "",
+        "x",
+        "x: radial DOF only, y frozen (the paper's section 3); xy: both DOFs",
+        choices=("x", "xy"),
+    ),
+    _positive("simulation.rtol", "", 1e-8, "relative tolerance of the RK step control", high=1e-2),
+    _positive("simulation.atol_position", "m", 1e-13, "absolute tolerance on x and y [m]"),
+    _positive("simulation.atol_velocity", "m/s", 1e-9, "absolute tolerance on velocities [m/s]"),
+    _positive(
+        "simulation.max_step",
+        "s",
+        None,
+        "largest step [s]; default 1/16 of the shortest excitation period",
+    ),
+    _positive("simulation.sample_interval", "s", 1e-5, "spacing of the sampled time series [s]"),
+    ParamSpec(
+        "simulation.max_steps",
+        "int",
+        "",
+        20_000_000,
+        "budget of integration steps before a run is declared stuck",
+        low=1,
+    ),
+    ParamSpec("transfer.times", "floats", "s", (), "times of transfers to the next horn gear [s]"),
+    _nonneg(
+        "transfer.period", "s", 0.0, "period of transfers [s] (pi/omega at 4 horn-gear slots); 0: none"
+    ),
+    _nonneg("transfer.first", "s", 0.0, "time of the first periodic transfer [s]"),
+    _f(
+        "transfer.contact_speed",
+        "m/s",
+        2e-3,
+        "speed towards the new far wall given by a transfer [m/s] (section 3.2: 2 mm/s)",
+    ),
+]
+
+SCHEMA: dict[str, ParamSpec] = {s.key: s for s in SCHEMA_LIST}
+_TABLE_KEYS = {k for k, s in SCHEMA.items() if s.kind in ("profile",)}
+_META_KEYS = ("name", "description", "source", "extends", "notes")
+
+
+def _closest(key: str) -> str:
+    close = difflib.get_close_matches(key, list(SCHEMA), n=1, cutoff=0.4)
+    if not close:
+        # Try the last component alone (e.g. "mass" -> "carrier.mass").
+        tail = key.rsplit(".", 1)[-1]
+        close = [k for k in SCHEMA if k.rsplit(".", 1)[-1] == tail][:1]
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _unknown(key: str) -> InputError:
+    return InputError(f"{key}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all")
+
+
+def flatten(table: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """Nested TOML tables -> dotted keys (tables that are values, like profiles, stay whole)."""
+    out: dict[str, Any] = {}
+    for k, v in table.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, Mapping) and key not in _TABLE_KEYS:
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out
+
+
+def _convert_list(spec: ParamSpec, value: Any) -> tuple[float, ...]:
+    if isinstance(value, str):
+        value = [v for v in value.replace(";", ",").split(",") if v.strip()]
+    if not isinstance(value, list | tuple):
+        raise InputError(f"{spec.key}: expected a list of quantities in {spec.unit}, got {value!r}")
+    out = tuple(spec.check_number(to_si(spec.key, v, spec.unit)) for v in value)
+    return out
+
+
+def convert(spec: ParamSpec, value: Any) -> Any:
+    """Convert one raw value (number, unit string, list, table) to SI and validate it."""
+    key = spec.key
+    if spec.kind == "float":
+        if value is None:
+            return None
+        return spec.check_number(to_si(key, value, spec.unit))
+    if spec.kind == "int":
+        v = to_si(key, value, "")
+        if v != int(v):
+            raise InputError(f"{key}: {value!r} is not an integer; allowed {spec.range_text()}")
+        return int(spec.check_number(v))
+    if spec.kind == "bool":
+        if isinstance(value, bool):
+            return value
+        if isinstance(value, str) and value.lower() in ("true", "false", "1", "0", "yes", "no"):
+            return value.lower() in ("true", "1", "yes")
+        raise InputError(f"{key}: {value!r} is not a boolean; allowed true or false")
+    if spec.kind == "choice":
+        if not isinstance(value, str) or value not in spec.choices:
+            close = difflib.get_close_matches(str(value), spec.choices, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(f"{key}: {value!r} is not allowed{hint}; allowed {spec.range_text()}")
+        return value
+    if spec.kind == "floats":
+        vals = _convert_list(spec, value)
+        if any(v < 0 for v in vals):
+            raise InputError(f"{key}: times must be >= 0 s, got {vals}")
+        return tuple(sorted(vals))
+    if spec.kind == "harmonics":
+        if not isinstance(value, list | tuple):
+            raise InputError(f"{key}: expected [[amplitude, frequency, phase], ...], got {value!r}")
+        terms = []
+        for term in value:
+            if not isinstance(term, list | tuple) or len(term) not in (2, 3):
+                raise InputError(f"{key}: each term is [amplitude, frequency, phase], got {term!r}")
+            amp = to_si(key, term[0], spec.unit)
+            freq = to_si(key, term[1], "rad/s")
+            phase = to_si(key, term[2], "rad") if len(term) == 3 else 0.0
+            for v in (amp, freq, phase):
+                if not math.isfinite(v):
+                    raise InputError(f"{key}: {term!r} has a non-finite entry")
+            if freq < 0:
+                raise InputError(f"{key}: frequency {freq:g} rad/s is negative; allowed >= 0")
+            terms.append((amp, freq, phase))
+        return tuple(terms)
+    if spec.kind == "profile":
+        if value is None:
+            return None
+        if not isinstance(value, Mapping) or set(value) != {"times", "speeds"}:
+            raise InputError(f"{key}: expected a table {{times = [...], speeds = [...]}}, got {value!r}")
+        times = [to_si(key, v, "s") for v in value["times"]]
+        speeds = [to_si(key, v, "rad/s") for v in value["speeds"]]
+        if len(times) != len(speeds) or len(times) < 2:
+            raise InputError(f"{key}: times and speeds need the same length >= 2")
+        if any(not math.isfinite(v) for v in times + speeds):
+            raise InputError(f"{key}: non-finite entry in the profile")
+        if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+            raise InputError(f"{key}: times must increase strictly")
+        if any(s < 0 for s in speeds):
+            raise InputError(f"{key}: speeds must be >= 0 rad/s")
+        return (tuple(times), tuple(speeds))
+    raise AssertionError(spec.kind)  # pragma: no cover - schema is static
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated, frozen set of parameters in SI.
+
+    Attributes
+    ----------
+    name : str
+        Built-in name or file stem.
+    values : Mapping[str, Any]
+        Every key of :data:`SCHEMA` with its SI value (None where absent).
+    description, source : str
+        What it is and where it comes from (section and figures of the paper).
+    """
+
+    name: str
+    values: Mapping[str, Any]
+    description: str = ""
+    source: str = ""
+    explicit: frozenset[str] = field(default_factory=frozenset)
+
+    def __getitem__(self, key: str) -> Any:
+        try:
+            return self.values[key]
+        except KeyError:
+            raise _unknown(key) from None
+
+    def with_overrides(self, overrides: Mapping[str, Any] | None = None, name: str | None = None) -> Scenario:
+        """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied."""
+        raw: dict[str, Any] = dict(self.values)
+        explicit = set(self.explicit)
+        for key, value in (overrides or {}).items():
+            if key not in SCHEMA:
+                raise _unknown(key)
+            raw[key] = convert(SCHEMA[key], value)
+            explicit.add(key)
+        _check_consistency(raw)
+        return Scenario(name or self.name, MappingProxyType(raw), self.description, self.source, frozenset(explicit))
+
+    def to_dict(self) -> dict[str, Any]:
+        """Every parameter in SI, JSON-ready (tuples become lists, absent values None)."""
+
+        def plain(v: Any) -> Any:
+            if isinstance(v, tuple):
+                return [plain(x) for x in v]
+            if isinstance(v, float) and math.isinf(v):
+                return "inf"
+            return v
+
+        return {k: plain(v) for k, v in self.values.items()}
+
+
+def _check_consistency(values: Mapping[str, Any]) -> None:
+    """Cross-key checks that a single range cannot express."""
+    for pair, (body, other) in {"track": ("guide_pad", "track"), "slot": ("carrier", "horn_gear")}.items():
+        if values[f"contact.{pair}.stiffness"] is None and values[f"contact.{pair}.geometry"] == "concave":
+            r1, r2 = values[f"materials.{body}.radius"], values[f"materials.{other}.radius"]
+            if r2 <= r1:
+                raise InputError(
+                    f"materials.{other}.radius: {r2:g} m must exceed materials.{body}.radius "
+                    f"({r1:g} m) for a concave {pair} contact; allowed > {r1:g} m"
+                )
+
+
+def _builtin_dir() -> Any:
+    return resources.files("braidsim") / "scenarios"
+
+
+def builtin_names() -> list[str]:
+    """Names of the built-in scenarios."""
+    return sorted(p.name[: -len(".toml")] for p in _builtin_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def _read_toml_text(text: str, origin: str) -> dict[str, Any]:
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{origin}: malformed TOML ({exc})") from None
+
+
+def _raw_scenario(name_or_path: str | Path, depth: int = 0) -> tuple[str, dict[str, Any], dict[str, str]]:
+    """Read a scenario (following ``extends``) into dotted raw values and metadata."""
+    if depth > 8:
+        raise InputError(f"{name_or_path}: `extends` chain is too deep (a cycle?)")
+    name = str(name_or_path)
+    if name in builtin_names():
+        text = (_builtin_dir() / f"{name}.toml").read_text()
+        origin = f"scenario {name}"
+    else:
+        path = Path(name)
+        if not path.is_file():
+            close = difflib.get_close_matches(name, builtin_names(), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(
+                f"scenario: {name!r} is neither a built-in scenario{hint} nor a TOML file; "
+                "`braidsim scenarios` lists the built-in ones"
+            )
+        text = path.read_text()
+        origin = str(path)
+        name = path.stem
+    table = _read_toml_text(text, origin)
+    meta = {k: str(table.pop(k)) for k in _META_KEYS if k in table}
+    raw: dict[str, Any] = {}
+    if "extends" in meta:
+        _, raw, parent_meta = _raw_scenario(meta["extends"], depth + 1)
+        for k in ("description", "source"):
+            meta.setdefault(k, parent_meta.get(k, ""))
+    raw.update(flatten(table))
+    return meta.get("name", name), raw, meta
+
+
+def load_scenario(
+    scenario: str | Path | Mapping[str, Any] = "paper-3.1",
+    overrides: Mapping[str, Any] | None = None,
+) -> Scenario:
+    """Load a built-in scenario, a TOML file, or a mapping of dotted keys, with overrides.
+
+    Parameters
+    ----------
+    scenario : str, Path or mapping
+        Built-in name (``braidsim scenarios``), path to a TOML file, or ``{key: value}``.
+        A TOML file may say ``extends = "paper-3.1"`` to start from a built-in scenario.
+    overrides : mapping, optional
+        ``{dotted key: value}``; values are SI numbers or unit strings.
+
+    Returns
+    -------
+    Scenario
+        Frozen, validated, SI.
+
+    Raises
+    ------
+    InputError
+        Unknown key (naming the closest), wrong unit, out-of-range value, malformed TOML.
+    """
+    if isinstance(scenario, Mapping):
+        name, raw, meta = "custom", flatten(scenario), {}
+    else:
+        name, raw, meta = _raw_scenario(scenario)
+    values: dict[str, Any] = {k: s.default for k, s in SCHEMA.items()}
+    explicit: set[str] = set()
+    for key, value in raw.items():
+        if key not in SCHEMA:
+            raise _unknown(key)
+        values[key] = convert(SCHEMA[key], value)
+        explicit.add(key)
+    base = Scenario(
+        name,
+        MappingProxyType(values),
+        meta.get("description", ""),
+        meta.get("source", ""),
+        frozenset(explicit),
+    )
+    _check_consistency(values)
+    return base.with_overrides(overrides) if overrides else base
+
+
+def parse_assignment(text: str) -> tuple[str, str]:
+    """Split ``KEY=VALUE`` from ``--set``; an :class:`InputError` otherwise."""
+    if "=" not in text:
+        raise InputError(f"--set: expected KEY=VALUE, got {text!r}")
+    key, value = text.split("=", 1)
+    key = key.strip()
+    if key not in SCHEMA:
+        raise _unknown(key)
+    return key, value.strip()
+
+
+def parse_set_value(key: str, value: str) -> Any:
+    """Interpret the text of ``--set KEY=VALUE`` (TOML literal if it parses, else a string)."""
+    try:
+        return tomllib.loads(f"v = {value}")["v"]
+    except tomllib.TOMLDecodeError:
+        return value
