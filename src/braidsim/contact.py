@@ -106,12 +106,22 @@ def effective_restitution(damping_factor: float) -> float:
     d = float(damping_factor)
     if d < 0.0:
         raise InputError(f"damping factor: {d} is negative; allowed D >= 0")
-    if d < 1e-8:
-        # Series of the exact relation about D = 0: e = 1 - 2D/3 + O(D^2).
-        return 1.0 - 2.0 * d / 3.0
-    z = -(1.0 + d) * math.exp(-(1.0 + d))
-    w = special.lambertw(z, 0).real
-    return float((1.0 + w) / d)
+    if d == 0.0:
+        return 1.0
+    if d < 1e-2:
+        # W0 near its branch point -1/e loses digits; start from the series about D = 0
+        e = 1.0 - 2.0 * d / 3.0 + 10.0 * d * d / 9.0
+    else:
+        z = -(1.0 + d) * math.exp(-(1.0 + d))
+        e = float((1.0 + special.lambertw(z, 0).real) / d)
+    # Newton polish on F(e) = ln(1 - D e) - ln(1 + D) + D (1 + e) = 0 (the relation in logs)
+    for _ in range(4):
+        f = math.log1p(-d * e) - math.log1p(d) + d * (1.0 + e)
+        fp = d - d / (1.0 - d * e)
+        if fp == 0.0:
+            break
+        e -= f / fp
+    return e
 
 
 def exact_damping_factor(c_r: float) -> float:
@@ -124,7 +134,9 @@ def exact_damping_factor(c_r: float) -> float:
         return 0.0
     # e(D) ~ 1/D for large D, so D = 2/c_r brackets from above.
     hi = 2.0 / c_r + 10.0
-    return float(optimize.brentq(lambda d: effective_restitution(d) - c_r, 1e-10, hi, xtol=1e-15, rtol=1e-15))
+    return float(
+        optimize.brentq(lambda d: effective_restitution(d) - c_r, 1e-10, hi, xtol=1e-15, rtol=1e-15)
+    )
 
 
 def damping_carvalho_martins(c_r: float) -> float:
@@ -178,9 +190,16 @@ _LAWS: dict[str, ContactLaw] = {
     for law in (
         ContactLaw("hertz", damping_elastic, 1.5, False, "Eq. (3)", "Johnson (1985), Hertz (1882)"),
         ContactLaw(
-            "brandlein", damping_elastic, 1.08, False, "Eq. (3), n = 1.08", "Braendlein et al. (1999)"
+            "brandlein",
+            damping_elastic,
+            1.08,
+            False,
+            "Eq. (3), n = 1.08",
+            "Braendlein et al. (1999)",
         ),
-        ContactLaw("hunt_crossley", damping_hunt_crossley, 1.5, True, "Eq. (5)", "Hunt & Crossley (1975)"),
+        ContactLaw(
+            "hunt_crossley", damping_hunt_crossley, 1.5, True, "Eq. (5)", "Hunt & Crossley (1975)"
+        ),
         ContactLaw(
             "herbert_mcwhannell",
             damping_herbert_mcwhannell,
@@ -200,7 +219,12 @@ _LAWS: dict[str, ContactLaw] = {
         ),
         ContactLaw("gonthier", damping_gonthier, 1.5, True, "Eq. (10)", "Gonthier et al. (2004)"),
         ContactLaw(
-            "zhiying_qishao", damping_zhiying_qishao, 1.5, True, "Eqs. (11)-(12)", "Zhiying & Qishao (2006)"
+            "zhiying_qishao",
+            damping_zhiying_qishao,
+            1.5,
+            True,
+            "Eqs. (11)-(12)",
+            "Zhiying & Qishao (2006)",
         ),
         ContactLaw("flores", damping_flores, 1.5, True, "Eq. (13)", "Flores et al. (2011)"),
         ContactLaw(
@@ -267,9 +291,16 @@ def effective_radius(r1: float, r2: float, geometry: str) -> float:
     raise InputError(f"contact geometry: unknown {geometry!r}; allowed: {', '.join(GEOMETRIES)}")
 
 
-def hertz_stiffness(e1: float, nu1: float, r1: float, e2: float, nu2: float, r2: float, geometry: str) -> float:
+def hertz_stiffness(
+    e1: float, nu1: float, r1: float, e2: float, nu2: float, r2: float, geometry: str
+) -> float:
     """Hertz contact stiffness K = 4/3 E* R^(1/2) [N/m^1.5] (Eq. 4 of the paper, Johnson 1985)."""
-    return 4.0 / 3.0 * effective_modulus(e1, nu1, e2, nu2) * math.sqrt(effective_radius(r1, r2, geometry))
+    return (
+        4.0
+        / 3.0
+        * effective_modulus(e1, nu1, e2, nu2)
+        * math.sqrt(effective_radius(r1, r2, geometry))
+    )
 
 
 # ----------------------------------------------------------------------------------------
@@ -277,7 +308,9 @@ def hertz_stiffness(e1: float, nu1: float, r1: float, e2: float, nu2: float, r2:
 # ----------------------------------------------------------------------------------------
 
 
-def hertz_impact_closed_form(mass: float, stiffness: float, exponent: float, velocity: float) -> dict[str, float]:
+def hertz_impact_closed_form(
+    mass: float, stiffness: float, exponent: float, velocity: float
+) -> dict[str, float]:
     """Closed forms of one elastic impact ``m p'' = -K p^n`` with approach speed v0.
 
     max depth      p_m = ((n + 1) m v0^2 / (2 K))^(1/(n+1))                       [m]
@@ -290,7 +323,11 @@ def hertz_impact_closed_form(mass: float, stiffness: float, exponent: float, vel
     n1 = exponent + 1.0
     p_m = (n1 * mass * velocity**2 / (2.0 * stiffness)) ** (1.0 / n1)
     duration = 2.0 * p_m / velocity * special.beta(1.0 / n1, 0.5) / n1
-    return {"max_depth": p_m, "max_force": stiffness * p_m**exponent, "contact_duration": float(duration)}
+    return {
+        "max_depth": p_m,
+        "max_force": stiffness * p_m**exponent,
+        "contact_duration": float(duration),
+    }
 
 
 def resting_depth(load: float, stiffness: float, exponent: float) -> float:

@@ -82,7 +82,9 @@ def single_impact(
     elastic = contact.hertz_impact_closed_form(sc["carrier.mass"], pm.stiffness, pm.exponent, v)
     # the contact lasts at most the elastic duration / e; run 3x the elastic duration
     duration = 3.0 * elastic["contact_duration"] / max(pm.effective_restitution, 0.05)
-    res = simulate(sc, duration=duration, sample_interval=0.0, overrides={"simulation.max_step": duration / 50})
+    res = simulate(
+        sc, duration=duration, sample_interval=0.0, overrides={"simulation.max_step": duration / 50}
+    )
     imp = res.impacts
     if len(imp) != 1 or bool(imp["ongoing"].iloc[0]):
         raise InputError(

@@ -64,6 +64,7 @@ class Model:
     profile_integral: np.ndarray
     transfer_times: np.ndarray
     y0: np.ndarray
+    excitation: np.ndarray
     track: PairModel
     slot: PairModel
     duration: float
@@ -110,15 +111,18 @@ def _profile_arrays(sc: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def default_max_step(sc: Scenario) -> float:
-    """1/16 of the shortest excitation period, so the wall motion is resolved between the
-    interpolant samples that look for contacts (and at most 1 ms)."""
+    """1/8 of the shortest excitation period (and at most 1 ms).
+
+    In free flight nothing in the equations limits the step, but the walls move: with the
+    8 interpolant samples per step that look for contacts, this resolves the wall motion by
+    64 points per period, and a dip between samples is searched for as well."""
     freqs = [sc["track.vibration_frequency"]] if sc["track.vibration_amplitude"] > 0 else []
     freqs += [w for a, w, _ in sc["track.harmonics"] if a != 0.0]
     freqs += [w for a, w, _ in sc["horn_gear.speed_harmonics"] if a != 0.0]
     fmax = max([f for f in freqs if f > 0.0], default=0.0)
     hmax = 1e-3
     if fmax > 0.0:
-        hmax = min(hmax, 2.0 * math.pi / fmax / 16.0)
+        hmax = min(hmax, 2.0 * math.pi / fmax / 8.0)
     return hmax
 
 
@@ -172,7 +176,13 @@ def build_model(sc: Scenario, duration: float | None = None) -> Model:
     P[K.P_TRANSFER_SPEED] = sc["transfer.contact_speed"]
     P[K.P_OMEGA0] = omega0
 
-    th = [(sc["track.vibration_amplitude"], sc["track.vibration_frequency"], sc["track.vibration_phase"])]
+    th = [
+        (
+            sc["track.vibration_amplitude"],
+            sc["track.vibration_frequency"],
+            sc["track.vibration_phase"],
+        )
+    ]
     th += list(sc["track.harmonics"])
     track_harm = np.array([t for t in th if t[0] != 0.0], dtype=float).reshape(-1, 3)
     speed_harm = np.array(
@@ -193,4 +203,7 @@ def build_model(sc: Scenario, duration: float | None = None) -> Model:
     y0[1] = sc["initial.vx"]
     y0[2] = sc["initial.y"]
     y0[3] = sc["initial.vy"]
-    return Model(sc, P, track_harm, speed_harm, prof_t, prof_w, prof_i, tr, y0, track, slot, dur)
+    ex = K.pack_excitation(track_harm, speed_harm, prof_t, prof_w, prof_i)
+    return Model(
+        sc, P, track_harm, speed_harm, prof_t, prof_w, prof_i, tr, y0, ex, track, slot, dur
+    )

@@ -11,6 +11,7 @@ The key names are the public interface of ``../shared/CONTRACT.md``.
 from __future__ import annotations
 
 import difflib
+import itertools
 import math
 import tomllib
 from collections.abc import Mapping
@@ -78,12 +79,16 @@ class ParamSpec:
     def check_number(self, value: float) -> float:
         """Validate one float against the range; return it."""
         if math.isnan(value) or (math.isinf(value) and not self.allow_inf):
-            raise InputError(f"{self.key}: {value} is not a finite number; allowed {self.range_text()}")
+            raise InputError(
+                f"{self.key}: {value} is not a finite number; allowed {self.range_text()}"
+            )
         bad_low = value <= self.low if self.low_open else value < self.low
         bad_high = value >= self.high if self.high_open else value > self.high
         if bad_low or bad_high:
             u = f" {self.unit}" if self.unit else ""
-            raise InputError(f"{self.key}: {value:g}{u} is out of range; allowed {self.range_text()}")
+            raise InputError(
+                f"{self.key}: {value:g}{u} is out of range; allowed {self.range_text()}"
+            )
         return value
 
 
@@ -229,7 +234,9 @@ SCHEMA_LIST: list[ParamSpec] = [
         (),
         "extra terms of h(t): [[amplitude, angular frequency, phase], ...]",
     ),
-    _positive("slot.clearance", "m", 1e-4, "clearance eps_h between carrier and horn-gear slot [m]"),
+    _positive(
+        "slot.clearance", "m", 1e-4, "clearance eps_h between carrier and horn-gear slot [m]"
+    ),
     *_contact("track", "concave"),
     *_contact("slot", "flat"),
     _positive(
@@ -286,7 +293,10 @@ SCHEMA_LIST: list[ParamSpec] = [
     ),
     ParamSpec("transfer.times", "floats", "s", (), "times of transfers to the next horn gear [s]"),
     _nonneg(
-        "transfer.period", "s", 0.0, "period of transfers [s] (pi/omega at 4 horn-gear slots); 0: none"
+        "transfer.period",
+        "s",
+        0.0,
+        "period of transfers [s] (pi/omega at 4 horn-gear slots); 0: none",
     ),
     _nonneg("transfer.first", "s", 0.0, "time of the first periodic transfer [s]"),
     _f(
@@ -312,7 +322,9 @@ def _closest(key: str) -> str:
 
 
 def _unknown(key: str) -> InputError:
-    return InputError(f"{key}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all")
+    return InputError(
+        f"{key}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all"
+    )
 
 
 def flatten(table: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -386,14 +398,16 @@ def convert(spec: ParamSpec, value: Any) -> Any:
         if value is None:
             return None
         if not isinstance(value, Mapping) or set(value) != {"times", "speeds"}:
-            raise InputError(f"{key}: expected a table {{times = [...], speeds = [...]}}, got {value!r}")
+            raise InputError(
+                f"{key}: expected a table {{times = [...], speeds = [...]}}, got {value!r}"
+            )
         times = [to_si(key, v, "s") for v in value["times"]]
         speeds = [to_si(key, v, "rad/s") for v in value["speeds"]]
         if len(times) != len(speeds) or len(times) < 2:
             raise InputError(f"{key}: times and speeds need the same length >= 2")
         if any(not math.isfinite(v) for v in times + speeds):
             raise InputError(f"{key}: non-finite entry in the profile")
-        if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+        if any(b <= a for a, b in itertools.pairwise(times)):
             raise InputError(f"{key}: times must increase strictly")
         if any(s < 0 for s in speeds):
             raise InputError(f"{key}: speeds must be >= 0 rad/s")
@@ -427,7 +441,9 @@ class Scenario:
         except KeyError:
             raise _unknown(key) from None
 
-    def with_overrides(self, overrides: Mapping[str, Any] | None = None, name: str | None = None) -> Scenario:
+    def with_overrides(
+        self, overrides: Mapping[str, Any] | None = None, name: str | None = None
+    ) -> Scenario:
         """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied."""
         raw: dict[str, Any] = dict(self.values)
         explicit = set(self.explicit)
@@ -437,7 +453,13 @@ class Scenario:
             raw[key] = convert(SCHEMA[key], value)
             explicit.add(key)
         _check_consistency(raw)
-        return Scenario(name or self.name, MappingProxyType(raw), self.description, self.source, frozenset(explicit))
+        return Scenario(
+            name or self.name,
+            MappingProxyType(raw),
+            self.description,
+            self.source,
+            frozenset(explicit),
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """Every parameter in SI, JSON-ready (tuples become lists, absent values None)."""
@@ -454,8 +476,14 @@ class Scenario:
 
 def _check_consistency(values: Mapping[str, Any]) -> None:
     """Cross-key checks that a single range cannot express."""
-    for pair, (body, other) in {"track": ("guide_pad", "track"), "slot": ("carrier", "horn_gear")}.items():
-        if values[f"contact.{pair}.stiffness"] is None and values[f"contact.{pair}.geometry"] == "concave":
+    for pair, (body, other) in {
+        "track": ("guide_pad", "track"),
+        "slot": ("carrier", "horn_gear"),
+    }.items():
+        if (
+            values[f"contact.{pair}.stiffness"] is None
+            and values[f"contact.{pair}.geometry"] == "concave"
+        ):
             r1, r2 = values[f"materials.{body}.radius"], values[f"materials.{other}.radius"]
             if r2 <= r1:
                 raise InputError(
@@ -470,7 +498,9 @@ def _builtin_dir() -> Any:
 
 def builtin_names() -> list[str]:
     """Names of the built-in scenarios."""
-    return sorted(p.name[: -len(".toml")] for p in _builtin_dir().iterdir() if p.name.endswith(".toml"))
+    return sorted(
+        p.name[: -len(".toml")] for p in _builtin_dir().iterdir() if p.name.endswith(".toml")
+    )
 
 
 def _read_toml_text(text: str, origin: str) -> dict[str, Any]:
@@ -480,7 +510,9 @@ def _read_toml_text(text: str, origin: str) -> dict[str, Any]:
         raise InputError(f"{origin}: malformed TOML ({exc})") from None
 
 
-def _raw_scenario(name_or_path: str | Path, depth: int = 0) -> tuple[str, dict[str, Any], dict[str, str]]:
+def _raw_scenario(
+    name_or_path: str | Path, depth: int = 0
+) -> tuple[str, dict[str, Any], dict[str, str]]:
     """Read a scenario (following ``extends``) into dotted raw values and metadata."""
     if depth > 8:
         raise InputError(f"{name_or_path}: `extends` chain is too deep (a cycle?)")
@@ -536,7 +568,8 @@ def load_scenario(
         Unknown key (naming the closest), wrong unit, out-of-range value, malformed TOML.
     """
     if isinstance(scenario, Mapping):
-        name, raw, meta = "custom", flatten(scenario), {}
+        meta: dict[str, str] = {}
+        name, raw = "custom", flatten(scenario)
     else:
         name, raw, meta = _raw_scenario(scenario)
     values: dict[str, Any] = {k: s.default for k, s in SCHEMA.items()}

@@ -123,7 +123,10 @@ class Result:
             cols = {name: E[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
             pair = np.array([PAIRS[int(p)] for p in cols["pair"]], dtype=object)
             wall = np.array(
-                [WALLS[(PAIRS[int(p)], int(w))] for p, w in zip(cols["pair"], cols["wall"], strict=True)],
+                [
+                    WALLS[(PAIRS[int(p)], int(w))]
+                    for p, w in zip(cols["pair"], cols["wall"], strict=True)
+                ],
                 dtype=object,
             )
             df = pd.DataFrame(
@@ -153,7 +156,10 @@ class Result:
 
     # ------------------------------------------------------------------ ranges
     def ranges_dict(self, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
-        """``{"depth": [min, max], "stiffness_force": ..., "damping_force": ..., "contact_force": ...}``."""
+        """Exact extremes of one pair in one window, paper signs, SI units.
+
+        ``{"depth": [min, max], "stiffness_force": .., "damping_force": .., "contact_force": ..}``
+        """
         ip = PAIRS.index(pair)
         out = {}
         for q, name in enumerate(RANGE_QUANTITIES):
@@ -168,7 +174,9 @@ class Result:
         for i, (a, b) in enumerate(self.windows):
             if math.isclose(a, t0, abs_tol=1e-12) and math.isclose(b, t1, abs_tol=1e-12):
                 return i
-        raise KeyError(f"window [{t0}, {t1}] was not computed; pass windows=[({t0}, {t1})] to simulate")
+        raise KeyError(
+            f"window [{t0}, {t1}] was not computed; pass windows=[({t0}, {t1})] to simulate"
+        )
 
     # ------------------------------------------------------------------ summary
     def summary(self, window: tuple[float, float] | None = None) -> dict[str, Any]:
@@ -222,7 +230,10 @@ class Result:
                 data_vars[name] = (
                     "t",
                     values.astype(np.int8),
-                    {"description": "row kind: " + ", ".join(f"{i} {n}" for i, n in enumerate(KIND_NAMES))},
+                    {
+                        "description": "row kind: "
+                        + ", ".join(f"{i} {n}" for i, n in enumerate(KIND_NAMES))
+                    },
                 )
             else:
                 data_vars[name] = ("t", values, {"units": UNITS[name]})

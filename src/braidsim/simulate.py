@@ -35,7 +35,9 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
     # the two rates that can make the explicit integrator crawl
     fric_rate = 0.0
     if sc["friction.law"] != "none":
-        fric_rate = model.P[K.P_MU1] * model.P[K.P_NX] / (m * sc["friction.regularization_velocity"])
+        fric_rate = (
+            model.P[K.P_MU1] * model.P[K.P_NX] / (m * sc["friction.regularization_velocity"])
+        )
     hint = (
         "increase friction.regularization_velocity (friction regularisation makes the equations "
         f"stiff: rate ~ {fric_rate:.3g} 1/s)"
@@ -49,7 +51,8 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
         return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
     if status == K.ST_MAX_STEPS:
         return (
-            f"step budget simulation.max_steps = {int(model.P[K.P_MAXSTEPS])} exhausted at t = {t:.9g} s "
+            f"step budget simulation.max_steps = {int(model.P[K.P_MAXSTEPS])} exhausted "
+            f"at t = {t:.9g} s "
             f"(smallest step {stats[5]:.3g} s); {hint}, or raise simulation.max_steps"
         )
     if status == K.ST_ZENO:
@@ -86,11 +89,7 @@ def run_kernel(
         status, nrow, nep = K.integrate(
             y,
             P,
-            model.track_harmonics,
-            model.speed_harmonics,
-            model.profile_times,
-            model.profile_speeds,
-            model.profile_integral,
+            model.excitation,
             model.transfer_times,
             windows,
             sample_times,
@@ -106,7 +105,9 @@ def run_kernel(
             ep_cap = max(2 * ep_cap, nep + 16)
             continue
         if status != K.ST_OK:
-            raise SimulationError(failure_message(status, float(stats[7]), model, stats), float(stats[7]))
+            raise SimulationError(
+                failure_message(status, float(stats[7]), model, stats), float(stats[7])
+            )
         return rows[:nrow], EP[:nep], R, stats, y, status
 
 
@@ -160,10 +161,11 @@ def simulate(
         dt = sc["simulation.sample_interval"] if sample_interval is None else float(sample_interval)
         if dt < 0 or not math.isfinite(dt):
             raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
-        n = int(math.floor(T / dt + 1e-9)) + 1 if dt > 0 else 0
+        n = math.floor(T / dt + 1e-9) + 1 if dt > 0 else 0
         if n > 50_000_000:
             raise InputError(
-                f"simulation.sample_interval: {dt:g} s gives {n} samples; allowed >= {T / 5e7:.3g} s"
+                f"simulation.sample_interval: {dt:g} s gives {n} samples; "
+                f"allowed >= {T / 5e7:.3g} s"
             )
         st = np.arange(n, dtype=float) * dt if n else np.zeros(0)
     W = _windows(T, windows)
@@ -183,5 +185,11 @@ def simulate(
         "track_damping_factor": model.track.damping_factor,
         "track_effective_restitution": model.track.effective_restitution,
     }
-    final = {"t": float(stats[7]), "x": float(y[0]), "vx": float(y[1]), "y": float(y[2]), "vy": float(y[3])}
+    final = {
+        "t": float(stats[7]),
+        "x": float(y[0]),
+        "vx": float(y[1]),
+        "y": float(y[2]),
+        "vy": float(y[3]),
+    }
     return Result(model, series, EP, W, R, st_dict, final)

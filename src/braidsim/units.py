@@ -13,11 +13,11 @@ from __future__ import annotations
 
 import functools
 import math
+from typing import Any
 
 import pint
 
 from braidsim.errors import InputError
-
 
 
 def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
@@ -30,7 +30,7 @@ def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
 @functools.cache
 def registry() -> pint.UnitRegistry:
     """The package's unit registry (created once)."""
-    ureg = pint.UnitRegistry()
+    ureg: pint.UnitRegistry = pint.UnitRegistry()
     return ureg
 
 
@@ -52,7 +52,9 @@ def to_si(key: str, value: object, unit: str) -> float:
         The string does not parse, or its dimension does not match ``unit``.
     """
     if isinstance(value, bool):
-        raise InputError(f"{key}: expected a number or a quantity in {unit or 'no unit'}, got {value!r}")
+        raise InputError(
+            f"{key}: expected a number or a quantity in {unit or 'no unit'}, got {value!r}"
+        )
     if isinstance(value, int | float):
         return float(value)
     if not isinstance(value, str):
@@ -61,9 +63,11 @@ def to_si(key: str, value: object, unit: str) -> float:
         )
     ureg = registry()
     try:
-        q = ureg.Quantity(value.strip())
+        q: Any = ureg.Quantity(value.strip())
     except Exception as exc:  # pint raises several exception types for bad strings
-        raise InputError(f"{key}: cannot read {value!r} as a quantity ({exc.__class__.__name__})") from None
+        raise InputError(
+            f"{key}: cannot read {value!r} as a quantity ({exc.__class__.__name__})"
+        ) from None
     if not isinstance(q, pint.Quantity):  # a bare number inside a string
         return float(q)
     target = ureg.Unit(unit) if unit else ureg.dimensionless

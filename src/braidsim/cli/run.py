@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -57,9 +57,17 @@ def _print_summary(summary: dict, out: Path | None) -> None:
     from rich.table import Table
 
     con = Console()
-    con.print(f"[bold]{summary['scenario']}[/bold]  window {summary['window'][0]:g}-{summary['window'][1]:g} s")
+    con.print(
+        f"[bold]{summary['scenario']}[/bold]  "
+        f"window {summary['window'][0]:g}-{summary['window'][1]:g} s"
+    )
     tab = Table("track (x)", "min", "max")
-    scale = {"depth": (1e3, "mm"), "stiffness_force": (1, "N"), "damping_force": (1, "N"), "contact_force": (1, "N")}
+    scale = {
+        "depth": (1e3, "mm"),
+        "stiffness_force": (1, "N"),
+        "damping_force": (1, "N"),
+        "contact_force": (1, "N"),
+    }
     for k, (f, u) in scale.items():
         lo, hi = summary["x"][k]
         tab.add_row(escape(f"{k} [{u}]"), f"{lo * f:.6g}", f"{hi * f:.6g}")
@@ -67,8 +75,20 @@ def _print_summary(summary: dict, out: Path | None) -> None:
     imp = summary["impacts"]
     con.print(f"{len(imp)} impacts; final x = {summary['final']['x'] * 1e3:.6g} mm")
     if imp:
-        t2 = Table(*(escape(h) for h in ("t [s]", "pair", "wall", "v [m/s]", "rebound [m/s]", "peak F [N]",
-                                         "depth [mm]")))
+        t2 = Table(
+            *(
+                escape(h)
+                for h in (
+                    "t [s]",
+                    "pair",
+                    "wall",
+                    "v [m/s]",
+                    "rebound [m/s]",
+                    "peak F [N]",
+                    "depth [mm]",
+                )
+            )
+        )
         for r in imp[:12]:
             reb = r["rebound_velocity"]
             t2.add_row(
@@ -91,7 +111,9 @@ def _print_summary(summary: dict, out: Path | None) -> None:
 @guarded
 def impact(
     model: Annotated[str, typer.Option(help="Contact law (braidsim models).")] = "hunt_crossley",
-    restitution: Annotated[str, typer.Option(help="Coefficient of restitution in (0, 1].")] = "0.5555555555555556",
+    restitution: Annotated[
+        str, typer.Option(help="Coefficient of restitution in (0, 1].")
+    ] = "0.5555555555555556",
     velocity: Annotated[str, typer.Option(help="Approach speed, e.g. 0.5 or '0.5 m/s'.")] = "0.5",
     mass: Annotated[str, typer.Option(help="Mass, e.g. 1.2 or '1.2 kg'.")] = "1.2",
     stiffness: Annotated[float | None, typer.Option(help="K [N/m^n]; Eq. (4) by default.")] = None,
@@ -126,11 +148,13 @@ def impact(
 
 @app.command()
 @guarded
-def models(json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False) -> None:
+def models(
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
     """List the contact force laws with their damping factor D(c_r)."""
     from braidsim.contact import _LAWS
 
-    rows = []
+    rows: list[dict[str, Any]] = []
     for law in _LAWS.values():
         d = law.damping_factor(5.0 / 9.0)
         from braidsim.contact import effective_restitution
@@ -178,7 +202,13 @@ def scenarios(
 
     if keys:
         rows = [
-            {"key": s.key, "unit": s.unit, "default": s.default, "allowed": s.range_text(), "doc": s.doc}
+            {
+                "key": s.key,
+                "unit": s.unit,
+                "default": s.default,
+                "allowed": s.range_text(),
+                "doc": s.doc,
+            }
             for s in SCHEMA.values()
         ]
         if json_:

@@ -176,54 +176,78 @@ GOLD = 0.3819660112501051  # 2 - golden ratio
 # =======================================================================================
 
 
-@njit(cache=True)
-def track_h(t, TH):
+# The excitation tables travel in one flat array EX (fewer array arguments make the many
+# small calls of the hot path cheaper):
+#   EX[0] = n_th, EX[1] = n_wh, EX[2] = n_pt, then n_th rows (amplitude, angular frequency,
+#   phase) of h(t), n_wh rows of omega(t), and the profile: n_pt times, n_pt speeds and n_pt
+#   cumulative integrals of omega.
+EX_HEAD = 3
+
+
+def pack_excitation(TH, WH, PT, PW, PI):
+    """Build the flat excitation array EX from the tables (plain Python, called once)."""
+    return np.concatenate(
+        (
+            np.array([TH.shape[0], WH.shape[0], PT.shape[0]], dtype=np.float64),
+            TH.ravel(),
+            WH.ravel(),
+            PT,
+            PW,
+            PI,
+        )
+    ).astype(np.float64)
+
+
+@njit(cache=True, error_model="numpy")
+def track_h(t, EX):
     """Track wall displacement h(t) = sum a cos(w t + phi) [m] and its rate [m/s]."""
     h = 0.0
     hd = 0.0
-    for i in range(TH.shape[0]):
-        arg = TH[i, 1] * t + TH[i, 2]
-        h += TH[i, 0] * math.cos(arg)
-        hd -= TH[i, 0] * TH[i, 1] * math.sin(arg)
+    n = int(EX[0])
+    for i in range(n):
+        a = EX[EX_HEAD + 3 * i]
+        w = EX[EX_HEAD + 3 * i + 1]
+        arg = w * t + EX[EX_HEAD + 3 * i + 2]
+        h += a * math.cos(arg)
+        hd -= a * w * math.sin(arg)
     return h, hd
 
 
-@njit(cache=True)
-def horn_gear(t, P, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def _profile_integral(tau, EX, o, npf, period):
+    """int of the periodic piecewise-linear omega from the profile start over tau >= 0."""
+    k = math.floor(tau / period)
+    tau -= k * period
+    j = 0
+    while j < npf - 2 and EX[o + j + 1] - EX[o] <= tau:
+        j += 1
+    dt = tau - (EX[o + j] - EX[o])
+    w0 = EX[o + npf + j]
+    slope = (EX[o + npf + j + 1] - w0) / (EX[o + j + 1] - EX[o + j])
+    om = w0 + slope * dt
+    return om, k * EX[o + 3 * npf - 1] + EX[o + 2 * npf + j] + w0 * dt + 0.5 * slope * dt * dt
+
+
+@njit(cache=True, error_model="numpy")
+def horn_gear(t, P, EX):
     """Horn-gear speed omega(t) [rad/s] and slot travel s(t) = r_c int_0^t omega [m]."""
     rc = P[P_RC]
-    npf = PT.shape[0]
+    nth = int(EX[0])
+    nwh = int(EX[1])
+    npf = int(EX[2])
     if npf >= 2:
-        # periodic piecewise-linear profile; PI holds int omega from PT[0] to each node
-        period = PT[npf - 1] - PT[0]
-        tau = t - PT[0]
-        k = math.floor(tau / period)
-        tau -= k * period
-        base = k * PI[npf - 1]
-        j = 0
-        while j < npf - 2 and PT[j + 1] - PT[0] <= tau:
-            j += 1
-        dt = tau - (PT[j] - PT[0])
-        slope = (PW[j + 1] - PW[j]) / (PT[j + 1] - PT[j])
-        om = PW[j] + slope * dt
-        integral = base + PI[j] + PW[j] * dt + 0.5 * slope * dt * dt
-        # offset so that s(0) = 0
-        tau0 = -PT[0]
-        k0 = math.floor(tau0 / period)
-        tau0 -= k0 * period
-        j0 = 0
-        while j0 < npf - 2 and PT[j0 + 1] - PT[0] <= tau0:
-            j0 += 1
-        dt0 = tau0 - (PT[j0] - PT[0])
-        slope0 = (PW[j0 + 1] - PW[j0]) / (PT[j0 + 1] - PT[j0])
-        integral0 = k0 * PI[npf - 1] + PI[j0] + PW[j0] * dt0 + 0.5 * slope0 * dt0 * dt0
+        o = EX_HEAD + 3 * nth + 3 * nwh
+        period = EX[o + npf - 1] - EX[o]
+        om, integral = _profile_integral(t - EX[o], EX, o, npf, period)
+        _, integral0 = _profile_integral(-EX[o], EX, o, npf, period)
         return om, rc * (integral - integral0)
     om = P[P_OMEGA0]
     integral = P[P_OMEGA0] * t
-    for i in range(WH.shape[0]):
-        a = WH[i, 0]
-        w = WH[i, 1]
-        ph = WH[i, 2]
+    o = EX_HEAD + 3 * nth
+    for i in range(nwh):
+        a = EX[o + 3 * i]
+        w = EX[o + 3 * i + 1]
+        ph = EX[o + 3 * i + 2]
         om += a * math.cos(w * t + ph)
         if w > 0.0:
             integral += a / w * (math.sin(w * t + ph) - math.sin(ph))
@@ -237,7 +261,7 @@ def horn_gear(t, P, WH, PT, PW, PI):
 # =======================================================================================
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def friction(v, normal, mu, P):
     """Regularised friction force [N] opposing the sliding speed v (Eq. 14 and variants)."""
     law = int(P[P_FRIC_LAW])
@@ -253,7 +277,7 @@ def friction(v, normal, mu, P):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact(mode, gap_rel, rate_rel, k, n, d, v0, allow_tension):
     """Penetration, stiffness force, damping force and normal force of one contact pair.
 
@@ -278,41 +302,41 @@ def contact(mode, gap_rel, rate_rel, k, n, d, v0, allow_tension):
     return p, pd, fk, fc, nn
 
 
-@njit(cache=True)
-def pair_state(t, Y, pair, P, TH, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def pair_state(t, Y, pair, P, EX):
     """Coordinate and rate of the carrier relative to the inner/rear wall of a pair."""
     if pair == 0:
-        h, hd = track_h(t, TH)
+        h, hd = track_h(t, EX)
         return Y[0] - h, Y[1] - hd, P[P_EPS_G]
-    om, s = horn_gear(t, P, WH, PT, PW, PI)
+    om, s = horn_gear(t, P, EX)
     return Y[2] - s, Y[3] - P[P_RC] * om, P[P_EPS_H]
 
 
-@njit(cache=True)
-def pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def pair_forces(t, Y, pair, mode, v0, P, EX):
     """(p, pdot, F_k, F_c, N) of a pair in contact mode ``mode`` (zeros when free)."""
     if mode == 0:
         return 0.0, 0.0, 0.0, 0.0, 0.0
-    u, ud, eps = pair_state(t, Y, pair, P, TH, WH, PT, PW, PI)
+    u, ud, eps = pair_state(t, Y, pair, P, EX)
     if mode > 0:
         u = u - eps
     base = P_K_T if pair == 0 else P_K_S
     return contact(mode, u, ud, P[base], P[base + 1], P[base + 2], v0, P[P_ALLOW_TENSION])
 
 
-@njit(cache=True)
-def rhs(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, out):
+@njit(cache=True, error_model="numpy")
+def rhs(t, Y, mt, ms, v0t, v0s, P, EX, out):
     """Time derivative of the state ``Y`` in the contact modes (mt, ms)."""
     m = P[P_MASS]
-    om, _ = horn_gear(t, P, WH, PT, PW, PI)
-    _, pdt, fkt, fct, nt = pair_forces(t, Y, 0, mt, v0t, P, TH, WH, PT, PW, PI)
+    om, _ = horn_gear(t, P, EX)
+    _, pdt, fkt, _, nt = pair_forces(t, Y, 0, mt, v0t, P, EX)
     fx = friction(Y[1], P[P_NX], P[P_MU1], P)
     out[0] = Y[1]
     out[1] = (-mt * nt - fx - P[P_LOAD_X] - P[P_MRC] * om * om) / m
     out[4] = (nt - fkt) * pdt
     out[6] = fx * Y[1]
     if P[P_DOF] > 1.5:
-        _, pds, fks, fcs, ns = pair_forces(t, Y, 1, ms, v0s, P, TH, WH, PT, PW, PI)
+        _, pds, fks, _, ns = pair_forces(t, Y, 1, ms, v0s, P, EX)
         fy = friction(Y[3], abs(nt), P[P_MU2], P)
         out[2] = Y[3]
         out[3] = (-ms * ns - fy + P[P_T_Y]) / m
@@ -330,7 +354,7 @@ def rhs(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, out):
 # =======================================================================================
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def dense_eval(theta, RC, out):
     """State at fraction theta of the step from the continuous extension coefficients."""
     th1 = 1.0 - theta
@@ -340,8 +364,8 @@ def dense_eval(theta, RC, out):
         )
 
 
-@njit(cache=True)
-def event_value(j, t, Y, mt, ms, P, TH, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def event_value(j, t, Y, mt, ms, P, EX):
     """Event function j (>= 0 allowed, < 0 means the event happened); +1 when inactive.
 
     j = 0, 1: track inner / outer onset (free) or exit (contact on that wall);
@@ -352,7 +376,7 @@ def event_value(j, t, Y, mt, ms, P, TH, WH, PT, PW, PI):
     mode = mt if pair == 0 else ms
     if pair == 1 and P[P_DOF] < 1.5:
         return 1.0
-    u, _, eps = pair_state(t, Y, pair, P, TH, WH, PT, PW, PI)
+    u, _, eps = pair_state(t, Y, pair, P, EX)
     if mode == 0:
         return u if side < 0 else eps - u
     if mode != side:
@@ -360,14 +384,14 @@ def event_value(j, t, Y, mt, ms, P, TH, WH, PT, PW, PI):
     return -u if side < 0 else u - eps
 
 
-@njit(cache=True)
-def quantity(q, t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def quantity(q, t, Y, mt, ms, v0t, v0s, P, EX):
     """Scalar tracked for extremes: q = 4*pair + {0: p, 1: F_c, 2: -F_c, 3: N}."""
     pair = q // 4
     kind = q % 4
     mode = mt if pair == 0 else ms
     v0 = v0t if pair == 0 else v0s
-    p, _, _, fc, nn = pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI)
+    p, _, _, fc, nn = pair_forces(t, Y, pair, mode, v0, P, EX)
     if kind == 0:
         return p
     if kind == 1:
@@ -382,34 +406,34 @@ def quantity(q, t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI):
 # =======================================================================================
 
 
-@njit(cache=True)
-def _step(t, Y, h, K, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Yt, Y1):
+@njit(cache=True, error_model="numpy")
+def _step(t, Y, h, K, mt, ms, v0t, v0s, P, EX, Yt, Y1):
     """One Dormand-Prince step of size h from (t, Y) with K[0] = f(t, Y); fills K[1..6], Y1."""
     for i in range(NY):
         Yt[i] = Y[i] + h * A21 * K[0, i]
-    rhs(t + C2 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[1])
+    rhs(t + C2 * h, Yt, mt, ms, v0t, v0s, P, EX, K[1])
     for i in range(NY):
         Yt[i] = Y[i] + h * (A31 * K[0, i] + A32 * K[1, i])
-    rhs(t + C3 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[2])
+    rhs(t + C3 * h, Yt, mt, ms, v0t, v0s, P, EX, K[2])
     for i in range(NY):
         Yt[i] = Y[i] + h * (A41 * K[0, i] + A42 * K[1, i] + A43 * K[2, i])
-    rhs(t + C4 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[3])
+    rhs(t + C4 * h, Yt, mt, ms, v0t, v0s, P, EX, K[3])
     for i in range(NY):
         Yt[i] = Y[i] + h * (A51 * K[0, i] + A52 * K[1, i] + A53 * K[2, i] + A54 * K[3, i])
-    rhs(t + C5 * h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[4])
+    rhs(t + C5 * h, Yt, mt, ms, v0t, v0s, P, EX, K[4])
     for i in range(NY):
         Yt[i] = Y[i] + h * (
             A61 * K[0, i] + A62 * K[1, i] + A63 * K[2, i] + A64 * K[3, i] + A65 * K[4, i]
         )
-    rhs(t + h, Yt, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[5])
+    rhs(t + h, Yt, mt, ms, v0t, v0s, P, EX, K[5])
     for i in range(NY):
         Y1[i] = Y[i] + h * (
             A71 * K[0, i] + A73 * K[2, i] + A74 * K[3, i] + A75 * K[4, i] + A76 * K[5, i]
         )
-    rhs(t + h, Y1, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, K[6])
+    rhs(t + h, Y1, mt, ms, v0t, v0s, P, EX, K[6])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _error_norm(Y, Y1, h, K, P):
     """RMS of the embedded error estimate scaled by atol + rtol |y| over the active DOFs."""
     rtol = P[P_RTOL]
@@ -425,7 +449,7 @@ def _error_norm(Y, Y1, h, K, P):
     return math.sqrt(acc / nd)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _dense_coeffs(Y, Y1, h, K, RC):
     for i in range(NY):
         ydiff = Y1[i] - Y[i]
@@ -439,13 +463,13 @@ def _dense_coeffs(Y, Y1, h, K, RC):
         )
 
 
-@njit(cache=True)
-def _event_at(j, t0, h, theta, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
+@njit(cache=True, error_model="numpy")
+def _event_at(j, t0, h, theta, RC, mt, ms, P, EX, Ys):
     dense_eval(theta, RC, Ys)
-    return event_value(j, t0 + theta * h, Ys, mt, ms, P, TH, WH, PT, PW, PI)
+    return event_value(j, t0 + theta * h, Ys, mt, ms, P, EX)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def event_active(j, mt, ms, P):
     """Whether event function j can fire in the modes (mt, ms)."""
     pair = 0 if j < 2 else 1
@@ -456,16 +480,16 @@ def event_active(j, mt, ms, P):
     return mode == 0 or mode == side
 
 
-@njit(cache=True)
-def _golden_dip(j, t0, h, a, b, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
+@njit(cache=True, error_model="numpy")
+def _golden_dip(j, t0, h, a, b, RC, mt, ms, P, EX, Ys):
     """Golden-section search of event function j on [a, b] for a value below zero.
 
     Returns the first theta found with a negative value, or 2.0 when the minimum is >= 0.
     """
     c = a + GOLD * (b - a)
     d = b - GOLD * (b - a)
-    fc = _event_at(j, t0, h, c, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
-    fd = _event_at(j, t0, h, d, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    fc = _event_at(j, t0, h, c, RC, mt, ms, P, EX, Ys)
+    fd = _event_at(j, t0, h, d, RC, mt, ms, P, EX, Ys)
     for _ in range(80):
         if fc < 0.0:
             return c
@@ -478,29 +502,63 @@ def _golden_dip(j, t0, h, a, b, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
             d = c
             fd = fc
             c = a + GOLD * (b - a)
-            fc = _event_at(j, t0, h, c, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+            fc = _event_at(j, t0, h, c, RC, mt, ms, P, EX, Ys)
         else:
             a = c
             c = d
             fc = fd
             d = b - GOLD * (b - a)
-            fd = _event_at(j, t0, h, d, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+            fd = _event_at(j, t0, h, d, RC, mt, ms, P, EX, Ys)
     return 2.0
 
 
-@njit(cache=True)
-def _locate_event(j, t0, h, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
+@njit(cache=True, error_model="numpy")
+def _sample_events(t0, h, RC, mt, ms, P, EX, Ys, GS):
+    """Event functions at the N_SUB + 1 equally spaced points of the step (GS[j, k]).
+
+    Returns False when no event function is active.
+    """
+    any_active = False
+    for j in range(4):
+        if event_active(j, mt, ms, P):
+            any_active = True
+    if not any_active:
+        return False
+    for k in range(N_SUB + 1):
+        dense_eval(k / N_SUB, RC, Ys)
+        tk = t0 + k / N_SUB * h
+        for pair in range(2):
+            j0 = 2 * pair
+            a0 = event_active(j0, mt, ms, P)
+            a1 = event_active(j0 + 1, mt, ms, P)
+            if not (a0 or a1):
+                GS[j0, k] = 1.0
+                GS[j0 + 1, k] = 1.0
+                continue
+            # one evaluation of the relative coordinate serves both walls of the pair
+            u, _, eps = pair_state(tk, Ys, pair, P, EX)
+            mode = mt if pair == 0 else ms
+            if mode == 0:
+                GS[j0, k] = u if a0 else 1.0
+                GS[j0 + 1, k] = eps - u if a1 else 1.0
+            else:
+                GS[j0, k] = -u if a0 else 1.0
+                GS[j0 + 1, k] = u - eps if a1 else 1.0
+    return True
+
+
+@njit(cache=True, error_model="numpy")
+def _locate_event(j, t0, h, RC, mt, ms, P, EX, Ys, GS):
     """Earliest theta in (0, 1] where event function j turns negative; 2.0 when none.
 
-    Samples N_SUB points; a sign change is refined by the Illinois method, an interior
-    local minimum of the samples by golden section (a contact between two samples).
+    Uses the samples GS[j] (see :func:`_sample_events`); a sign change is refined by the
+    Illinois method, an interior local minimum of the samples by golden section (a contact
+    between two samples).
     """
     if not event_active(j, mt, ms, P):
         return 2.0
-    gs = np.empty(N_SUB + 1)
-    gs[0] = max(_event_at(j, t0, h, 0.0, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys), 0.0)
-    for k in range(1, N_SUB + 1):
-        gs[k] = _event_at(j, t0, h, k / N_SUB, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    gs = GS[j]
+    gs[0] = max(gs[0], 0.0)
     lo = -1.0
     hi = -1.0
     for k in range(1, N_SUB + 1):
@@ -508,9 +566,15 @@ def _locate_event(j, t0, h, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
             lo = (k - 1) / N_SUB
             hi = k / N_SUB
             break
-        if k < N_SUB and gs[k] < gs[k - 1] and gs[k] <= gs[k + 1]:
-            # interior local minimum of the samples: golden section for a dip below zero
-            dip = _golden_dip(j, t0, h, (k - 1) / N_SUB, (k + 1) / N_SUB, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+        if (
+            k < N_SUB
+            and gs[k] < gs[k - 1]
+            and gs[k] <= gs[k + 1]
+            and gs[k] < max(gs[k - 1] - gs[k], gs[k + 1] - gs[k])
+        ):
+            # interior local minimum of the samples, close enough to zero that the function
+            # could dip below it between the samples: golden section for that dip
+            dip = _golden_dip(j, t0, h, (k - 1) / N_SUB, (k + 1) / N_SUB, RC, mt, ms, P, EX, Ys)
             if dip < 2.0:
                 lo = (k - 1) / N_SUB
                 hi = dip
@@ -518,8 +582,8 @@ def _locate_event(j, t0, h, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
     if hi < 0.0:
         return 2.0
     # Illinois on [lo, hi] with g(lo) >= 0 > g(hi)
-    glo = max(_event_at(j, t0, h, lo, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys), 0.0)
-    ghi = _event_at(j, t0, h, hi, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+    glo = max(_event_at(j, t0, h, lo, RC, mt, ms, P, EX, Ys), 0.0)
+    ghi = _event_at(j, t0, h, hi, RC, mt, ms, P, EX, Ys)
     side = 0
     for _ in range(200):
         if hi - lo <= 1e-15 * max(1.0, abs(t0) / max(h, 1e-300)) or hi - lo < 1e-16:
@@ -528,7 +592,7 @@ def _locate_event(j, t0, h, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
         mid = hi - ghi * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
-        gm = _event_at(j, t0, h, mid, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys)
+        gm = _event_at(j, t0, h, mid, RC, mt, ms, P, EX, Ys)
         if gm < 0.0:
             hi = mid
             ghi = gm
@@ -544,8 +608,8 @@ def _locate_event(j, t0, h, RC, mt, ms, P, TH, WH, PT, PW, PI, Ys):
     return hi
 
 
-@njit(cache=True)
-def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, TH, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, EX):
     """Append one row of the sampled series (state plus derived contact quantities)."""
     if kind != KIND_SAMPLE and P[P_RECORD_EVENTS] == 0.0:
         return nrow
@@ -558,19 +622,19 @@ def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, TH, WH, PT, PW, PI):
     for pair in range(2):
         mode = mt if pair == 0 else ms
         v0 = v0t if pair == 0 else v0s
-        p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI)
+        p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, EX)
         sgn = float(mode)
         r[5 + 4 * pair] = sgn * p
         r[6 + 4 * pair] = sgn * fk
         r[7 + 4 * pair] = sgn * fc
         r[8 + 4 * pair] = sgn * nn
-    _, _, _, _, nt = pair_forces(t, Y, 0, mt, v0t, P, TH, WH, PT, PW, PI)
+    _, _, _, _, nt = pair_forces(t, Y, 0, mt, v0t, P, EX)
     r[13] = friction(Y[1], P[P_NX], P[P_MU1], P)
     r[14] = friction(Y[3], abs(nt), P[P_MU2], P) if P[P_DOF] > 1.5 else 0.0
     for i in range(4):
         r[15 + i] = Y[4 + i]
-    h, _ = track_h(t, TH)
-    om, s = horn_gear(t, P, WH, PT, PW, PI)
+    h, _ = track_h(t, EX)
+    om, s = horn_gear(t, P, EX)
     r[19] = h
     r[20] = s
     r[21] = om
@@ -578,8 +642,8 @@ def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, TH, WH, PT, PW, PI):
     return nrow + 1
 
 
-@njit(cache=True)
-def _update_ranges(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES):
+@njit(cache=True, error_model="numpy")
+def _update_ranges(t, Y, mt, ms, v0t, v0s, P, EX, WIN, RANGES):
     """Fold the contact quantities at time t into the [min, max] of each window containing t.
 
     RANGES[w, pair, q, 0/1] with q = 0 depth, 1 F_kg, 2 F_cg, 3 contact force (paper signs).
@@ -587,7 +651,7 @@ def _update_ranges(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES):
     for pair in range(2):
         mode = mt if pair == 0 else ms
         v0 = v0t if pair == 0 else v0s
-        p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, TH, WH, PT, PW, PI)
+        p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, EX)
         sgn = float(mode)
         vals = (sgn * p, sgn * fk, sgn * fc, sgn * nn)
         for w in range(WIN.shape[0]):
@@ -600,17 +664,17 @@ def _update_ranges(t, Y, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES):
                         RANGES[w, pair, q, 1] = v
 
 
-@njit(cache=True)
-def _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Ys):
+@njit(cache=True, error_model="numpy")
+def _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, EX, Ys):
     """Maximise quantity q over theta in [a, b] on the interpolant (golden section)."""
     c = a + GOLD * (b - a)
     d = b - GOLD * (b - a)
     dense_eval(c, RC, Ys)
-    fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+    fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, EX)
     dense_eval(d, RC, Ys)
-    fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+    fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, EX)
     for _ in range(80):
-        if b - a < 1e-12:
+        if b - a < 1e-10:
             break
         if fc > fd:
             b = d
@@ -618,18 +682,18 @@ def _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Ys)
             fd = fc
             c = a + GOLD * (b - a)
             dense_eval(c, RC, Ys)
-            fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+            fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, EX)
         else:
             a = c
             c = d
             fc = fd
             d = b - GOLD * (b - a)
             dense_eval(d, RC, Ys)
-            fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+            fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, EX)
     return 0.5 * (a + b)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _episode_update(EP, ie, q, val, t):
     """Fold a value of quantity q (per pair) into the open episode ie."""
     kind = q % 4
@@ -653,66 +717,131 @@ def _episode_update(EP, ie, q, val, t):
             EP[ie, 10] = t
 
 
-@njit(cache=True)
-def _scan_step(t0, h, RC, Y0, Y1, mt, ms, v0t, v0s, open_ep, EP, P, TH, WH, PT, PW, PI, WIN, RANGES,
-               rows, nrow, ST, isamp, Ys):
-    """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks."""
+@njit(cache=True, error_model="numpy")
+def _record(q, mode, ie, t0, t1, EP, WIN, RANGES):
+    """Smallest extreme of quantity q recorded so far by the open episode and by the windows
+    overlapping [t0, t1] (in the quantity's own sign); a larger value must be refined."""
+    pair = q // 4
+    kind = q % 4
+    best = math.inf
+    if ie >= 0:
+        if kind == 0:
+            best = EP[ie, 7]
+        elif kind == 1:
+            best = EP[ie, 12]
+        elif kind == 2:
+            best = -EP[ie, 11]
+        else:
+            best = EP[ie, 9]
+    qi = 0 if kind == 0 else (3 if kind == 3 else 2)
+    sgn = mode if kind != 2 else -mode
+    for w in range(WIN.shape[0]):
+        if WIN[w, 0] <= t1 and WIN[w, 1] >= t0:
+            rec = RANGES[w, pair, qi, 1] if sgn > 0 else -RANGES[w, pair, qi, 0]
+            if rec < best:
+                best = rec
+    return best
+
+
+@njit(cache=True, error_model="numpy")
+def _scan_step(
+    t0,
+    h,
+    RC,
+    Y0,
+    Y1,
+    mt,
+    ms,
+    v0t,
+    v0s,
+    open_ep,
+    EP,
+    P,
+    EX,
+    WIN,
+    RANGES,
+    rows,
+    nrow,
+    ST,
+    isamp,
+    Ys,
+    QV,
+):
+    """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks.
+
+    ``QV`` is a (4, N_SUB + 1) scratch array.
+    """
     t1 = t0 + h
     # sampled series
     while isamp < ST.shape[0] and ST[isamp] <= t1:
         if ST[isamp] > t0:
             theta = (ST[isamp] - t0) / h if h > 0 else 1.0
             dense_eval(theta, RC, Ys)
-            nrow = _write_row(rows, nrow, ST[isamp], Ys, mt, ms, v0t, v0s, KIND_SAMPLE, P, TH, WH, PT, PW, PI)
+            nrow = _write_row(rows, nrow, ST[isamp], Ys, mt, ms, v0t, v0s, KIND_SAMPLE, P, EX)
         isamp += 1
     # ranges at the end point and at window boundaries inside the step
-    _update_ranges(t1, Y1, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES)
+    _update_ranges(t1, Y1, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
     for w in range(WIN.shape[0]):
         for e in range(2):
             tb = WIN[w, e]
             if t0 < tb < t1:
                 dense_eval((tb - t0) / h, RC, Ys)
-                _update_ranges(tb, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES)
+                _update_ranges(tb, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
     if mt == 0 and ms == 0:
         return nrow, isamp
-    # extremes inside the step for each pair in contact
+    # extremes inside the step for each pair in contact: sample the interpolant once per point,
+    # then refine any interior maximum by golden section
     for pair in range(2):
         mode = mt if pair == 0 else ms
         if mode == 0:
             continue
         ie = open_ep[pair]
+        v0 = v0t if pair == 0 else v0s
+        for k in range(N_SUB + 1):
+            theta = k / N_SUB
+            dense_eval(theta, RC, Ys)
+            p, _, _, fc, nn = pair_forces(t0 + theta * h, Ys, pair, mode, v0, P, EX)
+            QV[0, k] = p
+            QV[1, k] = fc
+            QV[2, k] = -fc
+            QV[3, k] = nn
         for kind in range(4):
             q = 4 * pair + kind
-            vals = np.empty(N_SUB + 1)
-            for k in range(N_SUB + 1):
-                theta = k / N_SUB
-                dense_eval(theta, RC, Ys)
-                vals[k] = quantity(q, t0 + theta * h, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
             kb = 0
             for k in range(1, N_SUB + 1):
-                if vals[k] > vals[kb]:
+                if QV[kind, k] > QV[kind, kb]:
                     kb = k
             if ie >= 0:
-                _episode_update(EP, ie, q, vals[kb], t0 + kb / N_SUB * h)
-                _episode_update(EP, ie, q, vals[0], t0)
+                _episode_update(EP, ie, q, QV[kind, kb], t0 + kb / N_SUB * h)
+                _episode_update(EP, ie, q, QV[kind, 0], t0)
+            if kb < N_SUB:
+                margin = max(
+                    abs(QV[kind, kb] - QV[kind, kb - 1]), abs(QV[kind, kb + 1] - QV[kind, kb])
+                )
+            else:
+                margin = abs(QV[kind, kb] - QV[kind, kb - 1])
+            if QV[kind, kb] + margin < _record(q, mode, ie, t0, t1, EP, WIN, RANGES):
+                # cannot beat any extreme recorded so far (the function moves by at most about
+                # the neighbouring sample differences between samples): no refinement needed
+                continue
             if 0 < kb < N_SUB or (kb == N_SUB and kind == 0):
                 a = (kb - 1) / N_SUB
                 b = min(kb + 1, N_SUB) / N_SUB
-                theta = _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, Ys)
+                theta = _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, EX, Ys)
                 if kb == N_SUB and theta > 1.0 - 1e-9:
                     continue  # still rising at the end of the step: the next step has the peak
                 dense_eval(theta, RC, Ys)
                 tq = t0 + theta * h
-                val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI)
+                val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, EX)
                 if ie >= 0:
                     _episode_update(EP, ie, q, val, tq)
-                _update_ranges(tq, Ys, mt, ms, v0t, v0s, P, TH, WH, PT, PW, PI, WIN, RANGES)
+                _update_ranges(tq, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
                 if kind == 0 or kind == 3:
-                    nrow = _write_row(rows, nrow, tq, Ys, mt, ms, v0t, v0s, KIND_PEAK, P, TH, WH, PT, PW, PI)
+                    nrow = _write_row(rows, nrow, tq, Ys, mt, ms, v0t, v0s, KIND_PEAK, P, EX)
     return nrow, isamp
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _open_episode(EP, nep, t, pair, wall, vel, v0, initial):
     if nep >= EP.shape[0]:
         return nep + 1
@@ -736,8 +865,8 @@ def _open_episode(EP, nep, t, pair, wall, vel, v0, initial):
     return nep + 1
 
 
-@njit(cache=True)
-def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, TH, WH, PT, PW, PI):
+@njit(cache=True, error_model="numpy")
+def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, EX):
     """Contact policy at t = 0 and right after a transfer.
 
     A pair whose carrier overlaps a wall starts in contact. Such a contact has no approach
@@ -748,10 +877,7 @@ def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, TH, WH
     ``contact.min_impact_velocity``), as after a transfer (section 3.2).
     """
     for pair in range(npair):
-        u, ud, eps = pair_state(t, Y, pair, P, TH, WH, PT, PW, PI)
-        base = P_K_T if pair == 0 else P_K_S
-        k = P[base]
-        n = P[base + 1]
+        u, ud, eps = pair_state(t, Y, pair, P, EX)
         mode = 0
         p = 0.0
         pd = 0.0
@@ -783,8 +909,8 @@ def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, TH, WH
     return nep
 
 
-@njit(cache=True)
-def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
+@njit(cache=True, error_model="numpy")
+def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     """Integrate from t = 0 to P[P_T_END]; returns (status, number of rows, number of episodes).
 
     Outputs are written into the preallocated ``rows`` (series), ``EP`` (episodes),
@@ -802,6 +928,8 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
     K = np.empty((7, NY))
     Ke = np.empty((7, NY))
     RC = np.empty((5, NY))
+    QV = np.empty((4, N_SUB + 1))
+    GS = np.empty((4, N_SUB + 1))
     modes = np.zeros(2, dtype=np.int64)
     v0 = np.ones(2)
     open_ep = -np.ones(2, dtype=np.int64)
@@ -816,23 +944,23 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
         STATS[i] = 0.0
     STATS[5] = math.inf
 
-    nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 2 if P[P_DOF] > 1.5 else 1, P, TH, WH, PT,
-                          PW, PI)
-    nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_START, P, TH, WH, PT, PW, PI)
-    _update_ranges(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, WIN, RANGES)
+    nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 2 if P[P_DOF] > 1.5 else 1, P, EX)
+    nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_START, P, EX)
+    _update_ranges(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, WIN, RANGES)
     while isamp < ST.shape[0] and ST[isamp] <= 0.0:
-        nrow = _write_row(rows, nrow, 0.0, Y, modes[0], modes[1], v0[0], v0[1], KIND_SAMPLE, P, TH, WH, PT, PW, PI)
+        nrow = _write_row(rows, nrow, 0.0, Y, modes[0], modes[1], v0[0], v0[1], KIND_SAMPLE, P, EX)
         isamp += 1
     while itr < TR.shape[0] and TR[itr] <= 0.0:
         itr += 1
 
-    rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, K[0])
+    rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
     STATS[3] += 1
     h = min(1e-6, hmax, t_end)
     nsteps = 0
     same_time_events = 0
     last_event_t = -1.0
     reject_streak = 0
+    err_old = 1e-4
     while t < t_end:
         if nsteps >= max_steps:
             status = ST_MAX_STEPS
@@ -847,7 +975,7 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
         if h < 4e-16 * max(1.0, abs(t)) * 8:
             status = ST_STEP_COLLAPSE
             break
-        _step(t, Y, h, K, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, Yt, Y1)
+        _step(t, Y, h, K, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Y1)
         STATS[3] += 6
         nsteps += 1
         err = _error_norm(Y, Y1, h, K, P)
@@ -870,17 +998,24 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
             reject_streak += 1
             continue
         reject_streak = 0
-        fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-0.2)))
+        # PI step-size control (Hairer, Norsett & Wanner I, Sect. II.4; DOPRI5 with beta = 0.04)
+        if err == 0.0:
+            fac = 5.0
+        else:
+            fac = 0.9 * err ** (-0.17) * err_old**0.04
+            fac = min(5.0, max(0.2, fac))
+        err_old = max(err, 1e-4)
         h_next = min(h * fac, hmax)
         _dense_coeffs(Y, Y1, h, K, RC)
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
-        for j in range(4):
-            th = _locate_event(j, t, h, RC, modes[0], modes[1], P, TH, WH, PT, PW, PI, Ys)
-            if th < theta_ev:
-                theta_ev = th
-                j_ev = j
+        if _sample_events(t, h, RC, modes[0], modes[1], P, EX, Ys, GS):
+            for j in range(4):
+                th = _locate_event(j, t, h, RC, modes[0], modes[1], P, EX, Ys, GS)
+                if th < theta_ev:
+                    theta_ev = th
+                    j_ev = j
         if j_ev >= 0:
             # recompute the step exactly to the event time
             he = theta_ev * h
@@ -888,11 +1023,32 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
                 he = 1e-16 * max(1.0, t)
             for i in range(NY):
                 Ke[0, i] = K[0, i]
-            _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, Yt, Ye)
+            _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Ye)
             STATS[3] += 6
             _dense_coeffs(Y, Ye, he, Ke, RC)
-            nrow, isamp = _scan_step(t, he, RC, Y, Ye, modes[0], modes[1], v0[0], v0[1], open_ep, EP, P, TH,
-                                     WH, PT, PW, PI, WIN, RANGES, rows, nrow, ST, isamp, Ys)
+            nrow, isamp = _scan_step(
+                t,
+                he,
+                RC,
+                Y,
+                Ye,
+                modes[0],
+                modes[1],
+                v0[0],
+                v0[1],
+                open_ep,
+                EP,
+                P,
+                EX,
+                WIN,
+                RANGES,
+                rows,
+                nrow,
+                ST,
+                isamp,
+                Ys,
+                QV,
+            )
             t_ev = t + he
             for i in range(NY):
                 Y[i] = Ye[i]
@@ -900,7 +1056,7 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
             ED[1] = Y[5]
             pair = 0 if j_ev < 2 else 1
             side = -1 if j_ev % 2 == 0 else 1
-            u, ud, eps = pair_state(t_ev, Y, pair, P, TH, WH, PT, PW, PI)
+            _, ud, _ = pair_state(t_ev, Y, pair, P, EX)
             rate = -ud if side < 0 else ud  # penetration rate into this wall
             if modes[pair] == 0:
                 # onset: latch the approach speed
@@ -912,12 +1068,20 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
                     open_ep[pair] = nep
                     EP[nep, 13] = ED[pair]
                 nep = nep_new
-                nrow = _write_row(rows, nrow, t_ev, Y, modes[0], modes[1], v0[0], v0[1], KIND_ONSET, P, TH, WH,
-                                  PT, PW, PI)
+                nrow = _write_row(
+                    rows, nrow, t_ev, Y, modes[0], modes[1], v0[0], v0[1], KIND_ONSET, P, EX
+                )
+                # start the contact with a step of about 1/12 of its duration estimated from
+                # the elastic closed form (p_m from the approach speed, T ~ 3 p_m / v)
+                base = P_K_T if pair == 0 else P_K_S
+                n1 = P[base + 1] + 1.0
+                p_m = (n1 * P[P_MASS] * vlat * vlat / (2.0 * P[base])) ** (1.0 / n1)
+                h = min(h, 0.25 * p_m / vlat)
             else:
                 # exit
-                nrow = _write_row(rows, nrow, t_ev, Y, modes[0], modes[1], v0[0], v0[1], KIND_EXIT, P, TH, WH,
-                                  PT, PW, PI)
+                nrow = _write_row(
+                    rows, nrow, t_ev, Y, modes[0], modes[1], v0[0], v0[1], KIND_EXIT, P, EX
+                )
                 ie = open_ep[pair]
                 if ie >= 0:
                     EP[ie, 1] = t_ev
@@ -926,7 +1090,7 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
                     EP[ie, 14] = 0.0
                 open_ep[pair] = -1
                 modes[pair] = 0
-            _update_ranges(t_ev, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, WIN, RANGES)
+            _update_ranges(t_ev, Y, modes[0], modes[1], v0[0], v0[1], P, EX, WIN, RANGES)
             STATS[0] += 1
             STATS[2] += 1
             if t_ev - last_event_t <= 1e-12 * max(1.0, t_ev):
@@ -939,13 +1103,34 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
                 same_time_events = 0
             last_event_t = t_ev
             t = t_ev
-            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, K[0])
+            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
             STATS[3] += 1
             STATS[5] = min(STATS[5], he)
             continue
         # ---- accepted step without event
-        nrow, isamp = _scan_step(t, h, RC, Y, Y1, modes[0], modes[1], v0[0], v0[1], open_ep, EP, P, TH, WH,
-                                 PT, PW, PI, WIN, RANGES, rows, nrow, ST, isamp, Ys)
+        nrow, isamp = _scan_step(
+            t,
+            h,
+            RC,
+            Y,
+            Y1,
+            modes[0],
+            modes[1],
+            v0[0],
+            v0[1],
+            open_ep,
+            EP,
+            P,
+            EX,
+            WIN,
+            RANGES,
+            rows,
+            nrow,
+            ST,
+            isamp,
+            Ys,
+            QV,
+        )
         STATS[0] += 1
         STATS[5] = min(STATS[5], h)
         STATS[6] = max(STATS[6], h)
@@ -966,7 +1151,7 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
                     EP[ie, 13] = ED[pair] - EP[ie, 13]
                     EP[ie, 14] = 2.0
                     open_ep[pair] = -1
-            hh, hd = track_h(t, TH)
+            hh, hd = track_h(t, EX)
             xr = Y[0] - hh
             eps = P[P_EPS_G]
             if xr < 0.0:
@@ -976,15 +1161,16 @@ def integrate(Y0, P, TH, WH, PT, PW, PI, TR, WIN, ST, rows, EP, RANGES, STATS):
             Y[0] = hh + eps - xr
             Y[1] = 2.0 * hd - Y[1] + P[P_TRANSFER_SPEED]
             modes[0] = 0
-            nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_TRANSFER, P, TH, WH, PT,
-                              PW, PI)
-            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 1, P, TH, WH, PT, PW, PI)
-            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, TH, WH, PT, PW, PI, K[0])
+            nrow = _write_row(
+                rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_TRANSFER, P, EX
+            )
+            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 1, P, EX)
+            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
             STATS[3] += 1
         h = h_next
     STATS[7] = t
     if status == ST_OK:
-        nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_END, P, TH, WH, PT, PW, PI)
+        nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_END, P, EX)
         for pair in range(2):
             ie = open_ep[pair]
             if ie >= 0:

@@ -1,0 +1,577 @@
+"""Many parameter sets through the compiled integrator in one call, reduced to per-run metrics.
+
+:func:`simulate_batch` takes a base scenario and a list of parameter sets (``{dotted key:
+value}`` overrides), validates every set before any run starts, integrates each run with the
+compiled kernel (:func:`braidsim.simulate.run_kernel` with no event rows) and reduces it to the
+scalar metrics of :data:`METRICS`. Runs are independent and deterministic: a run's metrics
+are the same bits whatever batch, chunk, process or order it runs in, and equal those computed
+from :func:`braidsim.simulate` with the same parameters (``tests/unit/test_batch.py``).
+``workers > 1`` spreads the runs over local processes; :mod:`braidsim.sweep` builds
+parameter grids and samples on top of this and stores the results.
+
+Metrics window
+--------------
+Every metric except the final state is taken over one window [t0, t1] (default: the whole
+run), so that a start-up transient can be left out (``window=(0.5, 1.0)``):
+
+* impacts: contact onsets with t0 <= t_onset <= t1, per pair and wall. A contact that exists
+  at t = 0 (or right after a transfer) with an overlap has no approach and is not an impact.
+* maximum approach speed [m/s]: the largest relative normal speed at those onsets
+  (0 when there is none);
+* maximum contact force [N] and maximum depth [m]: the largest magnitude of the normal
+  contact force and of the penetration over the window, from the kernel's exact window
+  ranges (extremes refined on the interpolant), on either wall;
+* contact fraction: the time in contact inside the window over t1 - t0, from the episode
+  start and end times;
+* dissipated energy [J]: the change over the window of the kernel's dissipation integrals
+  int (N - K p^n) pdot dt (contact damping, per pair) and int f v dt (friction);
+* RMS of x [m]: sqrt( (1/(t1 - t0)) int_t0^t1 x(t)^2 dt ), x measured from the track's rest
+  position, by the trapezoidal rule on a uniform grid of the dense output with spacing
+  ``rms_interval`` (default: half the kernel's maximum step, i.e. 1/16 of the shortest
+  excitation period, at most 0.5 ms); exact for the integrator's interpolant up to the
+  quadrature error of that grid.
+
+Regime rule
+-----------
+The regime label describes the track pair over the window (:data:`REGIMES`):
+
+* ``two_sided_impacts`` (3): onsets on both the inner and the outer wall;
+* ``one_sided_impacts`` (2): onsets on one wall only (chatter on the inner wall, or the
+  bounces after a transfer);
+* ``resting_contact`` (1): no onset, but in contact during the window (the carrier stays on
+  the wall, MODEL_NOTES section 7);
+* ``no_contact`` (0): no onset and no contact;
+* ``failed`` (-1): the run failed numerically (its reason is kept in ``failure``).
+
+MODEL_NOTES section 7 predicts ``resting_contact`` on a vibrating track while
+a_p = (T1 cos phi + m r_c omega^2)/m >= h_a omega_h^2 and impacts above that line.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from braidsim.errors import InputError, SimulationError
+from braidsim.integrate import kernel as K
+from braidsim.model import Model, build_model
+from braidsim.params import Scenario, load_scenario
+from braidsim.result import UNITS as SERIES_UNITS
+
+if TYPE_CHECKING:
+    import pandas as pd
+    import xarray as xr
+
+REGIMES = ("no_contact", "resting_contact", "one_sided_impacts", "two_sided_impacts")
+"""Regime labels, index = code; -1 is ``failed``."""
+REGIME_FAILED = -1
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One per-run metric.
+
+    Attributes
+    ----------
+    name : str
+        Variable name.
+    unit : str
+        SI unit ("" for dimensionless or counts).
+    dtype : str
+        NumPy dtype of the stored values.
+    description : str
+        What it is.
+    """
+
+    name: str
+    unit: str
+    dtype: str
+    description: str
+
+    @property
+    def fill(self) -> float | int:
+        """Value of a failed run: NaN for floats, -1 for integers."""
+        return -1 if self.dtype.startswith("int") else math.nan
+
+
+METRICS: tuple[Metric, ...] = (
+    Metric(
+        "regime",
+        "",
+        "int8",
+        "-1 failed, 0 no_contact, 1 resting_contact, 2 one_sided_impacts, 3 two_sided_impacts "
+        "(track pair, over the window; see braidsim.batch)",
+    ),
+    Metric("track_inner_impacts", "", "int32", "contact onsets on the inner track wall in the window"),
+    Metric("track_outer_impacts", "", "int32", "contact onsets on the outer track wall in the window"),
+    Metric("slot_rear_impacts", "", "int32", "contact onsets on the rear slot wall in the window"),
+    Metric("slot_front_impacts", "", "int32", "contact onsets on the front slot wall in the window"),
+    Metric(
+        "track_max_approach_speed",
+        "m/s",
+        "float64",
+        "largest relative normal speed at a track contact onset in the window (0: none)",
+    ),
+    Metric(
+        "slot_max_approach_speed",
+        "m/s",
+        "float64",
+        "largest relative normal speed at a slot contact onset in the window (0: none)",
+    ),
+    Metric("track_max_contact_force", "N", "float64", "largest |normal force| of the track contact in the window"),
+    Metric("slot_max_contact_force", "N", "float64", "largest |normal force| of the slot contact in the window"),
+    Metric("track_max_depth", "m", "float64", "largest penetration into a track wall in the window"),
+    Metric("slot_max_depth", "m", "float64", "largest penetration into a slot wall in the window"),
+    Metric("track_contact_fraction", "", "float64", "fraction of the window in contact with a track wall"),
+    Metric("slot_contact_fraction", "", "float64", "fraction of the window in contact with a slot wall"),
+    Metric(
+        "track_dissipated_energy",
+        "J",
+        "float64",
+        "energy dissipated by the track contact damping in the window, int (N - K p^n) pdot dt",
+    ),
+    Metric(
+        "slot_dissipated_energy",
+        "J",
+        "float64",
+        "energy dissipated by the slot contact damping in the window",
+    ),
+    Metric("friction_work", "J", "float64", "work of the friction forces f_x, f_y in the window"),
+    Metric("rms_x", "m", "float64", "root mean square of x over the window (trapezoidal rule)"),
+    Metric("final_x", "m", "float64", "x at the end of the run"),
+    Metric("final_vx", "m/s", "float64", "dx/dt at the end of the run"),
+    Metric("final_y", "m", "float64", "y at the end of the run"),
+    Metric("final_vy", "m/s", "float64", "dy/dt at the end of the run"),
+    Metric("steps", "", "int64", "accepted integration steps (cost)"),
+    Metric("rhs_evaluations", "", "int64", "evaluations of the equations of motion (cost)"),
+)
+METRIC_NAMES: tuple[str, ...] = tuple(m.name for m in METRICS)
+METRIC_INDEX: Mapping[str, int] = MappingProxyType({m.name: i for i, m in enumerate(METRICS)})
+SERIES_VARIABLES: tuple[str, ...] = tuple(c for c in K.COLUMNS if c not in ("t", "kind"))
+"""Columns of the kernel's series that can be sampled per run (units in ``result.UNITS``)."""
+
+_COL = {name: i for i, name in enumerate(K.COLUMNS)}
+
+
+# ----------------------------------------------------------------------------------------
+# one run
+# ----------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """How each run of a batch is reduced.
+
+    Attributes
+    ----------
+    window : (float, float) or None
+        Metrics window [s]; None: the whole run.
+    rms_interval : float or None
+        Spacing of the RMS grid [s]; None: half the kernel's maximum step.
+    series : tuple of str
+        Kernel columns to sample (:data:`SERIES_VARIABLES`).
+    series_times : np.ndarray
+        Sample times of those columns [s].
+    """
+
+    window: tuple[float, float] | None = None
+    rms_interval: float | None = None
+    series: tuple[str, ...] = ()
+    series_times: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def _window_of(model: Model, opts: RunOptions) -> tuple[float, float]:
+    if opts.window is None:
+        return 0.0, model.duration
+    return float(opts.window[0]), float(opts.window[1])
+
+
+def _rms_grid(model: Model, t0: float, t1: float, interval: float | None) -> np.ndarray:
+    dt = 0.5 * float(model.P[K.P_HMAX]) if interval is None else float(interval)
+    n = max(2, int(math.ceil((t1 - t0) / dt - 1e-9)) + 1)
+    return np.linspace(t0, t1, n)
+
+
+def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray | None, str]:
+    """Integrate one model and reduce it.
+
+    Parameters
+    ----------
+    model : Model
+        From :func:`braidsim.model.build_model`.
+    opts : RunOptions
+        Window, RMS grid and sampled series.
+
+    Returns
+    -------
+    values : np.ndarray
+        One float per entry of :data:`METRICS` (NaN everywhere but ``regime`` = -1 when the
+        run failed).
+    series : np.ndarray or None
+        (len(opts.series), len(opts.series_times)) samples, NaN when the run failed; None
+        when no series is asked for.
+    failure : str
+        "" for a run that finished, else the reason (what failed, when, what to change).
+    """
+    T = model.duration
+    t0, t1 = _window_of(model, opts)
+    grid = _rms_grid(model, t0, t1, opts.rms_interval)
+    st = np.union1d(grid, opts.series_times) if opts.series_times.size else grid
+    W = np.array([[0.0, T], [t0, t1]])
+    values = np.full(len(METRICS), math.nan)
+    series = np.full((len(opts.series), opts.series_times.size), math.nan) if opts.series else None
+    try:
+        rows, EP, R, stats, y, _ = run_kernel_samples(model, st, W)
+    except SimulationError as exc:
+        values[METRIC_INDEX["regime"]] = REGIME_FAILED
+        return values, series, str(exc)
+    if rows.shape[0] != st.size or not np.array_equal(rows[:, 0], st):
+        # without event rows the kernel writes exactly the samples asked for, in order
+        raise AssertionError("kernel returned a series that does not match the sample times")
+    _episode_metrics(EP, t0, t1, values)
+    i0 = int(np.searchsorted(st, t0))
+    i1 = int(np.searchsorted(st, t1))
+    values[METRIC_INDEX["track_dissipated_energy"]] = rows[i1, _COL["track_dissipated"]] - rows[i0, _COL["track_dissipated"]]
+    values[METRIC_INDEX["slot_dissipated_energy"]] = rows[i1, _COL["slot_dissipated"]] - rows[i0, _COL["slot_dissipated"]]
+    fw = rows[:, _COL["friction_work_x"]] + rows[:, _COL["friction_work_y"]]
+    values[METRIC_INDEX["friction_work"]] = fw[i1] - fw[i0]
+    ig = np.searchsorted(st, grid)
+    x = rows[ig, _COL["x"]]
+    values[METRIC_INDEX["rms_x"]] = math.sqrt(float(np.trapezoid(x * x, grid)) / (t1 - t0))
+    for ip, pair in enumerate(("track", "slot")):
+        depth = R[1, ip, 0]
+        force = R[1, ip, 3]
+        values[METRIC_INDEX[f"{pair}_max_depth"]] = max(0.0, -depth[0], depth[1])
+        values[METRIC_INDEX[f"{pair}_max_contact_force"]] = max(0.0, -force[0], force[1])
+    for k, name in enumerate(("final_x", "final_vx", "final_y", "final_vy")):
+        values[METRIC_INDEX[name]] = y[k]
+    values[METRIC_INDEX["steps"]] = stats[0]
+    values[METRIC_INDEX["rhs_evaluations"]] = stats[3]
+    if series is not None:
+        isr = np.searchsorted(st, opts.series_times)
+        for k, name in enumerate(opts.series):
+            series[k] = rows[isr, _COL[name]]
+    return values, series, ""
+
+
+def run_kernel_samples(
+    model: Model, sample_times: np.ndarray, windows: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """:func:`braidsim.simulate.run_kernel` with samples only (no event rows): the fast path."""
+    from braidsim.simulate import run_kernel
+
+    return run_kernel(model, sample_times, windows, record_events=False)
+
+
+def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -> None:
+    """Impacts, approach speeds, contact fractions and the regime from the episode table."""
+    c = {name: i for i, name in enumerate(K.EPISODE_COLUMNS)}
+    t_on = EP[:, c["t"]]
+    t_off = EP[:, c["t_end"]]
+    pair = EP[:, c["pair"]]
+    wall = EP[:, c["wall"]]
+    onset = (EP[:, c["initial"]] == 0.0) & (t_on >= t0) & (t_on <= t1)
+    overlap = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
+    counts = {}
+    for ip, (pname, walls) in enumerate((("track", ("inner", "outer")), ("slot", ("rear", "front")))):
+        mine = pair == ip
+        for side, wname in zip((-1.0, 1.0), walls, strict=True):
+            n = int(np.count_nonzero(onset & mine & (wall == side)))
+            counts[(pname, wname)] = n
+            values[METRIC_INDEX[f"{pname}_{wname}_impacts"]] = n
+        v = EP[onset & mine, c["velocity"]]
+        values[METRIC_INDEX[f"{pname}_max_approach_speed"]] = float(v.max()) if v.size else 0.0
+        values[METRIC_INDEX[f"{pname}_contact_fraction"]] = float(overlap[mine].sum()) / (t1 - t0)
+    inner, outer = counts[("track", "inner")], counts[("track", "outer")]
+    if inner and outer:
+        regime = 3
+    elif inner or outer:
+        regime = 2
+    elif values[METRIC_INDEX["track_contact_fraction"]] > 0.0:
+        regime = 1
+    else:
+        regime = 0
+    values[METRIC_INDEX["regime"]] = regime
+
+
+# ----------------------------------------------------------------------------------------
+# many runs
+# ----------------------------------------------------------------------------------------
+
+
+def scenario_payload(sc: Scenario) -> tuple[Any, ...]:
+    """A picklable form of a validated Scenario (for worker processes)."""
+    return (sc.name, dict(sc.values), sc.description, sc.source, tuple(sorted(sc.explicit)))
+
+
+def scenario_from_payload(payload: tuple[Any, ...]) -> Scenario:
+    """Inverse of :func:`scenario_payload` (the values were validated when it was made)."""
+    name, values, description, source, explicit = payload
+    return Scenario(name, MappingProxyType(dict(values)), description, source, frozenset(explicit))
+
+
+def check_options(
+    durations: Sequence[float],
+    window: tuple[float, float] | None,
+    rms_interval: float | None,
+    series: Sequence[str],
+    series_times: Sequence[float] | np.ndarray | None,
+) -> RunOptions:
+    """Validate the reduction options against the run durations; an InputError names the option."""
+    tmin = min(durations) if durations else math.inf
+    win = None
+    if window is not None:
+        t0, t1 = float(window[0]), float(window[1])
+        if not (math.isfinite(t0) and math.isfinite(t1)) or t0 < 0.0 or t1 <= t0:
+            raise InputError(f"window: [{t0:g}, {t1:g}] s is not a time interval; allowed 0 <= T0 < T1")
+        if t1 > tmin * (1 + 1e-12):
+            raise InputError(f"window: T1 = {t1:g} s is after the end of the shortest run; allowed <= {tmin:g} s")
+        win = (t0, min(t1, tmin))
+    if rms_interval is not None and not (math.isfinite(rms_interval) and rms_interval > 0.0):
+        raise InputError(f"rms_interval: {rms_interval!r} s is out of range; allowed > 0 s")
+    names = tuple(series)
+    for name in names:
+        if name not in SERIES_VARIABLES:
+            import difflib
+
+            close = difflib.get_close_matches(name, SERIES_VARIABLES, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(f"series: unknown variable {name!r}{hint}; allowed {', '.join(SERIES_VARIABLES)}")
+    times = np.zeros(0) if series_times is None else np.asarray(series_times, dtype=float).ravel()
+    if names and times.size == 0:
+        raise InputError("series_times: no sample times given for the series; allowed a non-empty list in s")
+    if times.size:
+        if not np.all(np.isfinite(times)) or times.min() < 0.0 or times.max() > tmin * (1 + 1e-12):
+            raise InputError(f"series_times: must lie in [0, {tmin:g}] s (the shortest run)")
+        if np.any(np.diff(times) <= 0.0):
+            raise InputError("series_times: must increase strictly")
+    return RunOptions(win, rms_interval, names, times if names else np.zeros(0))
+
+
+def build_models(
+    base: Scenario, parameter_sets: Sequence[Mapping[str, Any]], duration: float | None
+) -> list[Model]:
+    """Validate every parameter set on top of ``base`` and build its model.
+
+    Raises
+    ------
+    InputError
+        The first bad set, with its index, the key and the allowed range.
+    """
+    models = []
+    for i, ov in enumerate(parameter_sets):
+        try:
+            sc = base.with_overrides(ov) if ov else base
+            models.append(build_model(sc, duration))
+        except InputError as exc:
+            raise InputError(f"parameter set {i}: {exc}") from None
+    return models
+
+
+def run_models(models: Sequence[Model], opts: RunOptions) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+    """Run models one after the other in this process: (values (n, metrics), series, failures)."""
+    n = len(models)
+    values = np.empty((n, len(METRICS)))
+    series = np.empty((n, len(opts.series), opts.series_times.size)) if opts.series else None
+    failures = []
+    for i, model in enumerate(models):
+        v, s, f = run_metrics(model, opts)
+        values[i] = v
+        if series is not None and s is not None:
+            series[i] = s
+        failures.append(f)
+    return values, series, failures
+
+
+def _run_payload(
+    base: tuple[Any, ...],
+    parameter_sets: Sequence[Mapping[str, Any]],
+    duration: float | None,
+    opts: RunOptions,
+) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+    """Worker-process entry: rebuild the scenario, build and run the models."""
+    models = build_models(scenario_from_payload(base), parameter_sets, duration)
+    return run_models(models, opts)
+
+
+def typed_metrics(values: np.ndarray) -> dict[str, np.ndarray]:
+    """Split an (n, len(METRICS)) float array into named arrays of each metric's dtype
+    (NaN becomes -1 in the integer metrics)."""
+    out = {}
+    for j, m in enumerate(METRICS):
+        col = values[:, j]
+        if m.dtype.startswith("int"):
+            col = np.where(np.isfinite(col), col, -1.0)
+        out[m.name] = col.astype(m.dtype)
+    return out
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """What :func:`simulate_batch` returns.
+
+    Attributes
+    ----------
+    parameter_sets : list of dict
+        The overrides of each run, as given.
+    metrics : dict of str to np.ndarray
+        One array per entry of :data:`METRICS`, length n (units in :data:`METRICS`).
+    failure : np.ndarray
+        Per run: "" when it finished, else the reason it failed.
+    series : dict of str to np.ndarray
+        (n, len(series_times)) samples of each requested kernel column.
+    series_times : np.ndarray
+        Sample times [s] of ``series``.
+    windows : np.ndarray
+        (n, 2) metrics window of each run [s].
+    """
+
+    parameter_sets: list[dict[str, Any]]
+    metrics: dict[str, np.ndarray]
+    failure: np.ndarray
+    series: dict[str, np.ndarray]
+    series_times: np.ndarray
+    windows: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.parameter_sets)
+
+    @property
+    def failed(self) -> np.ndarray:
+        """Boolean mask of the runs that failed numerically."""
+        return self.metrics["regime"] == REGIME_FAILED
+
+    def regime_labels(self) -> list[str]:
+        """Regime of each run as text ("failed" for a failed run)."""
+        return ["failed" if r < 0 else REGIMES[r] for r in self.metrics["regime"]]
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """One row per run: the parameter sets' keys (as given), then the metrics and ``failure``."""
+        import pandas as pd
+
+        params = pd.DataFrame(self.parameter_sets, index=pd.RangeIndex(len(self), name="run"))
+        mets = pd.DataFrame(self.metrics, index=params.index)
+        mets["failure"] = self.failure
+        return pd.concat([params, mets], axis=1)
+
+    def to_xarray(self) -> xr.Dataset:
+        """The metrics (and series) on a ``run`` dimension, units and descriptions in attrs."""
+        import xarray as xr
+
+        ds = xr.Dataset()
+        for m in METRICS:
+            ds[m.name] = ("run", self.metrics[m.name], {"units": m.unit, "description": m.description})
+        ds["failure"] = ("run", self.failure.astype(str), {"description": "reason of a numerical failure"})
+        if self.series:
+            ds = ds.assign_coords(t=("t", self.series_times, {"units": "s"}))
+            for name, arr in self.series.items():
+                ds[name] = (("run", "t"), arr, {"units": SERIES_UNITS[name]})
+        return ds
+
+
+def simulate_batch(
+    scenario: Scenario | str | Path | Mapping[str, Any],
+    parameter_sets: Sequence[Mapping[str, Any]],
+    duration: float | None = None,
+    *,
+    window: tuple[float, float] | None = None,
+    rms_interval: float | None = None,
+    series: Sequence[str] = (),
+    series_times: Sequence[float] | np.ndarray | None = None,
+    workers: int = 1,
+) -> BatchResult:
+    """Simulate many parameter sets with the compiled integrator and reduce each to metrics.
+
+    Parameters
+    ----------
+    scenario : Scenario, str, Path or mapping
+        The base scenario (built-in name, TOML path, mapping or a loaded Scenario).
+    parameter_sets : sequence of mappings
+        One ``{dotted key: value}`` per run, applied on top of ``scenario`` (numbers in SI or
+        unit strings). Every set is validated before any run starts.
+    duration : float, optional
+        Simulated time of every run [s]; default each run's ``simulation.duration``.
+    window : (float, float), optional
+        Metrics window [s] (module docstring); default the whole run.
+    rms_interval : float, optional
+        Spacing of the grid of the RMS of x [s]; default half the kernel's maximum step.
+    series : sequence of str
+        Kernel columns to sample at ``series_times`` (:data:`SERIES_VARIABLES`).
+    series_times : sequence of float, optional
+        Increasing sample times [s] of ``series``.
+    workers : int
+        Local processes; 1 runs everything in this process, 0 or less uses all cores.
+
+    Returns
+    -------
+    BatchResult
+
+    Raises
+    ------
+    InputError
+        A bad parameter set (with its index) or option, before any run starts.
+    """
+    base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if duration is not None and not (math.isfinite(duration) and duration > 0.0):
+        raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
+    sets = [dict(ov) for ov in parameter_sets]
+    models = build_models(base, sets, duration)
+    opts = check_options([m.duration for m in models], window, rms_interval, series, series_times)
+    nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)
+    nw = max(1, min(nw, len(models)))
+    if nw == 1:
+        values, ser, failures = run_models(models, opts)
+    else:
+        values, ser, failures = _run_in_processes(base, sets, duration, opts, nw)
+    wins = np.array([_window_of(m, opts) for m in models]).reshape(-1, 2)
+    series_out = {} if ser is None else {name: ser[:, k] for k, name in enumerate(opts.series)}
+    return BatchResult(
+        sets,
+        typed_metrics(values),
+        np.array(failures, dtype=object),
+        series_out,
+        opts.series_times,
+        wins,
+    )
+
+
+def _run_in_processes(
+    base: Scenario,
+    sets: list[dict[str, Any]],
+    duration: float | None,
+    opts: RunOptions,
+    workers: int,
+) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+    """Cut the runs into interleaved slices, one task per slice, over ``workers`` processes.
+
+    Interleaving (run i goes to slice i mod k) balances slices whose cost varies along the
+    parameter sets. The results are put back in the original order.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    n = len(sets)
+    k = min(n, 4 * workers)
+    payload = scenario_payload(base)
+    values = np.empty((n, len(METRICS)))
+    series = np.empty((n, len(opts.series), opts.series_times.size)) if opts.series else None
+    failures = [""] * n
+    ctx = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        futs = [pool.submit(_run_payload, payload, sets[j::k], duration, opts) for j in range(k)]
+        for j, fut in enumerate(futs):
+            v, s, f = fut.result()
+            idx = np.arange(j, n, k)
+            values[idx] = v
+            if series is not None and s is not None:
+                series[idx] = s
+            for a, b in zip(idx, f, strict=True):
+                failures[a] = b
+    return values, series, failures

@@ -1,0 +1,830 @@
+"""SciPy reference backend: the kernel's equations integrated by :func:`scipy.integrate.solve_ivp`.
+
+This is the "plain SciPy implementation a user would write" of the model in
+:mod:`braidsim.integrate.kernel`, in pure Python/NumPy (no numba), for two purposes:
+
+* an independent cross-check of the compiled integrator (same equations and policies,
+  different method, different event location, different peak search), see
+  ``tests/integration/test_backends.py``;
+* the baseline of the speed benchmarks (``benchmarks/bench_simulate.py``).
+
+Equations (MODEL_NOTES sections 2-4; x radial, y tangential; walls at x = h(t),
+h(t) + eps_g and y = s(t), s(t) + eps_h)::
+
+    m x'' = -s_t N_t - f_x(x') - T1 cos(phi) - m r_c omega(t)^2
+    m y'' = -s_s N_s - f_y(y') + T1 sin(phi)                       (simulation.dof = "xy")
+    N     = max(0, K p^n (1 + D pdot / v0))   (no clamp with contact.allow_tension)
+    f_x   = mu1 |m g - T2| phi(x'),  f_y = mu2 |N_t| phi(y')     (Eq. 14 and variants)
+
+with s = -1 on the inner/rear wall, +1 on the outer/front wall, p >= 0 the penetration and
+pdot its rate relative to the moving wall, v0 the approach speed latched at contact onset and
+floored at ``contact.min_impact_velocity``. A contact present at t = 0 (or right after a
+transfer) with an overlap is released elastically (v0 = inf) unless
+``contact.initial_impact_velocity`` is set; a carrier exactly on a wall and moving into it
+starts in contact with its rate latched. A transfer at ``transfer.times`` maps the carrier
+from the wall it leans on to the far wall: x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr.
+
+Method: one :func:`~scipy.integrate.solve_ivp` call per contact mode, with terminal events
+at contact onset (free pair: gap to each wall crosses zero downwards) and exit (penetration
+crosses zero downwards); the integration restarts after each event with the new mode and the
+newly latched v0. Steps are limited to the kernel's ``max_step`` so that the event functions,
+which SciPy only checks at step ends, are sampled as often as in the kernel. Within each
+contact segment the maxima and minima of the penetration, the damping-related force and the
+normal force are found on a grid of the dense output (step ends plus ``N_SUB`` interior points
+per step) and refined by bounded Brent minimisation (:func:`scipy.optimize.minimize_scalar`);
+the dissipated energy int (N - K p^n) pdot dt is integrated by 8-point Gauss-Legendre
+quadrature on each step of the dense output.
+
+All model numbers (stiffness, damping factors, loads, excitation tables, transfer times,
+tolerances' defaults, maximum step) come from :func:`braidsim.model.build_model`, so both
+backends integrate identical parameters.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.optimize import minimize_scalar
+
+from braidsim.errors import InputError, SimulationError
+from braidsim.integrate import kernel as K
+from braidsim.model import Model, build_model
+from braidsim.params import Scenario, load_scenario
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["ScipyResult", "simulate_scipy"]
+
+N_SUB = 8  # interior samples of the dense output per step for the extremes
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
+PAIRS = ("track", "slot")
+WALLS = {("track", -1): "inner", ("track", 1): "outer", ("slot", -1): "rear", ("slot", 1): "front"}
+RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")
+_MAX_SAME_TIME_EVENTS = 50
+
+
+# =======================================================================================
+# The model in plain Python
+# =======================================================================================
+
+
+class _Equations:
+    """The kernel's model functions on plain floats (scalar) and arrays (vectorised)."""
+
+    def __init__(self, model: Model) -> None:
+        P = model.P
+        self.P = P
+        self.m = float(P[K.P_MASS])
+        self.load_x = float(P[K.P_LOAD_X])
+        self.mrc = float(P[K.P_MRC])
+        self.t_y = float(P[K.P_T_Y])
+        self.eps = (float(P[K.P_EPS_G]), float(P[K.P_EPS_H]))
+        self.k = (float(P[K.P_K_T]), float(P[K.P_K_S]))
+        self.n = (float(P[K.P_N_T]), float(P[K.P_N_S]))
+        self.d = (float(P[K.P_D_T]), float(P[K.P_D_S]))
+        self.fric_law = int(P[K.P_FRIC_LAW])
+        self.mu1 = float(P[K.P_MU1])
+        self.mu2 = float(P[K.P_MU2])
+        self.nx = float(P[K.P_NX])
+        self.vhat = float(P[K.P_VHAT])
+        self.mus_ratio = float(P[K.P_MUS_RATIO])
+        self.vstribeck = float(P[K.P_VSTRIBECK])
+        self.vmin = float(P[K.P_VMIN])
+        self.vinit = float(P[K.P_VINIT])
+        self.allow_tension = bool(P[K.P_ALLOW_TENSION] != 0.0)
+        self.two_dof = bool(P[K.P_DOF] > 1.5)
+        self.rc = float(P[K.P_RC])
+        self.omega0 = float(P[K.P_OMEGA0])
+        self.transfer_speed = float(P[K.P_TRANSFER_SPEED])
+        self.track_terms = [tuple(map(float, r)) for r in model.track_harmonics]
+        self.speed_terms = [tuple(map(float, r)) for r in model.speed_harmonics]
+        self.prof_t = np.asarray(model.profile_times, dtype=float)
+        self.prof_w = np.asarray(model.profile_speeds, dtype=float)
+        self.prof_i = np.asarray(model.profile_integral, dtype=float)
+        self._s0 = 0.0
+        if self.prof_t.size >= 2:
+            self._s0 = self._profile_integral(0.0)
+
+    # ---- excitation ------------------------------------------------------------------
+    def track_h(self, t: float) -> tuple[float, float]:
+        """h(t) = sum a cos(w t + phase) [m] and h'(t) [m/s]."""
+        h = 0.0
+        hd = 0.0
+        for a, w, ph in self.track_terms:
+            arg = w * t + ph
+            h += a * math.cos(arg)
+            hd -= a * w * math.sin(arg)
+        return h, hd
+
+    def _profile_integral(self, t: float) -> float:
+        """int_{T0}^{t} omega for the periodic piecewise-linear profile [rad]."""
+        pt, pw, pi = self.prof_t, self.prof_w, self.prof_i
+        period = pt[-1] - pt[0]
+        tau = t - pt[0]
+        k = math.floor(tau / period)
+        r = tau - k * period
+        j = int(np.searchsorted(pt - pt[0], r, side="right")) - 1
+        j = min(max(j, 0), pt.size - 2)
+        dt = r - (pt[j] - pt[0])
+        slope = (pw[j + 1] - pw[j]) / (pt[j + 1] - pt[j])
+        return float(k * pi[-1] + pi[j] + pw[j] * dt + 0.5 * slope * dt * dt)
+
+    def omega(self, t: float) -> float:
+        """Horn-gear speed omega(t) [rad/s]."""
+        if self.prof_t.size >= 2:
+            pt = self.prof_t
+            r = (t - pt[0]) % (pt[-1] - pt[0]) + pt[0]
+            return float(np.interp(r, pt, self.prof_w))
+        om = self.omega0
+        for a, w, ph in self.speed_terms:
+            om += a * math.cos(w * t + ph)
+        return om
+
+    def slot_s(self, t: float) -> float:
+        """Slot travel s(t) = r_c int_0^t omega [m]."""
+        if self.prof_t.size >= 2:
+            return self.rc * (self._profile_integral(t) - self._s0)
+        integral = self.omega0 * t
+        for a, w, ph in self.speed_terms:
+            if w > 0.0:
+                integral += a / w * (math.sin(w * t + ph) - math.sin(ph))
+            else:
+                integral += a * math.cos(ph) * t
+        return self.rc * integral
+
+    def pair_state(
+        self, t: float, y: np.ndarray | Sequence[float], pair: int
+    ) -> tuple[float, float]:
+        """(u, u') of the carrier relative to the inner/rear wall of ``pair``."""
+        if pair == 0:
+            h, hd = self.track_h(t)
+            return y[0] - h, y[1] - hd
+        return y[2] - self.slot_s(t), y[3] - self.rc * self.omega(t)
+
+    # ---- forces --------------------------------------------------------------------------
+    def friction(self, v: float, normal: float, mu: float) -> float:
+        """Regularised friction [N] (arctan of Eq. 14, tanh, Stribeck, none)."""
+        law = self.fric_law
+        if law == 0:
+            return mu * normal * (2.0 / math.pi) * math.atan(v / self.vhat)
+        if law == 1:
+            return mu * normal * math.tanh(v / self.vhat)
+        if law == 2:
+            mu_eff = mu * (1.0 + (self.mus_ratio - 1.0) * math.exp(-((v / self.vstribeck) ** 2)))
+            return mu_eff * normal * math.tanh(v / self.vhat)
+        return 0.0
+
+    def normal(self, pair: int, mode: int, u: float, ud: float, v0: float) -> float:
+        """Normal force N >= 0 [N] of ``pair`` in contact mode ``mode`` (0 when free)."""
+        if mode == 0:
+            return 0.0
+        if mode < 0:
+            p, pd = -u, -ud
+        else:
+            p, pd = u - self.eps[pair], ud
+        if p < 0.0:
+            p = 0.0
+        fk = self.k[pair] * p ** self.n[pair]
+        nn = fk + fk * self.d[pair] * pd / v0
+        if nn < 0.0 and not self.allow_tension:
+            nn = 0.0
+        return nn
+
+    def make_rhs(
+        self, mt: int, ms: int, v0t: float, v0s: float
+    ) -> Callable[[float, np.ndarray], np.ndarray]:
+        """f(t, y) of the state [x, x'] (one DOF) or [x, x', y, y'] in the modes (mt, ms)."""
+        m = self.m
+        load = self.load_x
+        mrc = self.mrc
+        nx, mu1, mu2 = self.nx, self.mu1, self.mu2
+        fric = self.friction
+        normal = self.normal
+        omega = self.omega
+        track_h = self.track_h
+        const_omega = self.prof_t.size < 2 and not self.speed_terms
+        om0sq = self.omega0**2
+        if not self.two_dof:
+
+            def rhs1(t: float, y: np.ndarray) -> np.ndarray:
+                om2 = om0sq if const_omega else omega(t) ** 2
+                nt = 0.0
+                if mt != 0:
+                    h, hd = track_h(t)
+                    nt = normal(0, mt, y[0] - h, y[1] - hd, v0t)
+                fx = fric(y[1], nx, mu1)
+                return np.array([y[1], (-mt * nt - fx - load - mrc * om2) / m])
+
+            return rhs1
+
+        t_y = self.t_y
+
+        def rhs2(t: float, y: np.ndarray) -> np.ndarray:
+            om = omega(t)
+            nt = 0.0
+            if mt != 0:
+                h, hd = track_h(t)
+                nt = normal(0, mt, y[0] - h, y[1] - hd, v0t)
+            ns = 0.0
+            if ms != 0:
+                ns = normal(1, ms, y[2] - self.slot_s(t), y[3] - self.rc * om, v0s)
+            fx = fric(y[1], nx, mu1)
+            fy = fric(y[3], abs(nt), mu2)
+            return np.array(
+                [y[1], (-mt * nt - fx - load - mrc * om * om) / m, y[3], (-ms * ns - fy + t_y) / m]
+            )
+
+        return rhs2
+
+    def make_events(self, mt: int, ms: int) -> list[Any]:
+        """Terminal events of the modes (mt, ms): onset of a free pair, exit of a pair in contact.
+
+        Each returns a value that is >= 0 while nothing happens and crosses zero downwards at
+        the event; ``event.tag = (pair, side)``.
+        """
+        events: list[Any] = []
+        npair = 2 if self.two_dof else 1
+        for pair in range(npair):
+            mode = mt if pair == 0 else ms
+            eps = self.eps[pair]
+            sides = (-1, 1) if mode == 0 else (mode,)
+            for side in sides:
+                ev = _make_event(self, pair, side, mode, eps)
+                events.append(ev)
+        return events
+
+    # ---- vectorised contact quantities for the post-processing ------------------------
+    def pair_arrays(
+        self, t: np.ndarray, Y: np.ndarray, pair: int, mode: int, v0: float
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(p, pdot, F_k, F_c, N) of ``pair`` in contact mode ``mode`` at the times ``t``."""
+        if pair == 0:
+            h = np.zeros_like(t)
+            hd = np.zeros_like(t)
+            for a, w, ph in self.track_terms:
+                h += a * np.cos(w * t + ph)
+                hd -= a * w * np.sin(w * t + ph)
+            u = Y[0] - h
+            ud = Y[1] - hd
+        else:
+            s = np.array([self.slot_s(float(tt)) for tt in t])
+            om = np.array([self.omega(float(tt)) for tt in t])
+            u = Y[2] - s
+            ud = Y[3] - self.rc * om
+        if mode < 0:
+            p, pd = -u, -ud
+        else:
+            p, pd = u - self.eps[pair], ud
+        p = np.maximum(p, 0.0)
+        fk = self.k[pair] * p ** self.n[pair]
+        fc = fk * self.d[pair] * pd / v0
+        nn = fk + fc
+        if not self.allow_tension:
+            nn = np.maximum(nn, 0.0)
+        return p, pd, fk, fc, nn
+
+
+def _make_event(eq: _Equations, pair: int, side: int, mode: int, eps: float) -> Any:
+    if mode == 0:
+        if side < 0:
+
+            def ev(t: float, y: np.ndarray) -> float:
+                return eq.pair_state(t, y, pair)[0]
+
+        else:
+
+            def ev(t: float, y: np.ndarray) -> float:
+                return eps - eq.pair_state(t, y, pair)[0]
+
+    elif side < 0:
+
+        def ev(t: float, y: np.ndarray) -> float:
+            return -eq.pair_state(t, y, pair)[0]
+
+    else:
+
+        def ev(t: float, y: np.ndarray) -> float:
+            return eq.pair_state(t, y, pair)[0] - eps
+
+    ev.terminal = True  # type: ignore[attr-defined]
+    ev.direction = -1.0  # type: ignore[attr-defined]
+    ev.tag = (pair, side)  # type: ignore[attr-defined]
+    return ev
+
+
+# =======================================================================================
+# Result
+# =======================================================================================
+
+
+@dataclass
+class _Episode:
+    t: float
+    pair: int
+    wall: int
+    velocity: float
+    latched: float
+    initial: bool
+    t_end: float = math.nan
+    rebound: float = math.nan
+    max_depth: float = 0.0
+    t_max_depth: float = math.nan
+    peak_force: float = 0.0
+    t_peak_force: float = math.nan
+    min_damping: float = 0.0
+    max_damping: float = 0.0
+    dissipated: float = 0.0
+    end_reason: int = 1  # 0 exit, 1 still in contact at the end, 2 cut by a transfer
+
+    def row(self) -> list[float]:
+        """The episode in the column order of :data:`kernel.EPISODE_COLUMNS`."""
+        return [
+            self.t,
+            self.t_end,
+            float(self.pair),
+            float(self.wall),
+            self.velocity,
+            self.latched,
+            self.rebound,
+            self.max_depth,
+            self.t_max_depth,
+            self.peak_force,
+            self.t_peak_force,
+            self.min_damping,
+            self.max_damping,
+            self.dissipated,
+            float(self.end_reason),
+            1.0 if self.initial else 0.0,
+        ]
+
+
+@dataclass(frozen=True)
+class ScipyResult:
+    """What :func:`simulate_scipy` returns (the parts of :class:`braidsim.Result` it can give).
+
+    Attributes
+    ----------
+    model : Model
+        The model integrated (from :func:`braidsim.build_model`).
+    episodes : np.ndarray
+        Contact episodes, columns :data:`braidsim.integrate.kernel.EPISODE_COLUMNS`.
+    windows : np.ndarray
+        (n, 2) windows of ``ranges`` [s]; window 0 is the whole run.
+    ranges : np.ndarray
+        (n, pair, quantity, min/max): signed depth [m], stiffness-related force, damping-related
+        force and contact force [N] (negative on the inner/rear wall), as in ``Result.ranges``.
+    stats : Mapping[str, Any]
+        ``segments`` (solve_ivp calls), ``steps``, ``rhs_evaluations``, ``events``, ``transfers``,
+        ``method``, ``rtol``, ``wall_time`` [s].
+    final : Mapping[str, float]
+        Final state ``t, x, vx, y, vy``.
+    """
+
+    model: Model
+    episodes: np.ndarray
+    windows: np.ndarray
+    ranges: np.ndarray
+    stats: Mapping[str, Any]
+    final: Mapping[str, float]
+    backend: str = "scipy"
+    _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def impacts(self) -> pd.DataFrame:
+        """Impact table with the columns and meaning of :attr:`braidsim.Result.impacts`."""
+        import pandas as pd
+
+        if "impacts" not in self._cache:
+            E = self.episodes
+            c = {name: E[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
+            self._cache["impacts"] = pd.DataFrame(
+                {
+                    "t": c["t"],
+                    "t_end": c["t_end"],
+                    "duration": c["t_end"] - c["t"],
+                    "pair": np.array([PAIRS[int(p)] for p in c["pair"]], dtype=object),
+                    "wall": np.array(
+                        [
+                            WALLS[(PAIRS[int(p)], int(w))]
+                            for p, w in zip(c["pair"], c["wall"], strict=True)
+                        ],
+                        dtype=object,
+                    ),
+                    "velocity": c["velocity"],
+                    "latched_velocity": c["latched_velocity"],
+                    "rebound_velocity": c["rebound_velocity"],
+                    "max_depth": c["max_depth"],
+                    "t_max_depth": c["t_max_depth"],
+                    "peak_force": c["peak_force"],
+                    "t_peak_force": c["t_peak_force"],
+                    "min_damping_force": c["min_damping_force"],
+                    "max_damping_force": c["max_damping_force"],
+                    "dissipated_energy": c["dissipated_energy"],
+                    "ongoing": c["end_reason"] == 1.0,
+                    "cut_by_transfer": c["end_reason"] == 2.0,
+                    "initial": c["initial"] == 1.0,
+                }
+            )
+        return self._cache["impacts"]
+
+    def ranges_dict(self, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
+        """Extremes of one pair in one window, paper signs, SI units.
+
+        ``{"depth": [min, max], "stiffness_force": .., "damping_force": .., "contact_force": ..}``
+        """
+        ip = PAIRS.index(pair)
+        out = {}
+        for q, name in enumerate(RANGE_QUANTITIES):
+            lo, hi = self.ranges[window, ip, q]
+            if not math.isfinite(lo):
+                lo = hi = 0.0
+            out[name] = [float(lo), float(hi)]
+        return out
+
+
+# =======================================================================================
+# The driver
+# =======================================================================================
+
+
+def _windows(duration: float, windows: Sequence[tuple[float, float]] | None) -> np.ndarray:
+    W = [(0.0, duration)]
+    for w in windows or ():
+        t0, t1 = float(w[0]), float(w[1])
+        if (
+            not (math.isfinite(t0) and math.isfinite(t1))
+            or t0 < 0
+            or t1 <= t0
+            or t1 > duration + 1e-12
+        ):
+            raise InputError(
+                f"window: [{t0}, {t1}] is not inside the run; "
+                f"allowed 0 <= T0 < T1 <= {duration:g} s"
+            )
+        W.append((t0, t1))
+    return np.array(W, dtype=float)
+
+
+class _Run:
+    """State of one SciPy run: modes, latched speeds, open episodes, ranges."""
+
+    def __init__(
+        self, model: Model, windows: np.ndarray, method: str, rtol: float, atol: Any
+    ) -> None:
+        self.model = model
+        self.eq = _Equations(model)
+        self.W = windows
+        self.R = np.empty((windows.shape[0], 2, 4, 2))
+        self.R[..., 0] = np.inf
+        self.R[..., 1] = -np.inf
+        self.method = method
+        self.rtol = rtol
+        self.atol = atol
+        self.hmax = float(model.P[K.P_HMAX])
+        self.max_steps = int(model.P[K.P_MAXSTEPS])
+        self.modes = [0, 0]
+        self.v0 = [1.0, 1.0]
+        self.open: list[_Episode | None] = [None, None]
+        self.episodes: list[_Episode] = []
+        self.stats = {"segments": 0, "steps": 0, "rhs_evaluations": 0, "events": 0, "transfers": 0}
+
+    @property
+    def npair(self) -> int:
+        return 2 if self.eq.two_dof else 1
+
+    # ---- contacts at t = 0 and after a transfer ---------------------------------------
+    def start_contacts(self, t: float, y: np.ndarray, npair: int) -> None:
+        """The kernel's start policy (see ``kernel._start_contacts``)."""
+        eq = self.eq
+        for pair in range(npair):
+            u, ud = eq.pair_state(t, y, pair)
+            eps = eq.eps[pair]
+            mode = 0
+            p = pd = 0.0
+            if u < 0.0 or (u == 0.0 and ud < 0.0):
+                mode, p, pd = -1, -u, -ud
+            elif u > eps or (u == eps and ud > 0.0):
+                mode, p, pd = 1, u - eps, ud
+            self.modes[pair] = mode
+            if mode == 0:
+                continue
+            if p > 0.0:
+                # overlap with no approach history: elastic release unless a speed is given
+                v0 = eq.vinit if eq.vinit > 0.0 else math.inf
+            else:
+                v0 = max(pd, eq.vmin)
+            self.v0[pair] = v0
+            ep = _Episode(
+                t, pair, mode, pd, v0, p > 0.0, max_depth=p, t_max_depth=t, t_peak_force=t
+            )
+            self.open[pair] = ep
+            self.episodes.append(ep)
+
+    # ---- post-processing of one segment -------------------------------------------------
+    def _fold_ranges(self, pair: int, ta: float, tb: float, lo: np.ndarray, hi: np.ndarray) -> None:
+        for w in range(self.W.shape[0]):
+            if self.W[w, 0] <= tb and ta <= self.W[w, 1]:
+                self.R[w, pair, :, 0] = np.minimum(self.R[w, pair, :, 0], lo)
+                self.R[w, pair, :, 1] = np.maximum(self.R[w, pair, :, 1], hi)
+
+    def _extremes(
+        self, sol: Any, ts: np.ndarray, pair: int, mode: int, v0: float, ta: float, tb: float
+    ) -> dict[str, tuple[float, float, float, float]]:
+        """Max and min (value, time) of p, F_c and N over [ta, tb] on the dense output.
+
+        Returns {quantity: (min, t_min, max, t_max)} for quantity in ("p", "fc", "nn").
+        """
+        eq = self.eq
+        steps = ts[(ts > ta) & (ts < tb)]
+        knots = np.concatenate([[ta], steps, [tb]])
+        frac = np.arange(N_SUB) / N_SUB
+        grid = np.concatenate([(knots[:-1, None] + np.diff(knots)[:, None] * frac).ravel(), [tb]])
+        Yg = sol(grid)
+        p, _, _, fc, nn = eq.pair_arrays(grid, Yg, pair, mode, v0)
+        out = {}
+
+        def q_scalar(name: str, t: float) -> float:
+            Yt = sol(t)
+            p1, _, _, fc1, nn1 = eq.pair_arrays(np.array([t]), Yt.reshape(-1, 1), pair, mode, v0)
+            return float({"p": p1, "fc": fc1, "nn": nn1}[name][0])
+
+        for name, vals in (("p", p), ("fc", fc), ("nn", nn)):
+            res = []
+            for sgn in (-1.0, 1.0):  # -1: minimum, +1: maximum
+                i = int(np.argmax(sgn * vals))
+                best_v, best_t = float(vals[i]), float(grid[i])
+                last = grid.size - 1
+                refine = 0 < i < last
+                if not refine and last > 0:
+                    # extremum of the samples at an end of the segment: the true one may lie
+                    # just inside (e.g. the other pair's event put a kink there); look one
+                    # hundredth of a sub-interval inside
+                    tin = best_t + (0.01 if i == 0 else -0.01) * float(
+                        grid[1] - grid[0] if i == 0 else grid[last] - grid[last - 1]
+                    )
+                    refine = sgn * q_scalar(name, tin) > sgn * best_v
+                if refine:
+                    a, b = float(grid[max(i - 1, 0)]), float(grid[min(i + 1, last)])
+                    r = minimize_scalar(
+                        lambda t, name=name, sgn=sgn: -sgn * q_scalar(name, t),
+                        bounds=(a, b),
+                        method="bounded",
+                        options={"xatol": 1e-14},
+                    )
+                    v = -sgn * float(r.fun)
+                    if sgn * v > sgn * best_v:
+                        best_v, best_t = v, float(r.x)
+                res.extend([best_v, best_t])
+            out[name] = (res[0], res[1], res[2], res[3])
+        return out
+
+    def _dissipation(
+        self, sol: Any, ts: np.ndarray, pair: int, mode: int, v0: float, ta: float, tb: float
+    ) -> float:
+        """int_ta^tb (N - K p^n) pdot dt by 8-point Gauss-Legendre on each step."""
+        if not tb > ta:
+            return 0.0
+        steps = ts[(ts > ta) & (ts < tb)]
+        knots = np.concatenate([[ta], steps, [tb]])
+        half = 0.5 * np.diff(knots)
+        mid = 0.5 * (knots[1:] + knots[:-1])
+        nodes = (mid[:, None] + half[:, None] * _GL_X).ravel()
+        weights = (half[:, None] * _GL_W).ravel()
+        _, pd, fk, _, nn = self.eq.pair_arrays(nodes, sol(nodes), pair, mode, v0)
+        return float(np.sum(weights * (nn - fk) * pd))
+
+    def post_segment(self, sol: Any, ts: np.ndarray, ta: float, tb: float) -> None:
+        """Fold the segment [ta, tb] (modes constant) into episodes and window ranges."""
+        for pair in range(2):
+            mode = self.modes[pair]
+            if mode == 0 or pair >= self.npair:
+                self._fold_ranges(pair, ta, tb, np.zeros(4), np.zeros(4))
+                continue
+            if sol is None or not tb > ta:
+                continue
+            v0 = self.v0[pair]
+            k, n = self.eq.k[pair], self.eq.n[pair]
+            ex = self._extremes(sol, ts, pair, mode, v0, ta, tb)
+            ep = self.open[pair]
+            if ep is not None:
+                pmin, _, pmax, tpmax = ex["p"]
+                if pmax > ep.max_depth:
+                    ep.max_depth, ep.t_max_depth = pmax, tpmax
+                nmax, tnmax = ex["nn"][2], ex["nn"][3]
+                if nmax > ep.peak_force:
+                    ep.peak_force, ep.t_peak_force = nmax, tnmax
+                ep.min_damping = min(ep.min_damping, ex["fc"][0])
+                ep.max_damping = max(ep.max_damping, ex["fc"][2])
+                ep.dissipated += self._dissipation(sol, ts, pair, mode, v0, ta, tb)
+            # window ranges: clip the segment to each window (refined separately when clipped)
+            for w in range(self.W.shape[0]):
+                wa, wb = float(self.W[w, 0]), float(self.W[w, 1])
+                a, b = max(ta, wa), min(tb, wb)
+                if a > b:
+                    continue
+                exw = ex if (a == ta and b == tb) else self._extremes(sol, ts, pair, mode, v0, a, b)
+                pmin, pmax = exw["p"][0], exw["p"][2]
+                lo = np.array([pmin, k * pmin**n, exw["fc"][0], exw["nn"][0]])
+                hi = np.array([pmax, k * pmax**n, exw["fc"][2], exw["nn"][2]])
+                if mode < 0:
+                    lo, hi = -hi, -lo
+                self.R[w, pair, :, 0] = np.minimum(self.R[w, pair, :, 0], lo)
+                self.R[w, pair, :, 1] = np.maximum(self.R[w, pair, :, 1], hi)
+
+    # ---- the main loop -------------------------------------------------------------------
+    def run(self) -> tuple[float, np.ndarray]:
+        eq = self.eq
+        model = self.model
+        nd = 4 if eq.two_dof else 2
+        y = model.y0[:nd].astype(float).copy()
+        t = 0.0
+        t_end = model.duration
+        self.start_contacts(t, y, self.npair)
+        transfers = [float(tt) for tt in model.transfer_times if 0.0 < tt < t_end]
+        itr = 0
+        last_event_t = -1.0
+        same_time = 0
+        while t < t_end:
+            if itr < len(transfers) and t >= transfers[itr]:
+                # an event landed exactly on the transfer time
+                itr += 1
+                self._transfer(t, y)
+                continue
+            t_stop = transfers[itr] if itr < len(transfers) else t_end
+            mt, ms = self.modes
+            in_contact = any(self.modes[p] != 0 for p in range(self.npair))
+            events = eq.make_events(mt, ms)
+            sol = solve_ivp(
+                eq.make_rhs(mt, ms, self.v0[0], self.v0[1]),
+                (t, t_stop),
+                y,
+                method=self.method,
+                rtol=self.rtol,
+                atol=self.atol,
+                max_step=self.hmax,
+                events=events,
+                dense_output=in_contact,
+            )
+            self.stats["segments"] += 1
+            self.stats["steps"] += max(sol.t.size - 1, 0)
+            self.stats["rhs_evaluations"] += int(sol.nfev)
+            if self.stats["steps"] > self.max_steps:
+                raise SimulationError(
+                    f"step budget simulation.max_steps = {self.max_steps} exhausted "
+                    f"at t = {t:.9g} s",
+                    t,
+                )
+            if sol.status < 0:
+                raise SimulationError(
+                    f"solve_ivp ({self.method}) failed at t = {sol.t[-1]:.9g} s: {sol.message}",
+                    float(sol.t[-1]),
+                )
+            fired = [i for i, te in enumerate(sol.t_events) if te.size]
+            if sol.status == 1 and fired:
+                j = fired[0]
+                t_ev = float(sol.t_events[j][0])
+                y_ev = np.asarray(sol.y_events[j][0], dtype=float)
+            else:
+                j = -1
+                t_ev = float(sol.t[-1])
+                y_ev = sol.y[:, -1].copy()
+            if in_contact:
+                ts = sol.sol.ts if sol.sol is not None else np.array([t, t_ev])
+                self.post_segment(sol.sol, np.asarray(ts), t, t_ev)
+            else:
+                self.post_segment(None, np.zeros(0), t, t_ev)
+            t, y = t_ev, y_ev
+            if j >= 0:
+                pair, side = events[j].tag
+                self._switch(t, y, pair, side)
+                self.stats["events"] += 1
+                if t - last_event_t <= 1e-12 * max(1.0, t):
+                    same_time += 1
+                    if same_time > _MAX_SAME_TIME_EVENTS:
+                        raise SimulationError(
+                            f"more than {_MAX_SAME_TIME_EVENTS} contact events at the same instant "
+                            f"t = {t:.9g} s (grazing contact); raise contact.min_impact_velocity",
+                            t,
+                        )
+                else:
+                    same_time = 0
+                last_event_t = t
+                continue
+            if itr < len(transfers) and t >= t_stop:
+                t = t_stop
+                itr += 1
+                self._transfer(t, y)
+        for ep in self.open:
+            if ep is not None:
+                ep.t_end = t
+                ep.end_reason = 1
+        return t, y
+
+    def _switch(self, t: float, y: np.ndarray, pair: int, side: int) -> None:
+        eq = self.eq
+        _, ud = eq.pair_state(t, y, pair)
+        rate = -ud if side < 0 else ud  # penetration rate into this wall
+        if self.modes[pair] == 0:
+            vlat = max(rate, eq.vmin)
+            self.modes[pair] = side
+            self.v0[pair] = vlat
+            new = _Episode(t, pair, side, rate, vlat, False, t_max_depth=t, t_peak_force=t)
+            self.open[pair] = new
+            self.episodes.append(new)
+        else:
+            ep = self.open[pair]
+            if ep is not None:
+                ep.t_end = t
+                ep.rebound = -rate
+                ep.end_reason = 0
+            self.open[pair] = None
+            self.modes[pair] = 0
+
+    def _transfer(self, t: float, y: np.ndarray) -> None:
+        """Transfer to the next horn gear: the wall the carrier leans on becomes the far wall."""
+        eq = self.eq
+        self.stats["transfers"] += 1
+        ep = self.open[0]
+        if ep is not None:
+            ep.t_end = t
+            ep.end_reason = 2
+            self.open[0] = None
+        h, hd = eq.track_h(t)
+        eps = eq.eps[0]
+        xr = min(max(y[0] - h, 0.0), eps)
+        y[0] = h + eps - xr
+        y[1] = 2.0 * hd - y[1] + eq.transfer_speed
+        self.modes[0] = 0
+        self.start_contacts(t, y, 1)
+
+
+def simulate_scipy(
+    scenario: Scenario | str | Path | Mapping[str, Any],
+    duration: float | None = None,
+    *,
+    overrides: Mapping[str, Any] | None = None,
+    method: str = "DOP853",
+    rtol: float = 1e-8,
+    atol: float | Sequence[float] | None = None,
+    windows: Sequence[tuple[float, float]] | None = None,
+) -> ScipyResult:
+    """Simulate one carrier with :func:`scipy.integrate.solve_ivp` (reference backend).
+
+    Parameters
+    ----------
+    scenario : Scenario, str, Path or mapping
+        As for :func:`braidsim.simulate`.
+    duration : float, optional
+        Simulated time [s]; default ``simulation.duration``.
+    overrides : mapping, optional
+        Extra ``{key: value}`` applied on top of the scenario.
+    method : str
+        Any :func:`~scipy.integrate.solve_ivp` method; default ``"DOP853"``.
+    rtol : float
+        Relative tolerance of solve_ivp (the scenario's ``simulation.rtol`` is not used here).
+    atol : float or sequence, optional
+        Absolute tolerance(s); default ``simulation.atol_position`` [m] on positions and
+        ``simulation.atol_velocity`` [m/s] on velocities, as in the kernel.
+    windows : sequence of (t0, t1), optional
+        Extra windows [s] for the ranges (window 0 is the whole run).
+
+    Returns
+    -------
+    ScipyResult
+        Impact table, window ranges, final state and solver statistics.
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if overrides:
+        sc = sc.with_overrides(overrides)
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
+    if not (0.0 < rtol < 1.0):
+        raise InputError(f"rtol: {rtol!r} is out of range; allowed 0 < rtol < 1")
+    model = build_model(sc, duration)
+    W = _windows(model.duration, windows)
+    if atol is None:
+        ax, av = float(model.P[K.P_ATOL_X]), float(model.P[K.P_ATOL_V])
+        atol = [ax, av, ax, av] if model.P[K.P_DOF] > 1.5 else [ax, av]
+    run = _Run(model, W, method, rtol, atol)
+    t0 = time.perf_counter()
+    t, y = run.run()
+    wall = time.perf_counter() - t0
+    EP = np.array([ep.row() for ep in run.episodes], dtype=float).reshape(-1, K.NEP)
+    stats: dict[str, Any] = dict(run.stats)
+    stats.update({"method": method, "rtol": rtol, "wall_time": wall})
+    final = {
+        "t": float(t),
+        "x": float(y[0]),
+        "vx": float(y[1]),
+        "y": float(y[2]) if y.size > 2 else float(model.y0[2]),
+        "vy": float(y[3]) if y.size > 2 else float(model.y0[3]),
+    }
+    return ScipyResult(model, EP, W, run.R, stats, final)
