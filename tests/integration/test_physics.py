@@ -94,8 +94,12 @@ def test_transfer_map_reproduces_section_3_2_start() -> None:
     ref = braidsim.simulate("paper-3.2", duration=0.1, sample_interval=0.0).impacts
     n = min(len(after), len(ref), 5)
     assert n >= 3
-    np.testing.assert_allclose(after["t"].to_numpy()[:n] - t1, ref["t"].to_numpy()[:n], rtol=0, atol=2e-6)
-    np.testing.assert_allclose(after["peak_force"].to_numpy()[:n], ref["peak_force"].to_numpy()[:n], rtol=2e-3)
+    np.testing.assert_allclose(
+        after["t"].to_numpy()[:n] - t1, ref["t"].to_numpy()[:n], rtol=0, atol=2e-6
+    )
+    np.testing.assert_allclose(
+        after["peak_force"].to_numpy()[:n], ref["peak_force"].to_numpy()[:n], rtol=2e-3
+    )
 
 
 def test_two_dof_slot_contact() -> None:
@@ -125,18 +129,25 @@ def test_speed_profile_and_harmonics_agree() -> None:
     tt = np.linspace(0, 2 * np.pi / W, 2001)
     prof = {"times": list(tt), "speeds": list(w0 + a * np.cos(W * tt))}
     r2 = braidsim.simulate(
-        "paper-3.1", duration=0.1, overrides=dict(base, **{"horn_gear.speed_profile": prof}), sample_interval=1e-3
+        "paper-3.1",
+        duration=0.1,
+        overrides=dict(base, **{"horn_gear.speed_profile": prof}),
+        sample_interval=1e-3,
     )
     s1 = r1.series["kind"] == 0
     s2 = r2.series["kind"] == 0
     np.testing.assert_allclose(r1.series["omega"][s1], r2.series["omega"][s2], atol=1e-4)
-    np.testing.assert_allclose(r1.series["slot_position"][s1], r2.series["slot_position"][s2], atol=1e-7)
+    np.testing.assert_allclose(
+        r1.series["slot_position"][s1], r2.series["slot_position"][s2], atol=1e-7
+    )
 
 
 def test_friction_laws_run_and_differ() -> None:
     peaks = {}
     for law in ("arctan", "tanh", "stribeck", "none"):
-        r = braidsim.simulate("paper-3.2", duration=0.05, overrides={"friction.law": law}, sample_interval=0)
+        r = braidsim.simulate(
+            "paper-3.2", duration=0.05, overrides={"friction.law": law}, sample_interval=0
+        )
         peaks[law] = r.impacts["peak_force"].iloc[1]
     assert peaks["none"] > peaks["arctan"]  # friction slows the crossing of the gap
     assert len({round(v, 6) for v in peaks.values()}) == 4

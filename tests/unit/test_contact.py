@@ -60,7 +60,9 @@ def _restitution_by_quadrature(d: float) -> float:
 
 @pytest.mark.parametrize("d", [1e-6, 1e-3, 0.05, 0.3, 2.0 / 3.0, 1.0, 1.28, 3.0])
 def test_exact_restitution_against_quadrature(d: float) -> None:
-    assert contact.effective_restitution(d) == pytest.approx(_restitution_by_quadrature(d), rel=1e-9)
+    assert contact.effective_restitution(d) == pytest.approx(
+        _restitution_by_quadrature(d), rel=1e-9
+    )
 
 
 def test_exact_restitution_limits() -> None:
@@ -87,8 +89,12 @@ def test_hertz_stiffness_eq4_calibrated_and_printed() -> None:
 
 
 def test_effective_radius_geometries() -> None:
-    assert contact.effective_radius(0.02, 0.065, "concave") == pytest.approx(1 / (1 / 0.02 - 1 / 0.065))
-    assert contact.effective_radius(0.02, 0.065, "convex") == pytest.approx(1 / (1 / 0.02 + 1 / 0.065))
+    assert contact.effective_radius(0.02, 0.065, "concave") == pytest.approx(
+        1 / (1 / 0.02 - 1 / 0.065)
+    )
+    assert contact.effective_radius(0.02, 0.065, "convex") == pytest.approx(
+        1 / (1 / 0.02 + 1 / 0.065)
+    )
     assert contact.effective_radius(0.01, math.inf, "flat") == 0.01
 
 

@@ -45,7 +45,9 @@ def test_paper_presets() -> None:
     assert sc["horn_gear.angular_velocity"] == pytest.approx(8 * math.pi)
     assert sc["track.vibration_amplitude"] == pytest.approx(0.12e-3)
     assert sc["track.vibration_frequency"] == pytest.approx(120 * math.pi)
-    assert load_scenario("paper-3.1-printed")["materials.track.youngs_modulus"] == pytest.approx(2e9)
+    assert load_scenario("paper-3.1-printed")["materials.track.youngs_modulus"] == pytest.approx(
+        2e9
+    )
     assert load_scenario("paper-3.1")["materials.track.youngs_modulus"] == pytest.approx(200e9)
 
 
@@ -100,5 +102,5 @@ def test_unknown_scenario_names_closest() -> None:
 def test_unknown_key_in_file(tmp_path) -> None:
     f = tmp_path / "typo.toml"
     f.write_text('[track]\nclearence = "3 mm"\n')
-    with pytest.raises(InputError, match="did you mean 'track.clearance'"):
+    with pytest.raises(InputError, match=r"did you mean 'track\.clearance'"):
         load_scenario(f)

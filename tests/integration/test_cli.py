@@ -1,0 +1,213 @@
+"""The command line: JSON output of CONTRACT.md, exit codes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from braidsim.cli import main
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as exc:
+        main(list(argv))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+def test_run_json_contract(capsys) -> None:
+    code, out, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.05", "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    assert set(data) >= {"scenario", "parameters", "x", "y", "impacts", "final", "stats"}
+    assert set(data["x"]) == {"depth", "stiffness_force", "damping_force", "contact_force"}
+    imp = data["impacts"][1]
+    assert set(imp) >= {
+        "t",
+        "pair",
+        "wall",
+        "velocity",
+        "rebound_velocity",
+        "peak_force",
+        "max_depth",
+        "duration",
+    }
+    assert imp["pair"] == "track" and imp["wall"] == "inner"
+    assert data["parameters"]["carrier.mass"] == 1.2
+    assert set(data["final"]) == {"t", "x", "vx", "y", "vy"}
+
+
+def test_run_window_and_set(capsys) -> None:
+    code, out, _ = run_cli(
+        capsys,
+        "run",
+        "paper-3.1",
+        "--set",
+        "track.clearance=2 mm",
+        "--window",
+        "0.4",
+        "0.5",
+        "--json",
+    )
+    assert code == 0
+    data = json.loads(out)
+    assert data["window"] == [0.4, 0.5]
+    assert data["parameters"]["track.clearance"] == pytest.approx(2e-3)
+    lo, hi = data["x"]["depth"]
+    assert lo == pytest.approx(hi)  # at rest on the inner wall
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["run", "paper-3.1", "--set", "carrier.mas=1"], "carrier.mass"),
+        (["run", "paper-3.1", "--set", "carrier.mass=3 mm"], "wrong unit"),
+        (["run", "paper-3.1", "--set", "carrier.mass=-1"], "allowed > 0 kg"),
+        (
+            ["run", "paper-3.1", "--set", "contact.track.restitution=1.2"],
+            "contact.track.restitution",
+        ),
+        (["run", "paper-3.1", "--set", "track.clearance=nan"], "not a finite number"),
+        (["run", "paper-3.1", "--set", "contact.track.model=hunt"], "contact.track.model"),
+        (["run", "no-such-scenario"], "scenario"),
+        (["run", "paper-3.1", "--duration", "-1"], "duration"),
+        (["impact", "--restitution", "0"], "restitution"),
+        (["impact", "--velocity", "-1"], "velocity"),
+        (["impact", "--model", "nope"], "contact.track.model"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) -> None:
+    code, out, err = run_cli(capsys, *args)
+    assert code == 2
+    assert out == ""
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert fragment in lines[0]
+    assert "Traceback" not in err
+
+
+def test_malformed_toml_file(capsys, tmp_path) -> None:
+    f = tmp_path / "bad.toml"
+    f.write_text("[track\n")
+    code, _, err = run_cli(capsys, "run", str(f))
+    assert code == 2 and "malformed TOML" in err and len(err.strip().splitlines()) == 1
+
+
+def test_numerical_failure_exit_1(capsys) -> None:
+    code, _, err = run_cli(capsys, "run", "paper-3.1", "--set", "simulation.max_steps=50")
+    assert code == 1
+    assert "t = " in err and "simulation.max_steps" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_impact_json(capsys) -> None:
+    code, out, _ = run_cli(
+        capsys,
+        "impact",
+        "--model",
+        "hunt_crossley",
+        "--restitution",
+        "0.8",
+        "--velocity",
+        "1",
+        "--json",
+    )
+    assert code == 0
+    data = json.loads(out)
+    for key in (
+        "max_depth",
+        "max_force",
+        "contact_duration",
+        "rebound_velocity",
+        "effective_restitution",
+        "dissipated_energy",
+    ):
+        assert key in data
+    assert data["effective_restitution"] == pytest.approx(data["exact_restitution"], abs=1e-6)
+
+
+def test_models_and_scenarios(capsys) -> None:
+    code, out, _ = run_cli(capsys, "models", "--json")
+    names = {m["name"] for m in json.loads(out)["models"]}
+    assert code == 0
+    assert {
+        "hertz",
+        "brandlein",
+        "hunt_crossley",
+        "herbert_mcwhannell",
+        "lee_wang",
+        "lankarani_nikravesh",
+        "gonthier",
+        "zhiying_qishao",
+        "flores",
+        "carvalho_martins",
+    } <= names
+    code, out, _ = run_cli(capsys, "scenarios", "--json")
+    assert code == 0
+    assert "paper-3.4b" in {s["name"] for s in json.loads(out)["scenarios"]}
+    code, out, _ = run_cli(capsys, "scenarios", "--keys", "--json")
+    assert "contact.track.restitution" in {k["key"] for k in json.loads(out)["keys"]}
+
+
+def test_run_out_writes_plots_and_series(capsys, tmp_path) -> None:
+    out_dir = tmp_path / "res"
+    code, _, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.05", "--out", str(out_dir))
+    assert code == 0, err
+    for name in (
+        "x.png",
+        "stiffness_force.png",
+        "damping_force.png",
+        "depth.png",
+        "series.csv",
+        "impacts.csv",
+        "summary.json",
+        "series.nc",
+    ):
+        assert (out_dir / name).stat().st_size > 0, name
+    assert not list(out_dir.glob(".*tmp*"))
+
+
+@pytest.mark.parametrize(
+    ("name", "paper"),
+    [
+        (
+            "paper-3.1",
+            {
+                "stiffness_force": (-4864.4, 4921.4),
+                "damping_force": (-1441.2, 1448.8),
+                "depth": (-3.37e-5, 3.39e-5),
+            },
+        ),
+        (
+            "paper-3.2",
+            {
+                "stiffness_force": (-3210.6, 1.2),
+                "damping_force": (-948.1, 736.3),
+                "depth": (-2.55e-5, 1.32e-7),
+            },
+        ),
+    ],
+)
+def test_paper_ranges_within_3_percent(capsys, name: str, paper: dict) -> None:
+    """`braidsim run paper-3.1 --json` and paper-3.2 give the paper's ranges within 3 %."""
+    code, out, _ = run_cli(capsys, "run", name, "--json")
+    assert code == 0
+    x = json.loads(out)["x"]
+    for q, (lo, hi) in paper.items():
+        assert x[q][0] == pytest.approx(lo, rel=0.03), q
+        assert x[q][1] == pytest.approx(hi, rel=0.03), q
+
+
+def test_entry_point_subprocess() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "braidsim", "run", "paper-3.1", "--set", "carrier.mass=-1"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert proc.stderr.strip().count("\n") == 0 and "carrier.mass" in proc.stderr
