@@ -7,8 +7,10 @@ half-written output behind.
 from __future__ import annotations
 
 import os
+import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 
@@ -45,3 +47,65 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return p
+
+
+MARKER = ".braidsim-output"
+
+
+@contextmanager
+def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
+    """Build a whole output directory under a temporary name, then rename it into place.
+
+    Yields the temporary directory (a sibling of ``path``, so the final rename stays on one
+    file system). On success a marker file naming ``kind`` is added and the directory is
+    renamed to ``path``; a previous output of the same kind at ``path`` is replaced. On any
+    error the temporary directory is removed and ``path`` is left as it was: the output is
+    complete or absent, never half-written.
+
+    Raises
+    ------
+    InputError
+        ``path`` exists and is not an empty directory or an earlier output of ``kind``
+        (we never delete what we did not write).
+    """
+    p = Path(path)
+    check_output_directory(p, kind)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent))
+    try:
+        yield tmp
+        (tmp / MARKER).write_text(kind + "\n", encoding="utf-8")
+        if p.exists():
+            check_output_directory(p, kind)
+            old = Path(tempfile.mkdtemp(prefix=f".{p.name}.", suffix=".old", dir=p.parent))
+            os.replace(p, old / p.name)
+            os.replace(tmp, p)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(tmp, p)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def check_output_directory(path: str | Path, kind: str = "output") -> None:
+    """Raise :class:`InputError` unless ``path`` is absent, an empty directory, or an earlier
+    output of ``kind`` (marked by :data:`MARKER`)."""
+    from braidsim.errors import InputError
+
+    p = Path(path)
+    if not p.exists():
+        return
+    if not p.is_dir():
+        raise InputError(
+            f"--out: {str(p)!r} exists and is not a directory; allowed: a new or empty directory"
+        )
+    if not any(p.iterdir()):
+        return
+    marker = p / MARKER
+    if marker.is_file() and marker.read_text(encoding="utf-8").strip() == kind:
+        return
+    raise InputError(
+        f"--out: {str(p)!r} is not empty and is not an earlier braidsim {kind}; "
+        "allowed: a new or empty directory, or an earlier output to replace"
+    )

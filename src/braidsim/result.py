@@ -43,6 +43,10 @@ UNITS = {
     "slot_dissipated": "J",
     "friction_work_x": "J",
     "friction_work_y": "J",
+    "load_work_x": "J",
+    "track_work": "J",
+    "load_work_y": "J",
+    "slot_work": "J",
     "track_position": "m",
     "slot_position": "m",
     "omega": "rad/s",
@@ -67,6 +71,30 @@ IMPACT_UNITS = {
     "dissipated_energy": "J",
     "duration": "s",
 }
+
+
+@dataclass(frozen=True)
+class State:
+    """A full state of the hybrid system: where a run can be continued from.
+
+    Attributes
+    ----------
+    t : float
+        Time [s].
+    y : tuple of float
+        The kernel's state vector (x, vx, y, vy [SI] and the energy quadratures [J]).
+    track_mode, slot_mode : int
+        -1 inner/rear wall, +1 outer/front wall, 0 free.
+    track_v0, slot_v0 : float
+        Latched approach speeds of the contacts in progress [m/s].
+    """
+
+    t: float
+    y: tuple[float, ...]
+    track_mode: int = 0
+    slot_mode: int = 0
+    track_v0: float = 1.0
+    slot_v0: float = 1.0
 
 
 def _json_float(v: float) -> float | None:
@@ -95,6 +123,9 @@ class Result:
         Integrator statistics.
     final : Mapping[str, float]
         Final state.
+    final_state : State
+        Final state with the contact modes and latched speeds, to continue the run with
+        ``simulate(..., start=result.final_state)``.
     """
 
     model: Model
@@ -104,6 +135,7 @@ class Result:
     ranges: np.ndarray
     stats: Mapping[str, Any]
     final: Mapping[str, float]
+    final_state: State | None = None
     backend: str = "compiled"
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 

@@ -13,17 +13,19 @@ from braidsim.errors import InputError, SimulationError
 from braidsim.integrate import kernel as K
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
-from braidsim.result import Result
+from braidsim.result import Result, State
 
 
-def _windows(duration: float, windows: Sequence[tuple[float, float]] | None) -> np.ndarray:
-    W = [(0.0, duration)]
+def _windows(
+    t_start: float, t_end: float, windows: Sequence[tuple[float, float]] | None
+) -> np.ndarray:
+    W = [(t_start, t_end)]
     for w in windows or ():
         t0, t1 = float(w[0]), float(w[1])
         if not (math.isfinite(t0) and math.isfinite(t1)) or t0 < 0 or t1 <= t0:
             raise InputError(f"window: [{t0}, {t1}] is not a time interval; allowed 0 <= T0 < T1")
-        if t1 > duration + 1e-12:
-            raise InputError(f"window: T1 = {t1:g} s is after the end of the run ({duration:g} s)")
+        if t1 > t_end + 1e-12:
+            raise InputError(f"window: T1 = {t1:g} s is after the end of the run ({t_end:g} s)")
         W.append((t0, t1))
     return np.array(W, dtype=float)
 
@@ -68,14 +70,31 @@ def run_kernel(
     sample_times: np.ndarray,
     windows: np.ndarray,
     record_events: bool = True,
+    start: State | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Run the compiled kernel, growing the output arrays until they fit.
 
-    Returns (rows, episodes, ranges, stats, final state, status). Raises
+    ``start`` continues from a :class:`State` (its time, state vector, contact modes and
+    latched speeds) instead of t = 0 and the scenario's initial conditions; the run then ends
+    at ``start.t + model.duration``.
+
+    Returns (rows, episodes, ranges, stats, final state vector, status). Raises
     :class:`SimulationError` on a numerical failure.
     """
     P = model.P.copy()
     P[K.P_RECORD_EVENTS] = 1.0 if record_events else 0.0
+    y_init = model.y0
+    if start is not None:
+        y_init = np.asarray(start.y, dtype=float)
+        if y_init.shape != (K.NY,):
+            raise InputError(f"start: the state vector needs {K.NY} entries, got {y_init.shape}")
+        P[K.P_T_START] = start.t
+        P[K.P_T_END] = start.t + model.duration
+        P[K.P_INIT_GIVEN] = 1.0
+        P[K.P_INIT_MODE_T] = start.track_mode
+        P[K.P_INIT_MODE_S] = start.slot_mode
+        P[K.P_INIT_V0_T] = start.track_v0
+        P[K.P_INIT_V0_S] = start.slot_v0
     row_cap = sample_times.size + 256
     ep_cap = 256
     while True:
@@ -85,7 +104,7 @@ def run_kernel(
         R[..., 0] = np.inf
         R[..., 1] = -np.inf
         stats = np.zeros(K.N_STATS)
-        y = model.y0.copy()
+        y = y_init.copy()
         status, nrow, nep = K.integrate(
             y,
             P,
@@ -120,6 +139,7 @@ def simulate(
     sample_interval: float | None = None,
     sample_times: Sequence[float] | np.ndarray | None = None,
     record_events: bool = True,
+    start: State | None = None,
 ) -> Result:
     """Simulate one carrier.
 
@@ -141,6 +161,9 @@ def simulate(
         Explicit sample times [s] (replaces ``sample_interval``).
     record_events : bool
         Add the exact onset/exit/peak/transfer states to the series.
+    start : State, optional
+        Continue from this state (e.g. ``previous.final_state``) for ``duration`` more
+        seconds; windows and sample times are then absolute times within the new span.
 
     Returns
     -------
@@ -152,24 +175,25 @@ def simulate(
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
     model = build_model(sc, duration)
-    T = model.duration
+    t_start = 0.0 if start is None else float(start.t)
+    T = t_start + model.duration
     if sample_times is not None:
         st = np.sort(np.asarray(sample_times, dtype=float))
-        if st.size and (st[0] < 0 or st[-1] > T or not np.all(np.isfinite(st))):
-            raise InputError(f"sample_times: must lie in [0, {T:g}] s")
+        if st.size and (st[0] < t_start or st[-1] > T or not np.all(np.isfinite(st))):
+            raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
     else:
         dt = sc["simulation.sample_interval"] if sample_interval is None else float(sample_interval)
         if dt < 0 or not math.isfinite(dt):
             raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
-        n = math.floor(T / dt + 1e-9) + 1 if dt > 0 else 0
+        n = math.floor((T - t_start) / dt + 1e-9) + 1 if dt > 0 else 0
         if n > 50_000_000:
             raise InputError(
                 f"simulation.sample_interval: {dt:g} s gives {n} samples; "
                 f"allowed >= {T / 5e7:.3g} s"
             )
-        st = np.arange(n, dtype=float) * dt if n else np.zeros(0)
-    W = _windows(T, windows)
-    rows, EP, R, stats, y, _ = run_kernel(model, st, W, record_events)
+        st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
+    W = _windows(t_start, T, windows)
+    rows, EP, R, stats, y, _ = run_kernel(model, st, W, record_events, start)
     order = np.argsort(rows[:, 0], kind="stable")
     rows = rows[order]
     series = {name: np.ascontiguousarray(rows[:, i]) for i, name in enumerate(K.COLUMNS)}
@@ -192,4 +216,12 @@ def simulate(
         "y": float(y[2]),
         "vy": float(y[3]),
     }
-    return Result(model, series, EP, W, R, st_dict, final)
+    final_state = State(
+        t=float(stats[7]),
+        y=tuple(float(v) for v in y),
+        track_mode=int(stats[8]),
+        slot_mode=int(stats[9]),
+        track_v0=float(stats[10]),
+        slot_v0=float(stats[11]),
+    )
+    return Result(model, series, EP, W, R, st_dict, final, final_state)

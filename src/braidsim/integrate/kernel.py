@@ -70,11 +70,19 @@ P_T_END = 29
 P_TRANSFER_SPEED = 30
 P_OMEGA0 = 31
 P_RECORD_EVENTS = 32  # 1: write onset/exit/peak rows into the series; 0: samples only
-P_SIZE = 33
+P_T_START = 33  # start time [s]
+P_INIT_GIVEN = 34  # 1: start in the contact modes and latched speeds below (a restart)
+P_INIT_MODE_T = 35
+P_INIT_MODE_S = 36
+P_INIT_V0_T = 37
+P_INIT_V0_S = 38
+P_SIZE = 39
 
 # ---- state vector layout ---------------------------------------------------------------
-# x, vx, y, vy, dissipated energy of the track and slot contacts, friction work x and y
-NY = 8
+# x, vx, y, vy, then quadratures for the energy balance: energy dissipated by the track and
+# slot contacts, friction work in x and y (dissipated), work of the x load (tension and
+# centrifugal), of the moving track walls, of the y tension and of the moving slot walls
+NY = 12
 
 # ---- sampled series columns --------------------------------------------------------------
 COLUMNS = (
@@ -97,6 +105,10 @@ COLUMNS = (
     "slot_dissipated",
     "friction_work_x",
     "friction_work_y",
+    "load_work_x",
+    "track_work",
+    "load_work_y",
+    "slot_work",
     "track_position",
     "slot_position",
     "omega",
@@ -136,7 +148,9 @@ ST_CAPACITY_EPISODES = 5
 ST_ZENO = 6
 
 N_SUB = 8  # interior samples of the interpolant per step for events and extremes
-N_STATS = 8  # steps, rejected, events, rhs evaluations, transfers, min h, max h, t_fail
+# steps, rejected, events, rhs evaluations, transfers, min h, max h, final t, then the final
+# contact modes and latched speeds (track, slot) for a restart
+N_STATS = 12
 
 # ---- Dormand-Prince 5(4) coefficients (Hairer's DOPRI5) ------------------------------
 C2, C3, C4, C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
@@ -331,10 +345,19 @@ def rhs(t, Y, mt, ms, v0t, v0s, P, EX, out):
     om, _ = horn_gear(t, P, EX)
     _, pdt, fkt, _, nt = pair_forces(t, Y, 0, mt, v0t, P, EX)
     fx = friction(Y[1], P[P_NX], P[P_MU1], P)
+    load_x = P[P_LOAD_X] + P[P_MRC] * om * om
     out[0] = Y[1]
-    out[1] = (-mt * nt - fx - P[P_LOAD_X] - P[P_MRC] * om * om) / m
+    out[1] = (-mt * nt - fx - load_x) / m
+    # energy rates: with p = s (x - wall), pdot = s (vx - hdot), the carrier's energy
+    # E = m v^2 / 2 + K p^(n+1) / (n+1) changes at -(N - F_k) pdot - f vx - load vx - s N hdot
     out[4] = (nt - fkt) * pdt
     out[6] = fx * Y[1]
+    out[8] = -load_x * Y[1]
+    if mt != 0:
+        _, hd = track_h(t, EX)
+        out[9] = -mt * nt * hd
+    else:
+        out[9] = 0.0
     if P[P_DOF] > 1.5:
         _, pds, fks, _, ns = pair_forces(t, Y, 1, ms, v0s, P, EX)
         fy = friction(Y[3], abs(nt), P[P_MU2], P)
@@ -342,11 +365,15 @@ def rhs(t, Y, mt, ms, v0t, v0s, P, EX, out):
         out[3] = (-ms * ns - fy + P[P_T_Y]) / m
         out[5] = (ns - fks) * pds
         out[7] = fy * Y[3]
+        out[10] = P[P_T_Y] * Y[3]
+        out[11] = -ms * ns * P[P_RC] * om
     else:
         out[2] = 0.0
         out[3] = 0.0
         out[5] = 0.0
         out[7] = 0.0
+        out[10] = 0.0
+        out[11] = 0.0
 
 
 # =======================================================================================
@@ -631,14 +658,14 @@ def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, EX):
     _, _, _, _, nt = pair_forces(t, Y, 0, mt, v0t, P, EX)
     r[13] = friction(Y[1], P[P_NX], P[P_MU1], P)
     r[14] = friction(Y[3], abs(nt), P[P_MU2], P) if P[P_DOF] > 1.5 else 0.0
-    for i in range(4):
+    for i in range(8):
         r[15 + i] = Y[4 + i]
     h, _ = track_h(t, EX)
     om, s = horn_gear(t, P, EX)
-    r[19] = h
-    r[20] = s
-    r[21] = om
-    r[22] = kind
+    r[23] = h
+    r[24] = s
+    r[25] = om
+    r[26] = kind
     return nrow + 1
 
 
@@ -938,24 +965,45 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     nep = 0
     isamp = 0
     itr = 0
-    t = 0.0
+    t = P[P_T_START]
+    ED[0] = Y[4]
+    ED[1] = Y[5]
     status = ST_OK
     for i in range(STATS.shape[0]):
         STATS[i] = 0.0
     STATS[5] = math.inf
 
-    nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 2 if P[P_DOF] > 1.5 else 1, P, EX)
+    if P[P_INIT_GIVEN] > 0.5:
+        # a restart: the contact modes and latched speeds carry over from an earlier run
+        modes[0] = int(P[P_INIT_MODE_T])
+        modes[1] = int(P[P_INIT_MODE_S])
+        v0[0] = P[P_INIT_V0_T]
+        v0[1] = P[P_INIT_V0_S]
+        for pair in range(2):
+            if modes[pair] != 0:
+                if nep < EP.shape[0]:
+                    open_ep[pair] = nep
+                nep = _open_episode(EP, nep, t, pair, modes[pair], math.nan, v0[pair], 1.0)
+                if open_ep[pair] >= 0:
+                    EP[open_ep[pair], 13] = Y[4 + pair]
+    else:
+        nep = _start_contacts(
+            t, Y, modes, v0, open_ep, EP, nep, ED, 2 if P[P_DOF] > 1.5 else 1, P, EX
+        )
     nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_START, P, EX)
     _update_ranges(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, WIN, RANGES)
-    while isamp < ST.shape[0] and ST[isamp] <= 0.0:
-        nrow = _write_row(rows, nrow, 0.0, Y, modes[0], modes[1], v0[0], v0[1], KIND_SAMPLE, P, EX)
+    while isamp < ST.shape[0] and ST[isamp] <= t:
+        if ST[isamp] == t:
+            nrow = _write_row(
+                rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_SAMPLE, P, EX
+            )
         isamp += 1
-    while itr < TR.shape[0] and TR[itr] <= 0.0:
+    while itr < TR.shape[0] and TR[itr] <= t:
         itr += 1
 
     rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
     STATS[3] += 1
-    h = min(1e-6, hmax, t_end)
+    h = min(1e-6, hmax, t_end - t)
     nsteps = 0
     same_time_events = 0
     last_event_t = -1.0
@@ -1169,6 +1217,10 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             STATS[3] += 1
         h = h_next
     STATS[7] = t
+    STATS[8] = modes[0]
+    STATS[9] = modes[1]
+    STATS[10] = v0[0]
+    STATS[11] = v0[1]
     if status == ST_OK:
         nrow = _write_row(rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_END, P, EX)
         for pair in range(2):

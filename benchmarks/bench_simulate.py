@@ -1,0 +1,133 @@
+"""braidsim against a plain SciPy implementation of the same model, at equal accuracy.
+
+Run: ``python benchmarks/bench_simulate.py [--duration 0.5] [--repeats 7] [SCENARIO ...]``
+
+For each scenario (default paper-3.1, paper-3.3, paper-3.4a over 0.5 s, the length of the
+paper's figures):
+
+1. reference: braidsim at rtol 1e-12 (atol 1e-16 m, 1e-13 m/s); as a check of the reference
+   itself, SciPy DOP853 at rtol 1e-13 with the same atol is also run and the largest relative
+   difference of the two references' peak forces is printed (it bounds the reference error);
+2. SciPy: :func:`braidsim.integrate.scipy_backend.simulate_scipy`, i.e. ``solve_ivp``
+   (DOP853, rtol 1e-8, the scenario's atol) with terminal events at contact onset and exit,
+   restarts, and the peaks refined on the dense output; its error is the largest relative
+   peak-force error over the impacts;
+3. braidsim at rtol 1e-6 ... 1e-11 (the scenario's atol): the error of each, and the loosest
+   rtol whose error is <= SciPy's is timed against SciPy.
+
+Times are the best of ``--repeats`` runs of the public calls (``braidsim.simulate`` with no
+sampled series, and ``simulate_scipy``), after a warm-up run that loads the compiled kernel.
+Both include building the model from the scenario. The ratio is SciPy time / braidsim time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from braidsim.integrate.scipy_backend import simulate_scipy
+from braidsim.simulate import simulate
+
+SCENARIOS = ("paper-3.1", "paper-3.3", "paper-3.4a")
+TIGHT_ATOL = {"simulation.atol_position": 1e-16, "simulation.atol_velocity": 1e-13}
+BRAIDSIM_RTOLS = (1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
+SCIPY_RTOL = 1e-8
+
+
+def best_time(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
+    """Smallest wall time [s] of ``repeats`` calls, and the last result."""
+    best = math.inf
+    out = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def peak_error(impacts: Any, ref: Any) -> float:
+    """Largest relative peak-force error over the impacts; inf if the sequences differ."""
+    if len(impacts) != len(ref):
+        return math.inf
+    if list(impacts["wall"]) != list(ref["wall"]) or list(impacts["pair"]) != list(ref["pair"]):
+        return math.inf
+    a = impacts["peak_force"].to_numpy(dtype=float)
+    b = ref["peak_force"].to_numpy(dtype=float)
+    return float(np.max(np.abs(a - b) / np.abs(b)))
+
+
+def braidsim_run(name: str, duration: float, rtol: float, extra: dict[str, Any] | None = None) -> Any:
+    overrides: dict[str, Any] = {"simulation.rtol": rtol, **(extra or {})}
+    return simulate(name, duration, overrides=overrides, sample_interval=0.0, record_events=False)
+
+
+def bench(name: str, duration: float, repeats: int) -> dict[str, Any]:
+    braidsim_run(name, 0.01, 1e-8)  # warm-up: load (or compile) the kernel
+    ref = braidsim_run(name, duration, 1e-12, TIGHT_ATOL).impacts
+    ref_scipy = simulate_scipy(name, duration, overrides=TIGHT_ATOL, rtol=1e-13).impacts
+    ref_check = peak_error(ref_scipy, ref)
+
+    t_scipy, res_scipy = best_time(
+        lambda: simulate_scipy(name, duration, rtol=SCIPY_RTOL), max(1, min(repeats, 3))
+    )
+    err_scipy = peak_error(res_scipy.impacts, ref)
+
+    sweep = []
+    for rtol in BRAIDSIM_RTOLS:
+        t_b, res_b = best_time(lambda rtol=rtol: braidsim_run(name, duration, rtol), repeats)
+        sweep.append((rtol, peak_error(res_b.impacts, ref), t_b, res_b.stats["steps"]))
+    chosen = next((s for s in sweep if s[1] <= err_scipy), None)
+    return {
+        "name": name,
+        "impacts": len(ref),
+        "ref_check": ref_check,
+        "scipy_time": t_scipy,
+        "scipy_err": err_scipy,
+        "scipy_steps": res_scipy.stats["steps"],
+        "scipy_rhs": res_scipy.stats["rhs_evaluations"],
+        "sweep": sweep,
+        "chosen": chosen,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("scenarios", nargs="*", default=list(SCENARIOS))
+    ap.add_argument("--duration", type=float, default=0.5, help="simulated time [s] (default 0.5)")
+    ap.add_argument("--repeats", type=int, default=7, help="timed runs per braidsim setting")
+    args = ap.parse_args()
+
+    print(f"duration {args.duration} s; SciPy: solve_ivp DOP853 rtol {SCIPY_RTOL:g}; "
+          "reference: braidsim rtol 1e-12, atol 1e-16 m / 1e-13 m/s")
+    rows = []
+    for name in args.scenarios:
+        r = bench(name, args.duration, args.repeats)
+        rows.append(r)
+        print(f"\n{name}: {r['impacts']} impacts; reference check (vs SciPy rtol 1e-13): "
+              f"{r['ref_check']:.1e}")
+        print(f"  SciPy    rtol {SCIPY_RTOL:7.0e}  peak-force error {r['scipy_err']:8.1e}  "
+              f"time {r['scipy_time'] * 1e3:9.1f} ms  ({r['scipy_steps']} steps, "
+              f"{r['scipy_rhs']} rhs evaluations)")
+        for rtol, err, t_b, steps in r["sweep"]:
+            mark = " <- equal accuracy" if r["chosen"] and rtol == r["chosen"][0] else ""
+            print(f"  braidsim rtol {rtol:7.0e}  peak-force error {err:8.1e}  time "
+                  f"{t_b * 1e3:9.2f} ms  ({steps} steps){mark}")
+
+    print("\nscenario      SciPy err   SciPy ms   braidsim rtol   braidsim err   braidsim ms   ratio")
+    for r in rows:
+        c = r["chosen"]
+        if c is None:
+            print(f"{r['name']:12s}  {r['scipy_err']:9.1e}  {r['scipy_time'] * 1e3:9.1f}   "
+                  "no braidsim rtol in the list reaches SciPy's error")
+            continue
+        print(f"{r['name']:12s}  {r['scipy_err']:9.1e}  {r['scipy_time'] * 1e3:9.1f}   "
+              f"{c[0]:13.0e}   {c[1]:12.1e}  {c[2] * 1e3:12.2f}  {r['scipy_time'] / c[2]:6.1f}x")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+"""Verbs ``sweep`` (run a parameter study into a zarr store) and ``sweep-plot`` (plot one)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from braidsim.cli.common import app, fail, guarded, print_json
+
+
+@app.command()
+@guarded
+def sweep(
+    spec: Annotated[Path, typer.Argument(help="Sweep spec TOML (see braidsim.sweep.spec).")],
+    out: Annotated[Path, typer.Option("--out", help="The zarr store to write (a folder).")],
+    processes: Annotated[
+        int | None, typer.Option(help="Local worker processes (default: all cores).")
+    ] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Start a local Dask cluster of N workers and run on it.")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Run on the existing Dask cluster at this address.")
+    ] = None,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Finish an interrupted sweep of the same spec.")
+    ] = False,
+    netcdf: Annotated[
+        Path | None, typer.Option(help="Also export the finished store as a netCDF file.")
+    ] = None,
+    no_progress: Annotated[
+        bool, typer.Option("--no-progress", help="No progress bar on stderr.")
+    ] = False,
+    json_: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Run a parameter study: every run of SPEC into the zarr store --out (resumable)."""
+    from braidsim.sweep import SweepError, export_netcdf, load_spec, run_sweep
+
+    s = load_spec(spec)
+    try:
+        summary = run_sweep(
+            s,
+            out,
+            resume=resume,
+            processes=processes,
+            workers=workers,
+            scheduler=scheduler,
+            progress=not no_progress,
+        )
+    except SweepError as exc:
+        fail(f"sweep failed: {exc}; the chunks done are kept, finish with --resume", 1)
+        return
+    if netcdf is not None:
+        summary["netcdf"] = str(export_netcdf(out, netcdf))
+    if json_:
+        print_json(summary)
+        return
+    from rich.console import Console
+
+    con = Console()
+    con.print(
+        f"[bold]{summary['store']}[/bold]: {summary['runs']} runs {summary['dims']}, "
+        f"{summary['runs_computed']} computed now in {summary['elapsed_s']:.3g} s "
+        f"({summary['executor']}), {summary['failed_runs']} failed"
+    )
+    if "regimes" in summary:
+        con.print("regimes: " + ", ".join(f"{k} {v}" for k, v in summary["regimes"].items()))
+
+
+@app.command("sweep-plot")
+@guarded
+def sweep_plot(
+    store: Annotated[Path, typer.Argument(help="A sweep store written by `braidsim sweep`.")],
+    metric: Annotated[str, typer.Option(help="Metric to plot (e.g. regime, track_max_contact_force).")],
+    x: Annotated[str, typer.Option("--x", help="Axis on the horizontal axis.")],
+    out: Annotated[Path, typer.Option("--out", help="Image file to write (.png, .pdf, .svg).")],
+    y: Annotated[
+        str | None, typer.Option("--y", help="Second axis: a heat map (else a line over --x).")
+    ] = None,
+    sel: Annotated[
+        list[str] | None, typer.Option("--sel", help="AXIS=VALUE fixing another dimension (nearest).")
+    ] = None,
+    unit: Annotated[
+        list[str] | None, typer.Option("--unit", help="NAME=UNIT display unit, e.g. h_a=mm.")
+    ] = None,
+    log: Annotated[bool, typer.Option("--log", help="Logarithmic colour scale / y axis.")] = False,
+    json_: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
+) -> None:
+    """Plot a finished sweep: a heat map over two axes (--x, --y) or a line over one (--x)."""
+    from braidsim.errors import InputError
+    from braidsim.plotting import save
+    from braidsim.sweep import open_sweep, plot_sweep
+
+    def pairs(items: list[str] | None, option: str) -> dict[str, str]:
+        outd = {}
+        for item in items or []:
+            if "=" not in item:
+                raise InputError(f"{option}: expected NAME=VALUE, got {item!r}")
+            k, v = item.split("=", 1)
+            outd[k.strip()] = v.strip()
+        return outd
+
+    ds = open_sweep(store)
+    fig = plot_sweep(ds, metric, x, y, sel=pairs(sel, "--sel"), units=pairs(unit, "--unit"), log=log)
+    path = save(fig, out)
+    if json_:
+        print_json({"figure": str(path), "metric": metric, "x": x, "y": y})

@@ -1,0 +1,173 @@
+"""The report's figures: the paper's Figures 3-22 with its stated ranges drawn in, the added
+impact-sequence and phase-portrait figures, and a Table 1 comparison.
+
+Units are the paper's: displacement and depth in mm, forces in N, time in s. Each paper
+figure has two panels: (a) the whole run with the "initially" and "later" windows shaded
+and the paper's ranges as dashed lines over the window they belong to, (b) the "later"
+window enlarged, where the settled motion is orders of magnitude smaller than the first
+impacts.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from braidsim.plotting import QUANTITIES, new_figure, plot_impacts, plot_phase, plot_quantity
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+    from braidsim.paper.findings import Outcome
+    from braidsim.paper.values import RunSpec
+    from braidsim.result import Result
+
+#: file-name stem of each plotted quantity
+SHORT = {"x": "x", "stiffness_force": "F_kg", "damping_force": "F_cg", "depth": "depth"}
+#: what each paper figure shows, as in its caption
+CAPTION = {
+    "x": "displacement x",
+    "stiffness_force": "stiffness-related component force F_kg",
+    "damping_force": "damping-related component force F_cg",
+    "depth": "contact depth",
+}
+PAPER_COLOR = "C3"
+WINDOW_COLORS = {"initially": "0.85", "later": "#cfe3f5", "run": "0.92"}
+
+
+def figure_filename(number: int, quantity: str) -> str:
+    """``fig03_x.png``, ``fig04_F_kg.png``, ... (the paper's numbering)."""
+    return f"fig{number:02d}_{SHORT[quantity]}.png"
+
+
+def _paper_lines(ax: Axes, outcomes: Sequence[Outcome], window: str, t_span: tuple[float, float]) -> list[str]:
+    """Draw the paper's values of one window as dashed lines; return notes for off-scale values."""
+    lo, hi = ax.get_ylim()
+    span = hi - lo
+    notes = []
+    first = True
+    for o in outcomes:
+        if o.item.window != window:
+            continue
+        v = o.item.value  # paper unit (N or mm) = plotted unit
+        if not (lo - 0.25 * span <= v <= hi + 0.25 * span):
+            notes.append(f"paper {o.item.statistic} {v:g} {o.item.unit} (off scale)")
+            continue
+        ax.hlines(v, t_span[0], t_span[1], colors=PAPER_COLOR, linestyles=(0, (4, 2)), lw=1.1,
+                  label=f"paper, {window}" if first else None, zorder=5)
+        first = False
+    return notes
+
+
+def paper_figure(result: Result, spec: RunSpec, quantity: str, number: int,
+                 outcomes: Sequence[Outcome]) -> Figure:
+    """One of the paper's Figures 3-22, with the paper's stated ranges for comparison.
+
+    Parameters
+    ----------
+    result : Result
+        The calibrated run (with series).
+    spec : RunSpec
+        Its windows and figure numbers.
+    quantity : str
+        ``x``, ``stiffness_force``, ``damping_force`` or ``depth``.
+    number : int
+        Paper figure number.
+    outcomes : sequence of Outcome
+        The items of this run (those of ``quantity`` are drawn).
+    """
+    fig = new_figure(9.0, 3.5)
+    has_later = "later" in spec.windows
+    if has_later:
+        ax, axz = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.2, 1.0]})
+    else:
+        ax, axz = fig.add_subplot(1, 1, 1), None
+    own = [o for o in outcomes if o.item.quantity == quantity]
+    plot_quantity(result, quantity, ax=ax, label="braidsim")
+    for name, (t0, t1) in spec.windows.items():
+        if name == "run":
+            continue
+        ax.axvspan(t0, t1, color=WINDOW_COLORS.get(name, "0.9"), zorder=0, lw=0)
+        ax.text(0.5 * (t0 + t1), 1.0, name, transform=ax.get_xaxis_transform(), ha="center", va="bottom",
+                fontsize=8, color="0.3")
+    notes = []
+    if "initially" in spec.windows:
+        notes += _paper_lines(ax, own, "initially", spec.windows["initially"])
+    ax.set_title(f"(a) whole run, {spec.duration:g} s", fontsize=9, loc="left", pad=12)
+    if axz is not None:
+        w = spec.windows["later"]
+        plot_quantity(result, quantity, ax=axz, window=w, label="braidsim")
+        axz.set_ylabel("")
+        # a flat later series (a carrier at rest) needs a visible y-range around the value
+        y0, y1 = axz.get_ylim()
+        later = [o.item.value for o in own if o.item.window == "later"]
+        if later:
+            lo, hi = min(y0, *later), max(y1, *later)
+            pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1e-12) * 0.05
+            axz.set_ylim(lo - pad, hi + pad)
+        notes += _paper_lines(axz, own, "later", w)
+        axz.set_title(f"(b) later window, {w[0]:g}-{w[1]:g} s", fontsize=9, loc="left", pad=12)
+        if axz.get_legend() is not None:
+            axz.get_legend().remove()
+    handles, labels = [], []
+    for a in (ax, axz) if axz is not None else (ax,):
+        h, lab = a.get_legend_handles_labels()
+        for hh, ll in zip(h, lab, strict=True):
+            if ll not in labels:
+                handles.append(hh)
+                labels.append(ll)
+    if quantity != "x":
+        # x has its own legend (walls); the others get one for braidsim vs paper
+        ax.legend(handles, labels, fontsize=8, frameon=False, loc="best")
+    elif any(lab.startswith("paper") for lab in labels):
+        ax.legend(handles, labels, fontsize=8, frameon=False, loc="best")
+    if notes:
+        ax.text(0.99, 0.02, "; ".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
+                color=PAPER_COLOR)
+    fig.suptitle(f"Figure {number}: {CAPTION[quantity]}, section {spec.section} ({spec.title})", fontsize=10)
+    return fig
+
+
+def impacts_figure(result: Result, spec: RunSpec) -> Figure:
+    """The added impact-sequence figure of one paper run."""
+    return plot_impacts(result, title=f"Impact sequence, section {spec.section}: {spec.title}")
+
+
+def phase_figure(result: Result, spec: RunSpec) -> Figure:
+    """The added phase portrait of one paper run."""
+    return plot_phase(result, title=f"Phase portrait, section {spec.section}: {spec.title}")
+
+
+def table1_figure(rows: Sequence[dict[str, object]]) -> Figure:
+    """Table 1: the paper's ranges (open markers) against ours (filled) for every law.
+
+    ``rows`` are the entries of :func:`braidsim.paper.report.table1_rows`.
+    """
+    fig = new_figure(9.0, 6.2)
+    axes = fig.subplots(2, 2, sharex=True).ravel()
+    laws = [str(r["label"]) for r in rows if r["quantity"] == "contact_force"]
+    xs = np.arange(len(laws))
+    for ax, q in zip(axes, ("contact_force", "stiffness_force", "damping_force", "depth"), strict=True):
+        sel = [r for r in rows if r["quantity"] == q]
+        scale = 100.0 if q == "depth" else 1.0  # depth in 1e-2 mm, as Table 1
+        for j, (key, style) in enumerate((("paper", "o"), ("ours", "s"))):
+            lo = np.array([float(r[f"{key}_min"]) for r in sel]) * scale  # type: ignore[arg-type]
+            hi = np.array([float(r[f"{key}_max"]) for r in sel]) * scale  # type: ignore[arg-type]
+            off = -0.12 if j == 0 else 0.12
+            color = "k" if key == "paper" else "C0"
+            mfc = "none" if key == "paper" else color
+            ax.vlines(xs + off, lo, hi, color=color, lw=0.8, alpha=0.6)
+            ax.plot(xs + off, lo, style, color=color, mfc=mfc, ms=5, ls="none",
+                    label="paper" if key == "paper" else "braidsim (E = 200 GPa)")
+            ax.plot(xs + off, hi, style, color=color, mfc=mfc, ms=5, ls="none")
+        ax.axhline(0.0, color="0.5", lw=0.6)
+        unit = "$10^{-2}$ mm" if q == "depth" else "N"
+        ax.set_ylabel(f"{QUANTITIES[q][2].split(' /')[0]} / {unit}")
+        ax.grid(True, axis="y", lw=0.3, alpha=0.6)
+        ax.set_xticks(xs, laws, rotation=35, ha="right", fontsize=8)
+    axes[0].legend(fontsize=8, frameon=False, loc="lower left")
+    fig.suptitle("Table 1: range (min to max) of each quantity, paper against braidsim", fontsize=10)
+    return fig

@@ -1,0 +1,486 @@
+"""Running a sweep: chunk tasks, executors (local processes, Dask), resume and progress.
+
+The work is cut into the store's chunks (:meth:`SweepSpec.chunk_region`), one task per chunk.
+A task carries only the chunk number and its parameter values; the base scenario travels
+once per task as a small payload (once per cluster with Dask). Workers only compute; the
+process that runs :func:`run_sweep` is the single writer of the store, so a chunk is written
+once, when its task is done.
+
+Executors
+---------
+* :class:`LocalProcesses` (default): a pool of local processes (``forkserver``), all cores
+  unless told otherwise; with one process the chunks run in this process. A worker process
+  that dies (a crash, the out-of-memory killer) breaks the pool: a new pool is started and
+  the chunks that were in flight are run again, each at most ``1 + retries`` times.
+* :class:`DaskExecutor`: tasks on a Dask distributed cluster, an existing one
+  (``scheduler="tcp://..."``) or a local one started for the sweep (``dask_workers=N``).
+  Dask re-runs a task whose worker died; a task that raises is retried ``retries`` times.
+
+A run that fails numerically is not an error of its chunk: it is stored as failed with its
+reason (:mod:`braidsim.batch`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from braidsim.batch import (
+    METRIC_INDEX,
+    METRICS,
+    REGIME_FAILED,
+    REGIMES,
+    RunOptions,
+    run_metrics,
+    scenario_from_payload,
+    scenario_payload,
+    typed_metrics,
+)
+from braidsim.errors import BraidsimError, InputError
+from braidsim.model import build_model
+from braidsim.sweep.spec import SweepSpec
+from braidsim.sweep.store import (
+    StoreWriter,
+    create_store,
+    done_chunks,
+    remove_partial_files,
+    store_attrs,
+)
+
+
+class SweepError(BraidsimError, RuntimeError):
+    """A chunk task failed more often than allowed (not a numerical failure of a run)."""
+
+
+@dataclass(frozen=True)
+class ChunkTask:
+    """The work of one chunk.
+
+    Attributes
+    ----------
+    chunk : int
+        Chunk number.
+    keys : tuple of str
+        Varied scenario keys.
+    runs : list of tuple
+        Their values (SI) for each run of the chunk, in C order of the chunk's block.
+    duration : float or None
+        Simulated time [s] (None: each run's own).
+    options : RunOptions
+        Window, RMS grid, series.
+    """
+
+    chunk: int
+    keys: tuple[str, ...]
+    runs: list[tuple[Any, ...]]
+    duration: float | None
+    options: RunOptions
+
+
+@dataclass(frozen=True)
+class ChunkOutput:
+    """What a chunk task returns: (runs, metrics) values, failures and series."""
+
+    chunk: int
+    values: np.ndarray
+    failures: list[str]
+    series: np.ndarray | None
+
+
+def compute_chunk(base: tuple[Any, ...], task: ChunkTask) -> ChunkOutput:
+    """Run every parameter set of a chunk (in a worker). Deterministic.
+
+    A parameter combination the scenario rejects (a cross-key check no single axis value
+    shows) is recorded as a failed run with that reason, like a numerical failure.
+    """
+    sc = scenario_from_payload(base)
+    opts = task.options
+    n = len(task.runs)
+    values = np.full((n, len(METRICS)), math.nan)
+    series = np.full((n, len(opts.series), opts.series_times.size), math.nan) if opts.series else None
+    failures = []
+    for i, vals in enumerate(task.runs):
+        try:
+            model = build_model(sc.with_overrides(dict(zip(task.keys, vals, strict=True))), task.duration)
+        except InputError as exc:
+            values[i, METRIC_INDEX["regime"]] = REGIME_FAILED
+            failures.append(f"invalid parameters: {exc}")
+            continue
+        v, s, f = run_metrics(model, opts)
+        values[i] = v
+        if series is not None and s is not None:
+            series[i] = s
+        failures.append(f)
+    return ChunkOutput(task.chunk, values, failures, series)
+
+
+OnResult = Callable[[ChunkOutput], None]
+
+
+class Executor(Protocol):
+    """Runs chunk tasks and hands each output to ``on_result`` (in the calling process)."""
+
+    description: str
+
+    def run(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
+        """Run all ``tasks``; raise :class:`SweepError` when one fails too often."""
+
+
+class LocalProcesses:
+    """Chunks on local processes (``forkserver``); in this process when ``processes == 1``.
+
+    Parameters
+    ----------
+    processes : int, optional
+        Number of worker processes; default all cores (``os.cpu_count()``).
+    retries : int
+        Extra attempts of a chunk whose task failed or whose worker died.
+    mp_context : str
+        Start method of the processes.
+    """
+
+    def __init__(self, processes: int | None = None, retries: int = 2, mp_context: str = "forkserver") -> None:
+        n = (os.cpu_count() or 1) if processes is None else int(processes)
+        if n < 1:
+            raise InputError(f"--processes: {n} is out of range; allowed >= 1")
+        self.processes = n
+        self.retries = retries
+        self.mp_context = mp_context
+        self.description = f"local processes ({n})" if n > 1 else "this process"
+
+    def run(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
+        if self.processes == 1:
+            for task in tasks:
+                self._serial(base, task, on_result)
+            return
+        self._pool(base, tasks, on_result)
+
+    def _serial(self, base: tuple[Any, ...], task: ChunkTask, on_result: OnResult) -> None:
+        for attempt in range(self.retries + 1):
+            try:
+                out = compute_chunk(base, task)
+            except Exception as exc:  # a bug or a resource error: try again, then give up
+                if attempt == self.retries:
+                    raise SweepError(f"chunk {task.chunk} failed {attempt + 1} times: {exc!r}") from exc
+                continue
+            on_result(out)
+            return
+
+    def _pool(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
+        import multiprocessing
+        from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        ctx = multiprocessing.get_context(self.mp_context)
+        pending = deque(tasks)
+        attempts: dict[int, int] = {}
+        inflight: dict[Future[ChunkOutput], ChunkTask] = {}
+
+        def again(task: ChunkTask, why: str) -> None:
+            attempts[task.chunk] = attempts.get(task.chunk, 0) + 1
+            if attempts[task.chunk] > self.retries:
+                raise SweepError(f"chunk {task.chunk} failed {attempts[task.chunk]} times: {why}")
+            pending.appendleft(task)
+
+        pool = ProcessPoolExecutor(max_workers=self.processes, mp_context=ctx)
+        try:
+            while pending or inflight:
+                while pending and len(inflight) < 2 * self.processes:
+                    task = pending.popleft()
+                    inflight[pool.submit(compute_chunk, base, task)] = task
+                done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+                broken = False
+                for fut in done:
+                    task = inflight.pop(fut)
+                    try:
+                        out = fut.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        again(task, "a worker process died")
+                    except Exception as exc:
+                        again(task, repr(exc))
+                    else:
+                        on_result(out)
+                if broken:
+                    # every task still in flight on the broken pool is lost: run it again
+                    for task in inflight.values():
+                        again(task, "a worker process died")
+                    inflight.clear()
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    pool = ProcessPoolExecutor(max_workers=self.processes, mp_context=ctx)
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskExecutor:
+    """Chunks as tasks of a Dask distributed cluster.
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of a running scheduler (``tcp://host:8786``).
+    workers : int, optional
+        Start a local cluster of this many single-threaded worker processes instead.
+    retries : int
+        Retries of a task that raised (a task whose worker died is re-run by the scheduler).
+    client : distributed.Client, optional
+        Use this client (tests; the caller closes it).
+    """
+
+    def __init__(
+        self,
+        scheduler: str | None = None,
+        workers: int | None = None,
+        retries: int = 2,
+        client: Any = None,
+    ) -> None:
+        self.scheduler = scheduler
+        self.workers = workers
+        self.retries = retries
+        self.client = client
+        if client is not None:
+            self.description = "dask (given client)"
+        elif scheduler is not None:
+            self.description = f"dask scheduler {scheduler}"
+        else:
+            if workers is None or workers < 1:
+                raise InputError(f"--workers: {workers} is out of range; allowed >= 1")
+            self.description = f"local dask cluster ({workers} workers)"
+
+    def _connect(self) -> tuple[Any, list[Any]]:
+        try:
+            import logging
+
+            from distributed import Client, LocalCluster
+        except ImportError:  # pragma: no cover - dask is installed with the test extras
+            raise InputError(
+                "--workers/--scheduler: need dask.distributed; pip install 'braidsim[dask]'"
+            ) from None
+        if self.client is not None:
+            return self.client, []
+        if self.scheduler is not None:
+            try:
+                client = Client(self.scheduler, timeout="20s")
+            except (OSError, TimeoutError) as exc:
+                raise InputError(f"--scheduler: cannot connect to {self.scheduler} ({exc})") from None
+            return client, [client]
+        cluster = LocalCluster(
+            n_workers=self.workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
+        client = Client(cluster)
+        return client, [client, cluster]
+
+    def run(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
+        from distributed import as_completed
+
+        client, owned = self._connect()
+        try:
+            base_f = client.scatter(base, broadcast=True)
+            futs = {client.submit(compute_chunk, base_f, t, retries=self.retries, pure=False): t for t in tasks}
+            for fut in as_completed(list(futs)):
+                task = futs[fut]
+                try:
+                    out = fut.result()
+                except Exception as exc:
+                    raise SweepError(f"chunk {task.chunk} failed after {self.retries} retries: {exc!r}") from exc
+                on_result(out)
+                fut.release()
+        finally:
+            for obj in owned:
+                obj.close()
+
+
+def _tasks(spec: SweepSpec, chunks: Iterable[int]) -> list[ChunkTask]:
+    out = []
+    for c in chunks:
+        keys, runs = spec.chunk_runs(c)
+        out.append(ChunkTask(c, keys, runs, spec.duration, spec.options))
+    return out
+
+
+class _Progress:
+    """A rich progress bar on stderr: runs done, throughput, time left."""
+
+    def __init__(self, total: int, done: int, enabled: bool) -> None:
+        self.enabled = enabled
+        self.t0 = time.perf_counter()
+        self.runs_now = 0
+        if not enabled:
+            return
+        from rich.console import Console
+        from rich.progress import (
+            BarColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.bar = Progress(
+            TextColumn("sweep"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("runs"),
+            TextColumn("{task.fields[rate]}"),
+            TimeElapsedColumn(),
+            TextColumn("left"),
+            TimeRemainingColumn(),
+            console=Console(stderr=True),
+            transient=False,
+        )
+        self.task = self.bar.add_task("sweep", total=total, completed=done, rate="")
+        self.bar.start()
+
+    def advance(self, n: int) -> None:
+        self.runs_now += n
+        if self.enabled:
+            dt = time.perf_counter() - self.t0
+            rate = f"{self.runs_now / dt:.3g} runs/s" if dt > 0 else ""
+            self.bar.update(self.task, advance=n, rate=rate)
+
+    def stop(self) -> None:
+        if self.enabled:
+            self.bar.stop()
+
+
+def run_sweep(
+    spec: SweepSpec,
+    store: str | Path,
+    *,
+    resume: bool = False,
+    processes: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    executor: Executor | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Run a sweep into a zarr store; finish an interrupted one with ``resume=True``.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+        From :func:`braidsim.sweep.load_spec`.
+    store : str or Path
+        The zarr store (a folder).
+    resume : bool
+        Finish the chunks a previous run of the same spec left undone. Without it an
+        existing store is an error.
+    processes : int, optional
+        Local worker processes (default: all cores).
+    workers : int, optional
+        Start a local Dask cluster of this many workers.
+    scheduler : str, optional
+        Run on the Dask cluster at this address.
+    executor : Executor, optional
+        Any object with ``run(base, tasks, on_result)`` (overrides the three above).
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    dict
+        Summary (the JSON of ``braidsim sweep --json``): store, dimensions, runs, chunks
+        computed now and before, failed runs, regime counts, time and throughput.
+
+    Raises
+    ------
+    InputError
+        Bad executor options, an existing store without ``resume``, or a store made from
+        another spec.
+    SweepError
+        A chunk task failed more than ``retries`` times.
+    """
+    path = Path(store)
+    if executor is None:
+        if workers is not None and scheduler is not None:
+            raise InputError("--workers/--scheduler: give one of them (a local cluster or an existing one)")
+        if (workers is not None or scheduler is not None) and processes is not None:
+            raise InputError("--processes: applies to the local executor, not to a Dask cluster")
+        if workers is not None or scheduler is not None:
+            executor = DaskExecutor(scheduler=scheduler, workers=workers, retries=spec.retries)
+        else:
+            executor = LocalProcesses(processes, retries=spec.retries)
+    if path.exists():
+        if not resume:
+            raise InputError(f"--out: {path} exists; pass --resume to finish it, or choose another path")
+        attrs = store_attrs(path)
+        if attrs.get("spec_sha256") != spec.digest():
+            raise InputError(f"--resume: {path} was made from a different spec; allowed the same spec")
+        remove_partial_files(path)
+    else:
+        create_store(spec, path)
+    done = done_chunks(path)
+    todo = [int(c) for c in np.flatnonzero(~done)]
+    n_before = int(done.sum())
+    runs_before = sum(_chunk_size(spec, int(c)) for c in np.flatnonzero(done))
+    writer = StoreWriter(path, spec)
+    bar = _Progress(spec.n_runs, runs_before, progress)
+    counts = {"failed": 0}
+
+    def on_result(out: ChunkOutput) -> None:
+        block = tuple(r.stop - r.start for r in spec.chunk_region(out.chunk))
+        typed = typed_metrics(out.values)
+        vals = {k: v.reshape(block) for k, v in typed.items()}
+        fail = np.array(out.failures, dtype=object).reshape(block)
+        ser = {}
+        if out.series is not None:
+            for k, name in enumerate(spec.options.series):
+                ser[name] = out.series[:, k].reshape(*block, -1)
+        writer.write_chunk(out.chunk, vals, fail, ser)
+        counts["failed"] += int(np.count_nonzero(typed["regime"] == REGIME_FAILED))
+        bar.advance(len(out.failures))
+
+    t0 = time.perf_counter()
+    try:
+        executor.run(scenario_payload(spec.base), _tasks(spec, todo), on_result)
+    finally:
+        bar.stop()
+    elapsed = time.perf_counter() - t0
+    runs_now = spec.n_runs - runs_before
+    return {
+        "store": str(path),
+        "spec": str(spec.path) if spec.path else None,
+        "dims": dict(zip(spec.dims, spec.shape, strict=True)),
+        "runs": spec.n_runs,
+        "chunks": spec.n_chunks,
+        "chunks_done_before": n_before,
+        "chunks_computed": len(todo),
+        "runs_computed": runs_now,
+        "failed_runs_computed": counts["failed"],
+        "executor": executor.description,
+        "elapsed_s": elapsed,
+        "runs_per_second": runs_now / elapsed if elapsed > 0 else None,
+        **summarize_store(path),
+    }
+
+
+def _chunk_size(spec: SweepSpec, chunk: int) -> int:
+    return int(np.prod([r.stop - r.start for r in spec.chunk_region(chunk)]))
+
+
+def summarize_store(path: str | Path) -> dict[str, Any]:
+    """Regime counts and failed runs of a store (over the chunks done)."""
+    from braidsim.sweep.store import open_sweep
+
+    ds = open_sweep(path)
+    out: dict[str, Any] = {}
+    if "regime" in ds:
+        r = np.asarray(ds["regime"].values).ravel()
+        out["regimes"] = {name: int(np.count_nonzero(r == i)) for i, name in enumerate(REGIMES)}
+    fail = np.asarray(ds["failure"].values).astype(object).ravel()
+    out["failed_runs"] = int(np.count_nonzero(fail != ""))
+    out["complete"] = bool(done_chunks(path).all())
+    return out
