@@ -193,7 +193,7 @@ def _window_of(model: Model, opts: RunOptions) -> tuple[float, float]:
     return float(opts.window[0]), float(opts.window[1])
 
 
-def _rms_grid(model: Model, t0: float, t1: float, interval: float | None) -> np.ndarray:
+def rms_grid(model: Model, t0: float, t1: float, interval: float | None) -> np.ndarray:
     dt = 0.5 * float(model.P[K.P_HMAX]) if interval is None else float(interval)
     n = max(2, int(math.ceil((t1 - t0) / dt - 1e-9)) + 1)
     return np.linspace(t0, t1, n)
@@ -222,7 +222,7 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
     """
     T = model.duration
     t0, t1 = _window_of(model, opts)
-    grid = _rms_grid(model, t0, t1, opts.rms_interval)
+    grid = rms_grid(model, t0, t1, opts.rms_interval)
     st = np.union1d(grid, opts.series_times) if opts.series_times.size else grid
     W = np.array([[0.0, T], [t0, t1]])
     values = np.full(len(METRICS), math.nan)
@@ -542,6 +542,23 @@ def simulate_batch(
     )
 
 
+def process_context() -> Any:
+    """The multiprocessing context of the worker processes.
+
+    ``fork`` where the platform has it and this process runs a single thread: the workers
+    start at once (no re-import of numba and the compiled kernel) and the caller's
+    ``__main__`` is not run again, so scripts without a ``__main__`` guard and interactive
+    sessions work. Otherwise ``forkserver`` (or ``spawn``), which are safe with threads.
+    """
+    import multiprocessing
+    import threading
+
+    methods = multiprocessing.get_all_start_methods()
+    if "fork" in methods and threading.active_count() == 1:
+        return multiprocessing.get_context("fork")
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
 def _run_in_processes(
     base: Scenario,
     sets: list[dict[str, Any]],
@@ -554,7 +571,6 @@ def _run_in_processes(
     Interleaving (run i goes to slice i mod k) balances slices whose cost varies along the
     parameter sets. The results are put back in the original order.
     """
-    import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
     n = len(sets)
@@ -563,8 +579,7 @@ def _run_in_processes(
     values = np.empty((n, len(METRICS)))
     series = np.empty((n, len(opts.series), opts.series_times.size)) if opts.series else None
     failures = [""] * n
-    ctx = multiprocessing.get_context("forkserver")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=workers, mp_context=process_context()) as pool:
         futs = [pool.submit(_run_payload, payload, sets[j::k], duration, opts) for j in range(k)]
         for j, fut in enumerate(futs):
             v, s, f = fut.result()

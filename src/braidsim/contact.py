@@ -116,6 +116,10 @@ def effective_restitution(damping_factor: float) -> float:
         e = float((1.0 + special.lambertw(z, 0).real) / d)
     # Newton polish on F(e) = ln(1 - D e) - ln(1 + D) + D (1 + e) = 0 (the relation in logs)
     for _ in range(4):
+        if d * e >= 1.0:
+            # large D: e = (1 - (1 + D) exp(-(1 + D)) ...) / D rounds to 1/D, the log form
+            # is undefined there and the Lambert value is already exact to rounding
+            break
         f = math.log1p(-d * e) - math.log1p(d) + d * (1.0 + e)
         fp = d - d / (1.0 - d * e)
         if fp == 0.0:

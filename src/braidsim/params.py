@@ -287,7 +287,7 @@ SCHEMA_LIST: list[ParamSpec] = [
         "simulation.max_steps",
         "int",
         "",
-        20_000_000,
+        5_000_000,
         "budget of integration steps before a run is declared stuck",
         low=1,
     ),

@@ -184,6 +184,19 @@ def plot_impacts(result: Result, title: str | None = None) -> Figure:
             ax2.semilogy(
                 tt[ini], peak[ini], marker, color=color, mfc="none", ms=6, ls="none", label=lab
             )
+    # a contact that lasts to the end of the run (the carrier stays on the wall): a bar
+    ongoing = imp["ongoing"].to_numpy()
+    for t_on, pk in zip(
+        imp["t"].to_numpy()[ongoing], imp["peak_force"].to_numpy()[ongoing], strict=True
+    ):
+        ax2.hlines(
+            max(pk, 1e-3),
+            t_on,
+            result.model.duration,
+            color="0.4",
+            lw=1.5,
+            label="in contact to the end",
+        )
     ax1.set_ylabel("approach speed / (m/s)")
     ax2.set_ylabel("peak contact force / N")
     ax2.set_xlabel("time $t$ / s")

@@ -34,19 +34,31 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
     """What failed, when, and what to change, for a kernel status code."""
     sc = model.scenario
     m = sc["carrier.mass"]
-    # the two rates that can make the explicit integrator crawl
+    # The two rates that can make the explicit integrator crawl: the friction regularisation,
+    # d f_x / d vx = (2/pi) mu1 N / (m x_hat), and the contact damping at rest under the
+    # constant load F with the floor speed, d F_c / d pdot / m = F D / (v_min m).
     fric_rate = 0.0
     if sc["friction.law"] != "none":
         fric_rate = (
-            model.P[K.P_MU1] * model.P[K.P_NX] / (m * sc["friction.regularization_velocity"])
+            2
+            / math.pi
+            * model.P[K.P_MU1]
+            * model.P[K.P_NX]
+            / (m * sc["friction.regularization_velocity"])
         )
-    hint = (
-        "increase friction.regularization_velocity (friction regularisation makes the equations "
-        f"stiff: rate ~ {fric_rate:.3g} 1/s)"
-        if fric_rate > 1e5
-        else "raise contact.min_impact_velocity (tiny latched impact speeds make the damping "
-        "stiff) or loosen simulation.rtol"
+    damp_rate = (
+        model.constant_load * model.track.damping_factor / (sc["contact.min_impact_velocity"] * m)
     )
+    if fric_rate >= damp_rate:
+        hint = (
+            "increase friction.regularization_velocity (the friction regularisation makes the "
+            f"equations stiff: rate ~ {fric_rate:.3g} 1/s)"
+        )
+    else:
+        hint = (
+            "raise contact.min_impact_velocity (tiny latched impact speeds make the damping "
+            f"stiff: rate ~ {damp_rate:.3g} 1/s)"
+        )
     if status == K.ST_STEP_COLLAPSE:
         return f"step size collapsed below 1e-14 s at t = {t:.9g} s; {hint}"
     if status == K.ST_NONFINITE:
@@ -56,6 +68,11 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
             f"step budget simulation.max_steps = {int(model.P[K.P_MAXSTEPS])} exhausted "
             f"at t = {t:.9g} s "
             f"(smallest step {stats[5]:.3g} s); {hint}, or raise simulation.max_steps"
+        )
+    if status == K.ST_STIFF:
+        return (
+            f"the equations became stiff at t = {t:.9g} s (step {stats[5]:.3g} s held by stability "
+            f"for {K.STIFF_LIMIT} steps); {hint}"
         )
     if status == K.ST_ZENO:
         return (

@@ -146,6 +146,8 @@ ST_MAX_STEPS = 3
 ST_CAPACITY_ROWS = 4
 ST_CAPACITY_EPISODES = 5
 ST_ZENO = 6
+ST_STIFF = 7
+STIFF_LIMIT = 100_000  # accepted steps held by stability (few breaks) before giving up
 
 N_SUB = 8  # interior samples of the interpolant per step for events and extremes
 # steps, rejected, events, rhs evaluations, transfers, min h, max h, final t, then the final
@@ -1007,7 +1009,8 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     nsteps = 0
     same_time_events = 0
     last_event_t = -1.0
-    reject_streak = 0
+    stiff_run = 0
+    nonstiff_run = 0
     err_old = 1e-4
     while t < t_end:
         if nsteps >= max_steps:
@@ -1043,9 +1046,26 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             fac = max(0.2, 0.9 * err ** (-0.2))
             h *= fac
             STATS[1] += 1
-            reject_streak += 1
             continue
-        reject_streak = 0
+        # stiffness detection (Hairer & Wanner's test in DOPRI5): h * |lambda| estimated from the
+        # last two stages; a long run of steps on the stability boundary means the explicit
+        # method is crawling
+        nd = 4 if P[P_DOF] > 1.5 else 2
+        stnum = 0.0
+        stden = 0.0
+        for i in range(nd):
+            stnum += (K[6, i] - K[5, i]) ** 2
+            stden += (Y1[i] - Yt[i]) ** 2
+        if stden > 0.0 and h * math.sqrt(stnum / stden) > 3.25:
+            stiff_run += 1
+            nonstiff_run = 0
+            if stiff_run >= STIFF_LIMIT:
+                status = ST_STIFF
+                break
+        else:
+            nonstiff_run += 1
+            if nonstiff_run >= 6:  # as in DOPRI5: six non-stiff steps clear the suspicion
+                stiff_run = 0
         # PI step-size control (Hairer, Norsett & Wanner I, Sect. II.4; DOPRI5 with beta = 0.04)
         if err == 0.0:
             fac = 5.0

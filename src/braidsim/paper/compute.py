@@ -12,8 +12,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from braidsim.params import Scenario, load_scenario
 from braidsim.paper.values import PaperItem, RunSpec
+from braidsim.params import Scenario, load_scenario
 from braidsim.result import Result
 from braidsim.simulate import simulate
 
@@ -121,7 +121,7 @@ class Comparison:
     Attributes
     ----------
     deviation : float or None
-        (ours - paper) / |paper|; None for a printed zero.
+        ours / paper - 1 (positive: ours is larger in magnitude); None for a printed zero.
     abs_deviation : float
         ours - paper, in the paper's unit.
     within : bool
@@ -140,5 +140,5 @@ def compare(item: PaperItem, ours_si: float) -> Comparison:
     if item.value == 0.0:
         tol = item.abs_tol if item.abs_tol is not None else 0.0
         return Comparison(None, diff, abs(diff) <= tol)
-    dev = diff / abs(item.value)
+    dev = ours / item.value - 1.0
     return Comparison(dev, diff, math.isfinite(dev) and abs(dev) <= item.tolerance)

@@ -35,6 +35,12 @@ CAPTION = {
     "depth": "contact depth",
 }
 PAPER_COLOR = "C3"
+#: line style of the paper's values per window: (colour, dash pattern)
+PAPER_STYLE = {
+    "initially": ("C3", (0, (5, 2))),
+    "later": ("#7b2cbf", (0, (2, 1.5))),
+    "run": ("C3", (0, (5, 2))),
+}
 WINDOW_COLORS = {"initially": "0.85", "later": "#cfe3f5", "run": "0.92"}
 
 
@@ -43,7 +49,9 @@ def figure_filename(number: int, quantity: str) -> str:
     return f"fig{number:02d}_{SHORT[quantity]}.png"
 
 
-def _paper_lines(ax: Axes, outcomes: Sequence[Outcome], window: str, t_span: tuple[float, float]) -> list[str]:
+def _paper_lines(
+    ax: Axes, outcomes: Sequence[Outcome], window: str, t_span: tuple[float, float]
+) -> list[str]:
     """Draw the paper's values of one window as dashed lines; return notes for off-scale values."""
     lo, hi = ax.get_ylim()
     span = hi - lo
@@ -56,14 +64,24 @@ def _paper_lines(ax: Axes, outcomes: Sequence[Outcome], window: str, t_span: tup
         if not (lo - 0.25 * span <= v <= hi + 0.25 * span):
             notes.append(f"paper {o.item.statistic} {v:g} {o.item.unit} (off scale)")
             continue
-        ax.hlines(v, t_span[0], t_span[1], colors=PAPER_COLOR, linestyles=(0, (4, 2)), lw=1.1,
-                  label=f"paper, {window}" if first else None, zorder=5)
+        color, dashes = PAPER_STYLE.get(window, PAPER_STYLE["initially"])
+        ax.hlines(
+            v,
+            t_span[0],
+            t_span[1],
+            colors=color,
+            linestyles=dashes,
+            lw=1.2,
+            label=f"paper, {window}" if first else None,
+            zorder=5,
+        )
         first = False
     return notes
 
 
-def paper_figure(result: Result, spec: RunSpec, quantity: str, number: int,
-                 outcomes: Sequence[Outcome]) -> Figure:
+def paper_figure(
+    result: Result, spec: RunSpec, quantity: str, number: int, outcomes: Sequence[Outcome]
+) -> Figure:
     """One of the paper's Figures 3-22, with the paper's stated ranges for comparison.
 
     Parameters
@@ -79,7 +97,7 @@ def paper_figure(result: Result, spec: RunSpec, quantity: str, number: int,
     outcomes : sequence of Outcome
         The items of this run (those of ``quantity`` are drawn).
     """
-    fig = new_figure(9.0, 3.5)
+    fig = new_figure(9.0, 3.8)
     has_later = "later" in spec.windows
     if has_later:
         ax, axz = fig.subplots(1, 2, gridspec_kw={"width_ratios": [2.2, 1.0]})
@@ -87,12 +105,21 @@ def paper_figure(result: Result, spec: RunSpec, quantity: str, number: int,
         ax, axz = fig.add_subplot(1, 1, 1), None
     own = [o for o in outcomes if o.item.quantity == quantity]
     plot_quantity(result, quantity, ax=ax, label="braidsim")
+    ax.ticklabel_format(axis="y", useOffset=False)
     for name, (t0, t1) in spec.windows.items():
         if name == "run":
             continue
         ax.axvspan(t0, t1, color=WINDOW_COLORS.get(name, "0.9"), zorder=0, lw=0)
-        ax.text(0.5 * (t0 + t1), 1.0, name, transform=ax.get_xaxis_transform(), ha="center", va="bottom",
-                fontsize=8, color="0.3")
+        ax.text(
+            0.5 * (t0 + t1),
+            1.0,
+            name,
+            transform=ax.get_xaxis_transform(),
+            ha="center",
+            va="bottom",
+            fontsize=8,
+            color="0.3",
+        )
     notes = []
     if "initially" in spec.windows:
         notes += _paper_lines(ax, own, "initially", spec.windows["initially"])
@@ -101,17 +128,22 @@ def paper_figure(result: Result, spec: RunSpec, quantity: str, number: int,
         w = spec.windows["later"]
         plot_quantity(result, quantity, ax=axz, window=w, label="braidsim")
         axz.set_ylabel("")
-        # a flat later series (a carrier at rest) needs a visible y-range around the value
+        # a flat later series (a carrier at rest) needs a visible y-range around its value,
+        # wide enough for the paper's value too
         y0, y1 = axz.get_ylim()
         later = [o.item.value for o in own if o.item.window == "later"]
-        if later:
-            lo, hi = min(y0, *later), max(y1, *later)
-            pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1e-12) * 0.05
-            axz.set_ylim(lo - pad, hi + pad)
+        lo, hi = min([y0, *later]), max([y1, *later])
+        center, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        half = max(1.08 * half, 0.05 * abs(center))
+        if half > 0.0:
+            axz.set_ylim(center - half, center + half)
+        axz.ticklabel_format(axis="y", useOffset=False)
         notes += _paper_lines(axz, own, "later", w)
         axz.set_title(f"(b) later window, {w[0]:g}-{w[1]:g} s", fontsize=9, loc="left", pad=12)
-        if axz.get_legend() is not None:
-            axz.get_legend().remove()
+    # one legend for both panels, outside the axes so that it never hides data
+    for a in (ax, axz):
+        if a is not None and a.get_legend() is not None:
+            a.get_legend().remove()
     handles, labels = [], []
     for a in (ax, axz) if axz is not None else (ax,):
         h, lab = a.get_legend_handles_labels()
@@ -119,15 +151,23 @@ def paper_figure(result: Result, spec: RunSpec, quantity: str, number: int,
             if ll not in labels:
                 handles.append(hh)
                 labels.append(ll)
-    if quantity != "x":
-        # x has its own legend (walls); the others get one for braidsim vs paper
-        ax.legend(handles, labels, fontsize=8, frameon=False, loc="best")
-    elif any(lab.startswith("paper") for lab in labels):
-        ax.legend(handles, labels, fontsize=8, frameon=False, loc="best")
+    fig.legend(
+        handles, labels, fontsize=8, frameon=False, loc="outside lower center", ncol=len(labels)
+    )
     if notes:
-        ax.text(0.99, 0.02, "; ".join(notes), transform=ax.transAxes, ha="right", va="bottom", fontsize=7,
-                color=PAPER_COLOR)
-    fig.suptitle(f"Figure {number}: {CAPTION[quantity]}, section {spec.section} ({spec.title})", fontsize=10)
+        ax.text(
+            0.99,
+            0.02,
+            "; ".join(notes),
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=7,
+            color=PAPER_COLOR,
+        )
+    fig.suptitle(
+        f"Figure {number}: {CAPTION[quantity]}, section {spec.section} ({spec.title})", fontsize=10
+    )
     return fig
 
 
@@ -150,7 +190,9 @@ def table1_figure(rows: Sequence[dict[str, object]]) -> Figure:
     axes = fig.subplots(2, 2, sharex=True).ravel()
     laws = [str(r["label"]) for r in rows if r["quantity"] == "contact_force"]
     xs = np.arange(len(laws))
-    for ax, q in zip(axes, ("contact_force", "stiffness_force", "damping_force", "depth"), strict=True):
+    for ax, q in zip(
+        axes, ("contact_force", "stiffness_force", "damping_force", "depth"), strict=True
+    ):
         sel = [r for r in rows if r["quantity"] == q]
         scale = 100.0 if q == "depth" else 1.0  # depth in 1e-2 mm, as Table 1
         for j, (key, style) in enumerate((("paper", "o"), ("ours", "s"))):
@@ -160,14 +202,25 @@ def table1_figure(rows: Sequence[dict[str, object]]) -> Figure:
             color = "k" if key == "paper" else "C0"
             mfc = "none" if key == "paper" else color
             ax.vlines(xs + off, lo, hi, color=color, lw=0.8, alpha=0.6)
-            ax.plot(xs + off, lo, style, color=color, mfc=mfc, ms=5, ls="none",
-                    label="paper" if key == "paper" else "braidsim (E = 200 GPa)")
+            ax.plot(
+                xs + off,
+                lo,
+                style,
+                color=color,
+                mfc=mfc,
+                ms=5,
+                ls="none",
+                label="paper" if key == "paper" else "braidsim (E = 200 GPa)",
+            )
             ax.plot(xs + off, hi, style, color=color, mfc=mfc, ms=5, ls="none")
         ax.axhline(0.0, color="0.5", lw=0.6)
         unit = "$10^{-2}$ mm" if q == "depth" else "N"
         ax.set_ylabel(f"{QUANTITIES[q][2].split(' /')[0]} / {unit}")
         ax.grid(True, axis="y", lw=0.3, alpha=0.6)
         ax.set_xticks(xs, laws, rotation=35, ha="right", fontsize=8)
-    axes[0].legend(fontsize=8, frameon=False, loc="lower left")
-    fig.suptitle("Table 1: range (min to max) of each quantity, paper against braidsim", fontsize=10)
+    h, lab = axes[0].get_legend_handles_labels()
+    fig.legend(h, lab, fontsize=8, frameon=False, loc="outside lower center", ncol=2)
+    fig.suptitle(
+        "Table 1: range (min to max) of each quantity, paper against braidsim", fontsize=10
+    )
     return fig

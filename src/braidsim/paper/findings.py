@@ -24,9 +24,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.contact import get_law
-from braidsim.params import SCHEMA
-from braidsim.paper.compute import Comparison, Measured, run_spec
+from braidsim.model import Model, build_model
+from braidsim.paper.compute import Comparison, Measured, scenario_for
 from braidsim.paper.values import PaperItem, PaperValues
+from braidsim.params import SCHEMA
 
 if TYPE_CHECKING:
     from braidsim.result import Result
@@ -79,65 +80,99 @@ class Evidence:
 # ------------------------------------------------------------------------------ helpers
 
 
-def _fmt(v: float, digits: int = 5) -> str:
-    """A number with ``digits`` significant digits, no trailing zeros, no -0."""
+def fmt(v: float, digits: int = 5) -> str:
+    """``v`` with ``digits`` significant digits, as the paper writes numbers.
+
+    Plain below 10^6 and down to 0.01 (``-4864.4``, ``0.0339``); mantissa and exponent
+    outside (``-7.6452e-4``, ``1.2e+06`` style as ``1.2e6``); no trailing zeros, no -0.
+    """
     if v == 0.0:
         return "0"
-    return f"{v:.{digits}g}"
+    if not math.isfinite(v):
+        return str(v)
+    e = math.floor(math.log10(abs(v)))
+    if -2 <= e < 6:
+        return f"{v:.{digits}g}"
+    m = f"{v / 10.0**e:.{max(digits - 1, 0)}f}".rstrip("0").rstrip(".")
+    if m in ("10", "-10"):  # rounding carried into the next decade
+        m, e = m[:-1], e + 1
+    return f"{m}e{e}"
 
 
 def _pct(dev: float) -> str:
     return f"{dev * 100:+.1f} %"
 
 
-def overlap_speed(result: Result) -> float:
+def overlap_speed(model: Model) -> float:
     """Speed [m/s] whose kinetic energy equals the elastic energy of the overlap at t = 0.
 
     v = sqrt(2 K p0^(n+1) / ((n + 1) m)), p0 = h(0) - x0 the initial penetration into the
     inner wall (the energy that a release from that overlap gives back).
     """
-    sc = result.model.scenario
+    sc = model.scenario
     p0 = sc["track.vibration_amplitude"] * math.cos(sc["track.vibration_phase"]) - sc["initial.x"]
-    k, n = result.model.track.stiffness, result.model.track.exponent
+    k, n = model.track.stiffness, model.track.exponent
     return math.sqrt(2.0 * k * max(p0, 0.0) ** (n + 1.0) / ((n + 1.0) * sc["carrier.mass"]))
 
 
-def evidence_runs(values: PaperValues, results: Mapping[tuple[str, str], Result]) -> list[EvidenceRun]:
+def evidence_runs(values: PaperValues) -> list[EvidenceRun]:
     """The extra runs (short, without series) that the readings and causes need."""
     vhat = SCHEMA["friction.regularization_velocity"].default
+
+    def model(run: str) -> Model:
+        return build_model(scenario_for(values.runs[run]))
+
     runs = [
         EvidenceRun(
             f"v_eq.{k}",
             k,
-            {"contact.initial_impact_velocity": overlap_speed(results[(k, "calibrated")])},
+            {"contact.initial_impact_velocity": overlap_speed(model(k))},
             values.runs[k].windows["initially"][1],
             "damped release of the initial overlap (energy-equivalent v0)",
         )
         for k in ("3.3", "3.4a")
     ]
+    k_brandlein = model("T1.brandlein").track.stiffness
     runs += [
-        EvidenceRun("hertz.no_friction", "T1.hertz", {"friction.law": "none"}, 0.05,
-                    "Hertz row without friction"),
-        EvidenceRun("brandlein.no_friction", "T1.brandlein", {"friction.law": "none"}, 0.05,
-                    "Braendlein row without friction"),
+        EvidenceRun(
+            "hertz.no_friction",
+            "T1.hertz",
+            {"friction.law": "none"},
+            0.05,
+            "Hertz row without friction",
+        ),
+        EvidenceRun(
+            "brandlein.no_friction",
+            "T1.brandlein",
+            {"friction.law": "none"},
+            0.05,
+            "Braendlein row without friction",
+        ),
         EvidenceRun(
             "brandlein.no_friction.stiff",
             "T1.brandlein",
-            {
-                "friction.law": "none",
-                "contact.track.stiffness": 10.0 * results[("T1.brandlein", "calibrated")].model.track.stiffness,
-            },
+            {"friction.law": "none", "contact.track.stiffness": 10.0 * k_brandlein},
             0.05,
             "Braendlein row without friction, stiffness x 10",
         ),
-        EvidenceRun("vhat.3.2", "3.2", {"friction.regularization_velocity": vhat / 10.0},
-                    values.runs["3.2"].windows["initially"][1], "friction regularisation speed / 10"),
+        EvidenceRun(
+            "vhat.3.2",
+            "3.2",
+            {"friction.regularization_velocity": vhat / 10.0},
+            values.runs["3.2"].windows["initially"][1],
+            "friction regularisation speed / 10",
+        ),
     ]
     for k in ("3.3", "3.4a"):
         for x0 in (1e-3, 2e-3):
             runs.append(
-                EvidenceRun(f"start.{k}.x0={x0 * 1e3:g}mm", k, {"initial.x": x0}, values.runs[k].duration,
-                            "another start, same parameters")
+                EvidenceRun(
+                    f"start.{k}.x0={x0 * 1e3:g}mm",
+                    k,
+                    {"initial.x": x0},
+                    values.runs[k].duration,
+                    "another start, same parameters",
+                )
             )
     return runs
 
@@ -149,7 +184,9 @@ def _paper(values: PaperValues, item_id: str) -> PaperItem | None:
         return None
 
 
-def _window_range(result: Result, window: tuple[float, float], quantity: str) -> tuple[float, float]:
+def _window_range(
+    result: Result, window: tuple[float, float], quantity: str
+) -> tuple[float, float]:
     lo, hi = result.ranges_dict("track", result.window_index(*window))[quantity]
     return lo, hi
 
@@ -197,7 +234,11 @@ def gather_evidence(
     # Eq. (4) against the paper's own pairs of F_kg and depth extremes
     checks = []
     for it in values.items:
-        if it.quantity != "stiffness_force" or it.statistic not in ("min", "max") or it.value == 0.0:
+        if (
+            it.quantity != "stiffness_force"
+            or it.statistic not in ("min", "max")
+            or it.value == 0.0
+        ):
             continue
         dep = _paper(values, it.id.replace("stiffness_force", "depth"))
         if dep is None or dep.value == 0.0:
@@ -209,7 +250,7 @@ def gather_evidence(
                 "depth_mm": dep.value,
                 "paper_F": it.value,
                 "eq4_F": implied,
-                "mismatch": (it.value - implied) / abs(implied),
+                "mismatch": it.si_value / implied - 1.0,
             }
         )
     ev["eq4_checks"] = checks
@@ -223,12 +264,18 @@ def gather_evidence(
                 for it in values.items_of(key)
                 if it.window == wname and it.statistic in ("min", "max")
             }
-            need = [("stiffness_force", "min"), ("stiffness_force", "max"), ("damping_force", "min"),
-                    ("damping_force", "max")]
+            need = [
+                ("stiffness_force", "min"),
+                ("stiffness_force", "max"),
+                ("damping_force", "min"),
+                ("damping_force", "max"),
+            ]
             if not all(k in items for k in need):
                 continue
             res = results[(key, "calibrated")]
-            ours = damping_ratio(_window_range(res, w, "damping_force"), _window_range(res, w, "stiffness_force"))
+            ours = damping_ratio(
+                _window_range(res, w, "damping_force"), _window_range(res, w, "stiffness_force")
+            )
             paper = damping_ratio(
                 (items[need[2]], items[need[3]]), (items[need[0]], items[need[1]])
             )
@@ -244,30 +291,39 @@ def gather_evidence(
         damped = _window_range(extra[f"v_eq.{k}"], w, "stiffness_force")[1]
         paper = _paper(values, f"{k}.stiffness_force.initially.max")
         veq[k] = {
-            "v_eq": overlap_speed(res),
+            "v_eq": overlap_speed(res.model),
             "elastic": ours,
             "damped": damped,
             "paper": paper.value if paper else math.nan,
-            "overlap": res.model.scenario["track.vibration_amplitude"] - res.model.scenario["initial.x"],
-            "damped_change": (damped - ours) / abs(ours),
+            "overlap": res.model.scenario["track.vibration_amplitude"]
+            - res.model.scenario["initial.x"],
+            "damped_change": damped / ours - 1.0,
         }
     ev["v_eq"] = veq
 
     # Table 1 Hertz and Braendlein rows: sudden load on an elastic contact
-    ev["hertz_peak"] = -_window_range(results[("T1.hertz", "calibrated")], (0.0, 0.5), "contact_force")[0]
-    ev["hertz_peak_no_friction"] = -_window_range(extra["hertz.no_friction"], (0.0, 0.05), "contact_force")[0]
+    ev["hertz_peak"] = -_window_range(
+        results[("T1.hertz", "calibrated")], (0.0, 0.5), "contact_force"
+    )[0]
+    ev["hertz_peak_no_friction"] = -_window_range(
+        extra["hertz.no_friction"], (0.0, 0.05), "contact_force"
+    )[0]
     nb = results[("T1.brandlein", "calibrated")].model.track.exponent
     ev["brandlein_n"] = nb
     ev["brandlein_K"] = results[("T1.brandlein", "calibrated")].model.track.stiffness
-    ev["brandlein_peak"] = -_window_range(results[("T1.brandlein", "calibrated")], (0.0, 0.5), "contact_force")[0]
-    ev["brandlein_peak_no_friction"] = -_window_range(extra["brandlein.no_friction"], (0.0, 0.05),
-                                                      "contact_force")[0]
+    ev["brandlein_peak"] = -_window_range(
+        results[("T1.brandlein", "calibrated")], (0.0, 0.5), "contact_force"
+    )[0]
+    ev["brandlein_peak_no_friction"] = -_window_range(
+        extra["brandlein.no_friction"], (0.0, 0.05), "contact_force"
+    )[0]
     ev["brandlein_peak_no_friction_stiff"] = -_window_range(
         extra["brandlein.no_friction.stiff"], (0.0, 0.05), "contact_force"
     )[0]
     sc = results[("T1.hertz", "calibrated")].model.scenario
-    ev["friction_x"] = sc["friction.carrier_horn_gear"] * abs(sc["carrier.mass"] * sc["gravity"]
-                                                              - sc["yarn.tension_vertical"])
+    ev["friction_x"] = sc["friction.carrier_horn_gear"] * abs(
+        sc["carrier.mass"] * sc["gravity"] - sc["yarn.tension_vertical"]
+    )
 
     # implied damping factor of Table 1 rows on our measured D -> ratio curve
     c_r = sc["contact.track.restitution"]
@@ -371,7 +427,11 @@ class Reading:
 
 
 def _dev_summary(outcomes: Mapping[str, Outcome], prefix: str) -> str:
-    devs = [abs(o.cmp.deviation) for k, o in outcomes.items() if k.startswith(prefix) and o.cmp.deviation is not None]
+    devs = [
+        abs(o.cmp.deviation)
+        for k, o in outcomes.items()
+        if k.startswith(prefix) and o.cmp.deviation is not None
+    ]
     return f"{len(devs)} items, largest |deviation| {max(devs) * 100:.2f} %" if devs else "no items"
 
 
@@ -455,9 +515,9 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
                 f"Sections 3.1 and 3.2 with this latching: {_dev_summary(outcomes, '3.1.')}; "
                 f"{_dev_summary(outcomes, '3.2.')}.",
                 *(
-                    f"{k}: outer-wall peak after the release, elastic {_fmt(v['elastic'])} N (paper "
-                    f"{_fmt(v['paper'])} N); damped from t = 0 with the energy-equivalent v0 = "
-                    f"{v['v_eq']:.4g} m/s: {_fmt(v['damped'])} N ({_pct(v['damped_change'])})."
+                    f"{k}: outer-wall peak after the release, elastic {fmt(v['elastic'])} N (paper "
+                    f"{fmt(v['paper'])} N); damped from t = 0 with the energy-equivalent v0 = "
+                    f"{v['v_eq']:.4g} m/s: {fmt(v['damped'])} N ({_pct(v['damped_change'])})."
                     for k, v in veq.items()
                 ),
                 "So the elastic release is the policy that reproduces the initial peaks.",
@@ -484,8 +544,15 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         f"{ev['brandlein_peak_no_friction']:.4g} N at K = {ev['brandlein_K']:.4g} and "
         f"{ev['brandlein_peak_no_friction_stiff']:.4g} N at 10 K; paper -183 N.",
     ]
-    for law in ("hunt_crossley", "lee_wang", "lankarani_nikravesh", "zhiying_qishao", "herbert_mcwhannell",
-                "gonthier", "flores"):
+    for law in (
+        "hunt_crossley",
+        "lee_wang",
+        "lankarani_nikravesh",
+        "zhiying_qishao",
+        "herbert_mcwhannell",
+        "gonthier",
+        "flores",
+    ):
         if law in imp:
             v = imp[law]
             t1_lines.append(
@@ -533,10 +600,13 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
                 f"{vh['Fkg_max']:.5g} N vs {vh['Fkg_max_alt']:.5g} N, depth max {vh['depth_max'] * 1e3:.5g} mm vs "
                 f"{vh['depth_max_alt'] * 1e3:.5g} mm (paper 1.2 N, 1.32e-4 mm).",
                 "3.3 later F_kg min from x0 = "
-                + ", ".join(f"{r['x0'] * 1e3:g} mm: {_fmt(r['Fkg'][0])} N" for r in st["3.3"])
+                + ", ".join(f"{r['x0'] * 1e3:g} mm: {fmt(r['Fkg'][0])} N" for r in st["3.3"])
                 + " (paper -1511.5 N): coexisting steady states.",
                 "3.4 (h_a = 0.4 mm) later F_kg range from x0 = "
-                + ", ".join(f"{r['x0'] * 1e3:g} mm: ({_fmt(r['Fkg'][0])}, {_fmt(r['Fkg'][1])}) N" for r in st["3.4a"])
+                + ", ".join(
+                    f"{r['x0'] * 1e3:g} mm: ({fmt(r['Fkg'][0])}, {fmt(r['Fkg'][1])}) N"
+                    for r in st["3.4a"]
+                )
                 + ": one steady state.",
             ),
         )
@@ -551,7 +621,9 @@ Rule = Callable[[Outcome, PaperValues, Mapping[str, Outcome], Evidence], str]
 
 def _eq4_line(item_id: str, ev: Evidence) -> str:
     for c in ev["eq4_checks"]:
-        if c["id"] == item_id.replace("damping_force", "stiffness_force").replace("depth", "stiffness_force"):
+        if c["id"] == item_id.replace("damping_force", "stiffness_force").replace(
+            "depth", "stiffness_force"
+        ):
             return (
                 f"The paper's own pair is inconsistent through Eq. (4): K ({abs(c['depth_mm']):g} mm)^1.5 = "
                 f"{abs(c['eq4_F']):.5g} N against the printed {abs(c['paper_F']):g} N ({_pct(c['mismatch'])})."
@@ -564,8 +636,14 @@ def _eq4_line(item_id: str, ev: Evidence) -> str:
 def _ratio_line(run: str, window: str, ev: Evidence) -> str:
     for r in ev["ratios"]:
         if r["run"] == run and r["window"] == window:
-            base = next((x for x in ev["ratios"] if x["run"] == "3.1" and x["window"] == "initially"), None)
-            ref = f" (paper's own 3.1 impacts: {base['paper']:.3f}, ours {base['ours']:.3f})" if base else ""
+            base = next(
+                (x for x in ev["ratios"] if x["run"] == "3.1" and x["window"] == "initially"), None
+            )
+            ref = (
+                f" (paper's own 3.1 impacts: {base['paper']:.3f}, ours {base['ours']:.3f})"
+                if base
+                else ""
+            )
             return (
                 f"Damping-to-stiffness ratio max|F_cg|/max|F_kg| in this window: paper {r['paper']:.3f}, "
                 f"ours {r['ours']:.3f}{ref}."
@@ -573,13 +651,17 @@ def _ratio_line(run: str, window: str, ev: Evidence) -> str:
     return ""
 
 
-def _cause_33_later(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
+def _cause_33_later(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> str:
     q = o.item.quantity
     key = {"stiffness_force": "Fkg", "damping_force": "Fcg", "depth": "depth"}.get(q, "Fkg")
     scale = 1e3 if q == "depth" else 1.0
     unit = "mm" if q == "depth" else "N"
     idx = 0 if o.item.statistic == "min" else 1
-    vals = ", ".join(f"{r['x0'] * 1e3:g} mm: {_fmt(r[key][idx] * scale, 4)} {unit}" for r in ev["starts"]["3.3"])
+    vals = ", ".join(
+        f"{r['x0'] * 1e3:g} mm: {fmt(r[key][idx] * scale, 4)} {unit}" for r in ev["starts"]["3.3"]
+    )
     parts = [
         "Several steady states coexist after the impacts die down (MODEL_NOTES 8): the same parameters "
         f"started from x0 = {vals} give different later values, so a later range belongs to one run; "
@@ -590,22 +672,31 @@ def _cause_33_later(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome]
     return " ".join(p for p in parts if p)
 
 
-def _cause_34a_later(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
+def _cause_34a_later(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> str:
     rows = ev["starts"]["3.4a"]
     same = all(np.allclose(r["Fkg"], rows[0]["Fkg"], rtol=1e-3) for r in rows)
+    starts = ", ".join(f"{r['x0'] * 1e3:g}" for r in rows)
     parts = [
-        "Our later impact pattern does not depend on the start "
-        f"(x0 = {', '.join(f'{r['x0'] * 1e3:g}' for r in rows)} mm give the same later range)"
+        f"Our later impact pattern does not depend on the start (x0 = {starts} mm give the same "
+        "later range)"
         if same
         else "Our later impact pattern depends on the start",
-        "; the paper's later numbers follow from details it does not give (its window, its evaluation of the "
-        "damping term under wall motion).",
+        "; so the difference lies in what the paper does not state (its later window, details "
+        "of its model under wall motion).",
     ]
-    extra = _ratio_line("3.4a", "later", ev) if o.item.quantity == "damping_force" else _eq4_line(o.item.id, ev)
+    extra = (
+        _ratio_line("3.4a", "later", ev)
+        if o.item.quantity == "damping_force"
+        else _eq4_line(o.item.id, ev)
+    )
     return "".join(parts[:2]) + (" " + extra if extra else "")
 
 
-def _cause_34b_initially(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
+def _cause_34b_initially(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> str:
     K, n = ev["K"], ev["n"]
     dmin = _paper(values, "3.4b.depth.initially.min")
     dmax = _paper(values, "3.4b.depth.initially.max")
@@ -613,23 +704,30 @@ def _cause_34b_initially(o: Outcome, values: PaperValues, outs: Mapping[str, Out
     hi = K * abs(dmax.si_value) ** n if dmax else math.nan
     s = (
         "The printed value contradicts the paper's own depth range (-0.120, 0.101) mm of the same figure group: "
-        f"through Eq. (4) those depths mean F_kg = ({_fmt(lo)}, {_fmt(hi)}) N (the paper prints -32737 N for "
+        f"through Eq. (4) those depths mean F_kg = ({fmt(lo)}, {fmt(hi)}) N (the paper prints -32737 N for "
         "the identical initial overlap in 3.3). "
     )
     if o.item.quantity == "damping_force":
-        r = next((x for x in ev["ratios"] if x["run"] == "3.4b" and x["window"] == "initially"), None)
+        r = next(
+            (x for x in ev["ratios"] if x["run"] == "3.4b" and x["window"] == "initially"), None
+        )
         if r:
             s += (
                 f"The printed F_cg range gives max|F_cg|/max|F_kg| = {r['paper']:.3f} (ours {r['ours']:.3f}), "
                 "beyond any impact of Eq. (5). "
             )
-    f = outs.get("3.4b.stiffness_force.initially.min"), outs.get("3.4b.stiffness_force.initially.max")
+    f = (
+        outs.get("3.4b.stiffness_force.initially.min"),
+        outs.get("3.4b.stiffness_force.initially.max"),
+    )
     if all(f):
-        s += f"Ours, consistent with the depths: F_kg ({_fmt(f[0].ours.value)}, {_fmt(f[1].ours.value)}) N."  # type: ignore[union-attr]
+        s += f"Ours, consistent with the depths: F_kg ({fmt(f[0].ours.value)}, {fmt(f[1].ours.value)}) N."  # type: ignore[union-attr]
     return s
 
 
-def _cause_34b_later(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
+def _cause_34b_later(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> str:
     b = ev["bond"]
     lo, hi = b["band"]
     peaks = ", ".join(f"{p:.4g}" for p in b["last_peaks"])
@@ -651,12 +749,14 @@ def _cause_hertz(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], e
     return (
         f"The x-friction of Eq. (14) (up to {ev['friction_x']:.3g} N) opposes the carrier's fall onto the wall "
         f"and lowers the dynamic peak; without it the peak is {nf:.4g} N = (n+1) x {ev['load']:.4g} N "
-        f"({_pct((-nf - o.item.value) / abs(o.item.value))} from the paper's -43 N). The paper does not say "
+        f"({_pct(-nf / o.item.value - 1.0)} from the paper's -43 N). The paper does not say "
         "how its Hertz row was started (MODEL_NOTES 6)."
     )
 
 
-def _cause_brandlein(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
+def _cause_brandlein(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> str:
     nb = ev["brandlein_n"]
     return (
         f"The paper gives no stiffness for n = {nb:g}; we use Eq. (4)'s K in N/m^{nb:g}. Moreover a carrier "
@@ -667,12 +767,16 @@ def _cause_brandlein(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome
     )
 
 
-def _cause_table1_damping(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
+def _cause_table1_damping(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> str:
     law = o.item.run.split(".", 1)[1]
     v = ev["implied_D"].get(law)
     if v is None:
         return ""
-    eq = {"herbert_mcwhannell": "Eqs. (6)-(7)", "gonthier": "Eq. (10)", "flores": "Eq. (13)"}.get(law, "")
+    eq = {"herbert_mcwhannell": "Eqs. (6)-(7)", "gonthier": "Eq. (10)", "flores": "Eq. (13)"}.get(
+        law, ""
+    )
     return (
         f"The printed damping factor {eq} gives D = {v['D']:.4g} at c_r = {ev['c_r']:.4g}, and our row follows "
         f"it (max|F_cg|/max|F_kg| = {v['ratio_ours']:.3f}); the paper's row has {v['ratio_paper']:.3f}, which on "
@@ -694,7 +798,9 @@ RULES: list[tuple[str, str, Rule]] = [
 ]
 
 
-def explain(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> tuple[str, str]:
+def explain(
+    o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence
+) -> tuple[str, str]:
     """Status and cause of one item (reproduced when within tolerance)."""
     if o.cmp.within:
         return REPRODUCED, ""

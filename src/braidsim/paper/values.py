@@ -155,7 +155,9 @@ def default_path() -> Path:
 
 def _window(run: str, name: str, w: Any, duration: float) -> tuple[float, float]:
     if not (isinstance(w, list) and len(w) == 2 and all(isinstance(v, int | float) for v in w)):
-        raise InputError(f"paper values: run {run} window {name}: expected [t0, t1] in s, got {w!r}")
+        raise InputError(
+            f"paper values: run {run} window {name}: expected [t0, t1] in s, got {w!r}"
+        )
     t0, t1 = float(w[0]), float(w[1])
     if not (0.0 <= t0 < t1 <= duration + 1e-12):
         raise InputError(
@@ -221,9 +223,13 @@ def parse_paper_values(data: dict[str, Any]) -> PaperValues:
         run = _require(raw, "run", str, where)
         window = _require(raw, "window", str, where)
         if quantity not in QUANTITIES:
-            raise InputError(f"paper values: {where}: quantity {quantity!r}; allowed {', '.join(QUANTITIES)}")
+            raise InputError(
+                f"paper values: {where}: quantity {quantity!r}; allowed {', '.join(QUANTITIES)}"
+            )
         if statistic not in STATISTICS:
-            raise InputError(f"paper values: {where}: statistic {statistic!r}; allowed {', '.join(STATISTICS)}")
+            raise InputError(
+                f"paper values: {where}: statistic {statistic!r}; allowed {', '.join(STATISTICS)}"
+            )
         if unit not in UNITS or UNITS[unit][0] != SI_UNIT[quantity]:
             raise InputError(f"paper values: {where}: unit {unit!r} does not fit {quantity}")
         if run not in runs:

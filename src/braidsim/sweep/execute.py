@@ -8,7 +8,7 @@ once, when its task is done.
 
 Executors
 ---------
-* :class:`LocalProcesses` (default): a pool of local processes (``forkserver``), all cores
+* :class:`LocalProcesses` (default): a pool of local processes (forked), all cores
   unless told otherwise; with one process the chunks run in this process. A worker process
   that dies (a crash, the out-of-memory killer) breaks the pool: a new pool is started and
   the chunks that were in flight are run again, each at most ``1 + retries`` times.
@@ -135,7 +135,7 @@ class Executor(Protocol):
 
 
 class LocalProcesses:
-    """Chunks on local processes (``forkserver``); in this process when ``processes == 1``.
+    """Chunks on local processes; in this process when ``processes == 1``.
 
     Parameters
     ----------
@@ -143,11 +143,11 @@ class LocalProcesses:
         Number of worker processes; default all cores (``os.cpu_count()``).
     retries : int
         Extra attempts of a chunk whose task failed or whose worker died.
-    mp_context : str
-        Start method of the processes.
+    mp_context : str, optional
+        Start method of the processes; default :func:`braidsim.batch.process_context`.
     """
 
-    def __init__(self, processes: int | None = None, retries: int = 2, mp_context: str = "forkserver") -> None:
+    def __init__(self, processes: int | None = None, retries: int = 2, mp_context: str | None = None) -> None:
         n = (os.cpu_count() or 1) if processes is None else int(processes)
         if n < 1:
             raise InputError(f"--processes: {n} is out of range; allowed >= 1")
@@ -179,7 +179,9 @@ class LocalProcesses:
         from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
         from concurrent.futures.process import BrokenProcessPool
 
-        ctx = multiprocessing.get_context(self.mp_context)
+        from braidsim.batch import process_context
+
+        ctx = process_context() if self.mp_context is None else multiprocessing.get_context(self.mp_context)
         pending = deque(tasks)
         attempts: dict[int, int] = {}
         inflight: dict[Future[ChunkOutput], ChunkTask] = {}
@@ -340,9 +342,13 @@ class _Progress:
             TimeRemainingColumn(),
             console=Console(stderr=True),
             transient=False,
+            # no refresh thread: the sweep process stays single-threaded, so its worker
+            # processes can be forked (braidsim.batch.process_context)
+            auto_refresh=False,
         )
         self.task = self.bar.add_task("sweep", total=total, completed=done, rate="")
         self.bar.start()
+        self.bar.refresh()
 
     def advance(self, n: int) -> None:
         self.runs_now += n
@@ -350,6 +356,7 @@ class _Progress:
             dt = time.perf_counter() - self.t0
             rate = f"{self.runs_now / dt:.3g} runs/s" if dt > 0 else ""
             self.bar.update(self.task, advance=n, rate=rate)
+            self.bar.refresh()
 
     def stop(self) -> None:
         if self.enabled:

@@ -246,6 +246,21 @@ def export_netcdf(path: str | Path, out: str | Path) -> Path:
     from braidsim.io import atomic_write_with
 
     ds = open_sweep(path).load()
+
+    def nc_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:
+        # netCDF-3 attributes: numbers, number arrays and (ASCII) text only
+        out = {}
+        for k, v in attrs.items():
+            if isinstance(v, list | tuple) and not all(isinstance(e, int | float) for e in v):
+                v = json.dumps(v)
+            if isinstance(v, str):
+                v = v.encode("ascii", "backslashreplace").decode("ascii")
+            out[k] = v
+        return out
+
+    ds.attrs = nc_attrs(ds.attrs)
+    for name in list(ds.variables):
+        ds[name].attrs = nc_attrs(ds[name].attrs)
     for name in list(ds.variables):
         v = ds[name]
         if v.dtype.kind == "T" or v.dtype.kind == "U":
