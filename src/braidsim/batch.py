@@ -109,10 +109,16 @@ METRICS: tuple[Metric, ...] = (
         "-1 failed, 0 no_contact, 1 resting_contact, 2 one_sided_impacts, 3 two_sided_impacts "
         "(track pair, over the window; see braidsim.batch)",
     ),
-    Metric("track_inner_impacts", "", "int32", "contact onsets on the inner track wall in the window"),
-    Metric("track_outer_impacts", "", "int32", "contact onsets on the outer track wall in the window"),
+    Metric(
+        "track_inner_impacts", "", "int32", "contact onsets on the inner track wall in the window"
+    ),
+    Metric(
+        "track_outer_impacts", "", "int32", "contact onsets on the outer track wall in the window"
+    ),
     Metric("slot_rear_impacts", "", "int32", "contact onsets on the rear slot wall in the window"),
-    Metric("slot_front_impacts", "", "int32", "contact onsets on the front slot wall in the window"),
+    Metric(
+        "slot_front_impacts", "", "int32", "contact onsets on the front slot wall in the window"
+    ),
     Metric(
         "track_max_approach_speed",
         "m/s",
@@ -125,12 +131,31 @@ METRICS: tuple[Metric, ...] = (
         "float64",
         "largest relative normal speed at a slot contact onset in the window (0: none)",
     ),
-    Metric("track_max_contact_force", "N", "float64", "largest |normal force| of the track contact in the window"),
-    Metric("slot_max_contact_force", "N", "float64", "largest |normal force| of the slot contact in the window"),
-    Metric("track_max_depth", "m", "float64", "largest penetration into a track wall in the window"),
+    Metric(
+        "track_max_contact_force",
+        "N",
+        "float64",
+        "largest |normal force| of the track contact in the window",
+    ),
+    Metric(
+        "slot_max_contact_force",
+        "N",
+        "float64",
+        "largest |normal force| of the slot contact in the window",
+    ),
+    Metric(
+        "track_max_depth", "m", "float64", "largest penetration into a track wall in the window"
+    ),
     Metric("slot_max_depth", "m", "float64", "largest penetration into a slot wall in the window"),
-    Metric("track_contact_fraction", "", "float64", "fraction of the window in contact with a track wall"),
-    Metric("slot_contact_fraction", "", "float64", "fraction of the window in contact with a slot wall"),
+    Metric(
+        "track_contact_fraction",
+        "",
+        "float64",
+        "fraction of the window in contact with a track wall",
+    ),
+    Metric(
+        "slot_contact_fraction", "", "float64", "fraction of the window in contact with a slot wall"
+    ),
     Metric(
         "track_dissipated_energy",
         "J",
@@ -195,7 +220,7 @@ def _window_of(model: Model, opts: RunOptions) -> tuple[float, float]:
 
 def rms_grid(model: Model, t0: float, t1: float, interval: float | None) -> np.ndarray:
     dt = 0.5 * float(model.P[K.P_HMAX]) if interval is None else float(interval)
-    n = max(2, int(math.ceil((t1 - t0) / dt - 1e-9)) + 1)
+    n = max(2, math.ceil((t1 - t0) / dt - 1e-9) + 1)
     return np.linspace(t0, t1, n)
 
 
@@ -238,8 +263,12 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
     _episode_metrics(EP, t0, t1, values)
     i0 = int(np.searchsorted(st, t0))
     i1 = int(np.searchsorted(st, t1))
-    values[METRIC_INDEX["track_dissipated_energy"]] = rows[i1, _COL["track_dissipated"]] - rows[i0, _COL["track_dissipated"]]
-    values[METRIC_INDEX["slot_dissipated_energy"]] = rows[i1, _COL["slot_dissipated"]] - rows[i0, _COL["slot_dissipated"]]
+    values[METRIC_INDEX["track_dissipated_energy"]] = (
+        rows[i1, _COL["track_dissipated"]] - rows[i0, _COL["track_dissipated"]]
+    )
+    values[METRIC_INDEX["slot_dissipated_energy"]] = (
+        rows[i1, _COL["slot_dissipated"]] - rows[i0, _COL["slot_dissipated"]]
+    )
     fw = rows[:, _COL["friction_work_x"]] + rows[:, _COL["friction_work_y"]]
     values[METRIC_INDEX["friction_work"]] = fw[i1] - fw[i0]
     ig = np.searchsorted(st, grid)
@@ -280,7 +309,9 @@ def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -
     onset = (EP[:, c["initial"]] == 0.0) & (t_on >= t0) & (t_on <= t1)
     overlap = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
     counts = {}
-    for ip, (pname, walls) in enumerate((("track", ("inner", "outer")), ("slot", ("rear", "front")))):
+    for ip, (pname, walls) in enumerate(
+        (("track", ("inner", "outer")), ("slot", ("rear", "front")))
+    ):
         mine = pair == ip
         for side, wname in zip((-1.0, 1.0), walls, strict=True):
             n = int(np.count_nonzero(onset & mine & (wall == side)))
@@ -330,9 +361,13 @@ def check_options(
     if window is not None:
         t0, t1 = float(window[0]), float(window[1])
         if not (math.isfinite(t0) and math.isfinite(t1)) or t0 < 0.0 or t1 <= t0:
-            raise InputError(f"window: [{t0:g}, {t1:g}] s is not a time interval; allowed 0 <= T0 < T1")
+            raise InputError(
+                f"window: [{t0:g}, {t1:g}] s is not a time interval; allowed 0 <= T0 < T1"
+            )
         if t1 > tmin * (1 + 1e-12):
-            raise InputError(f"window: T1 = {t1:g} s is after the end of the shortest run; allowed <= {tmin:g} s")
+            raise InputError(
+                f"window: T1 = {t1:g} s is after the end of the shortest run; allowed <= {tmin:g} s"
+            )
         win = (t0, min(t1, tmin))
     if rms_interval is not None and not (math.isfinite(rms_interval) and rms_interval > 0.0):
         raise InputError(f"rms_interval: {rms_interval!r} s is out of range; allowed > 0 s")
@@ -343,10 +378,14 @@ def check_options(
 
             close = difflib.get_close_matches(name, SERIES_VARIABLES, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise InputError(f"series: unknown variable {name!r}{hint}; allowed {', '.join(SERIES_VARIABLES)}")
+            raise InputError(
+                f"series: unknown variable {name!r}{hint}; allowed {', '.join(SERIES_VARIABLES)}"
+            )
     times = np.zeros(0) if series_times is None else np.asarray(series_times, dtype=float).ravel()
     if names and times.size == 0:
-        raise InputError("series_times: no sample times given for the series; allowed a non-empty list in s")
+        raise InputError(
+            "series_times: no sample times given for the series; allowed a non-empty list in s"
+        )
     if times.size:
         if not np.all(np.isfinite(times)) or times.min() < 0.0 or times.max() > tmin * (1 + 1e-12):
             raise InputError(f"series_times: must lie in [0, {tmin:g}] s (the shortest run)")
@@ -375,7 +414,9 @@ def build_models(
     return models
 
 
-def run_models(models: Sequence[Model], opts: RunOptions) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
+def run_models(
+    models: Sequence[Model], opts: RunOptions
+) -> tuple[np.ndarray, np.ndarray | None, list[str]]:
     """Run models one after the other in this process: (values (n, metrics), series, failures)."""
     n = len(models)
     values = np.empty((n, len(METRICS)))
@@ -453,7 +494,7 @@ class BatchResult:
         return ["failed" if r < 0 else REGIMES[r] for r in self.metrics["regime"]]
 
     def to_dataframe(self) -> pd.DataFrame:
-        """One row per run: the parameter sets' keys (as given), then the metrics and ``failure``."""
+        """One row per run: the parameter sets' keys (as given), the metrics, ``failure``."""
         import pandas as pd
 
         params = pd.DataFrame(self.parameter_sets, index=pd.RangeIndex(len(self), name="run"))
@@ -467,8 +508,16 @@ class BatchResult:
 
         ds = xr.Dataset()
         for m in METRICS:
-            ds[m.name] = ("run", self.metrics[m.name], {"units": m.unit, "description": m.description})
-        ds["failure"] = ("run", self.failure.astype(str), {"description": "reason of a numerical failure"})
+            ds[m.name] = (
+                "run",
+                self.metrics[m.name],
+                {"units": m.unit, "description": m.description},
+            )
+        ds["failure"] = (
+            "run",
+            self.failure.astype(str),
+            {"description": "reason of a numerical failure"},
+        )
         if self.series:
             ds = ds.assign_coords(t=("t", self.series_times, {"units": "s"}))
             for name, arr in self.series.items():

@@ -221,17 +221,17 @@ def plot_impacts(result: Result, title: str | None = None) -> Figure:
     return fig
 
 
-def plot_phase(result: Result, title: str | None = None, chunks: int = 64) -> Figure:
+def plot_phase(result: Result, title: str | None = None, chunks: int = 160) -> Figure:
     """Phase portrait: position relative to the inner wall, x - h(t) [mm], against the
     carrier's speed dx/dt [m/s], coloured by time.
 
     The vertical lines mark the walls (x - h = 0 inner, x - h = eps_g outer); orbits that
-    cross them are impacts, and the late, settled motion is the dark-yellow end of the
-    colour scale.
+    cross them are impacts, and the late, settled motion is the yellow end of the
+    colour scale (a power-law scale, so that the crowded first impacts are told apart).
     """
     from matplotlib import colormaps
     from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
+    from matplotlib.colors import PowerNorm
 
     s = result.series
     t = s["t"]
@@ -240,7 +240,9 @@ def plot_phase(result: Result, title: str | None = None, chunks: int = 64) -> Fi
     rel = (s["x"] - s["track_position"]) * 1e3
     v = s["vx"]
     cmap = colormaps["viridis"]
-    norm = Normalize(0.0, max(float(t[-1]) if t.size else 1.0, 1e-12))
+    # the impacts crowd into the start of a run and the settled motion fills the rest: a
+    # power-law colour scale gives the early orbits distinct colours too
+    norm = PowerNorm(0.4, 0.0, max(float(t[-1]) if t.size else 1.0, 1e-12))
     # draw in time chunks so the colour follows time without a costly per-segment collection
     edges = np.linspace(0, t.size, chunks + 1).astype(int)
     for a, b in itertools.pairwise(edges):

@@ -191,7 +191,9 @@ def test_energy_balance_closes(name: str) -> None:
     p = np.abs(s["track_depth"])
     energy = 0.5 * m * (s["vx"] ** 2 + s["vy"] ** 2) + k * p ** (n + 1) / (n + 1)
     supplied = s["load_work_x"] + s["track_work"] + s["load_work_y"] + s["slot_work"]
-    lost = s["track_dissipated"] + s["slot_dissipated"] + s["friction_work_x"] + s["friction_work_y"]
+    lost = (
+        s["track_dissipated"] + s["slot_dissipated"] + s["friction_work_x"] + s["friction_work_y"]
+    )
     residual = (energy - energy[0]) - (supplied - lost)
     exchanged = np.max(np.abs(supplied)) + np.max(np.abs(lost))
     assert np.max(np.abs(residual)) <= 1e-6 * exchanged
@@ -201,7 +203,9 @@ def test_restart_continues_a_run_exactly() -> None:
     """Two halves joined with `start=` give the run of the whole, impact by impact."""
     whole = braidsim.simulate("paper-3.3", duration=0.1, sample_interval=0)
     first = braidsim.simulate("paper-3.3", duration=0.05, sample_interval=0)
-    second = braidsim.simulate("paper-3.3", duration=0.05, sample_interval=0, start=first.final_state)
+    second = braidsim.simulate(
+        "paper-3.3", duration=0.05, sample_interval=0, start=first.final_state
+    )
     assert second.final["t"] == pytest.approx(0.1)
     t_whole = whole.impacts["t"].to_numpy()
     later = second.impacts[~second.impacts["initial"]]  # a contact in progress at the cut
@@ -209,3 +213,27 @@ def test_restart_continues_a_run_exactly() -> None:
     assert len(t_joined) == len(t_whole)
     np.testing.assert_allclose(t_joined, t_whole, atol=1e-7)
     assert second.final["x"] == pytest.approx(whole.final["x"], abs=1e-9)
+
+
+@pytest.mark.parametrize("divisor", [47, 48, 49, 50, 51])
+def test_run_ends_exactly_at_its_duration(divisor: int) -> None:
+    """Rounding must never leave a sliver before the end that the step control calls a
+    collapse (a fixed step that almost divides the duration)."""
+    over = dict(
+        FREE,
+        **{
+            "contact.track.model": "hertz",
+            "contact.track.exponent": 1.0,
+            "contact.track.stiffness": 1e7,
+            "initial.vx": -0.5,
+        },
+    )
+    T = np.pi * np.sqrt(1.2 / 1e7)  # half period of the linear contact
+    res = braidsim.simulate(
+        "paper-3.1",
+        duration=1.5 * T,
+        sample_interval=0,
+        overrides=dict(over, **{"simulation.max_step": T / divisor}),
+    )
+    assert res.final["t"] == pytest.approx(1.5 * T, rel=1e-15)
+    assert res.impacts["duration"].iloc[0] == pytest.approx(T, rel=1e-6)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import signal
@@ -17,12 +18,11 @@ import pytest
 import braidsim
 from braidsim import InputError
 from braidsim.batch import REGIMES
-from braidsim.cli.common import run_app
+from braidsim.cli import main
 from braidsim.sweep import (
     LocalProcesses,
     compute_chunk,
     done_chunks,
-    export_netcdf,
     load_spec,
     open_sweep,
     parse_spec,
@@ -67,9 +67,18 @@ def write(tmp: Path, text: str, name: str = "spec.toml") -> Path:
     return p
 
 
+def run_app(argv: list[str]) -> int:
+    """The command line in this process; its exit code."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    return int(exc.value.code or 0)
+
+
 def files(store: Path) -> dict[str, bytes]:
     """Every file of a store (relative path -> bytes)."""
-    return {str(p.relative_to(store)): p.read_bytes() for p in sorted(store.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(store)): p.read_bytes() for p in sorted(store.rglob("*")) if p.is_file()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -93,10 +102,15 @@ def test_sweep_values_equal_single_simulate_calls(local_store):
             # the coordinates hold the exact SI values the runs used
             sc = braidsim.load_scenario(
                 "paper-3.3",
-                overrides={"horn_gear.angular_velocity": float(omega), "track.vibration_amplitude": float(h_a)},
+                overrides={
+                    "horn_gear.angular_velocity": float(omega),
+                    "track.vibration_amplitude": float(h_a),
+                },
             )
             cell = ds.sel(omega=omega, h_a=h_a)
-            res = braidsim.simulate(sc, duration=0.06, windows=[(0.02, 0.06)], sample_times=cell["t"].values)
+            res = braidsim.simulate(
+                sc, duration=0.06, windows=[(0.02, 0.06)], sample_times=cell["t"].values
+            )
             imp = res.impacts
             onsets = imp[~imp["initial"] & (imp["t"] >= 0.02) & (imp["pair"] == "track")]
             assert int(cell["track_inner_impacts"]) == int((onsets["wall"] == "inner").sum())
@@ -105,7 +119,9 @@ def test_sweep_values_equal_single_simulate_calls(local_store):
             assert float(cell["track_max_contact_force"]) == pytest.approx(
                 max(-r["contact_force"][0], r["contact_force"][1]), rel=1e-12
             )
-            assert float(cell["track_max_depth"]) == pytest.approx(max(-r["depth"][0], r["depth"][1]), rel=1e-12)
+            assert float(cell["track_max_depth"]) == pytest.approx(
+                max(-r["depth"][0], r["depth"][1]), rel=1e-12
+            )
             assert float(cell["final_x"]) == pytest.approx(res.final["x"], rel=1e-12, abs=0)
             assert float(cell["final_vx"]) == pytest.approx(res.final["vx"], rel=1e-12, abs=0)
             sample = res.series["kind"] == 0
@@ -116,15 +132,33 @@ def test_sweep_values_equal_single_simulate_calls(local_store):
 def test_kill_and_resume_gives_the_same_store(tmp_path, local_store):
     """SIGKILL a sweep process mid-way; --resume finishes it; the store equals an
     uninterrupted run's, file for file, and no chunk done before the kill is written again."""
-    spec_path = write(tmp_path, SPEC.replace('chunk_size = 2', 'chunk_size = 1').replace(
-        'values = ["120 rpm", "240 rpm"]', 'values = ["105 rpm", "120 rpm", "135 rpm", "240 rpm"]'))
+    spec_path = write(
+        tmp_path,
+        SPEC.replace("chunk_size = 2", "chunk_size = 1").replace(
+            'values = ["120 rpm", "240 rpm"]',
+            'values = ["105 rpm", "120 rpm", "135 rpm", "240 rpm"]',
+        ),
+    )
     ref = tmp_path / "ref.zarr"
     run_sweep(load_spec(spec_path), ref, processes=1, progress=False)
     store = tmp_path / "killed.zarr"
-    cmd = [sys.executable, "-m", "braidsim", "sweep", str(spec_path), "--out", str(store),
-           "--processes", "1", "--no-progress"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "braidsim",
+        "sweep",
+        str(spec_path),
+        "--out",
+        str(store),
+        "--processes",
+        "1",
+        "--no-progress",
+    ]
     log = tmp_path / "stderr.txt"
-    with log.open("wb") as err, subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err) as proc:
+    with (
+        log.open("wb") as err,
+        subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err) as proc,
+    ):
         flags = store / "_sweep" / "done" / "c"
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline and proc.poll() is None:
@@ -154,7 +188,7 @@ def test_kill_and_resume_gives_the_same_store(tmp_path, local_store):
 
 
 def test_resume_refuses_another_spec(tmp_path, local_store):
-    other = load_spec(write(tmp_path, SPEC.replace('num = 3', 'num = 4')))
+    other = load_spec(write(tmp_path, SPEC.replace("num = 3", "num = 4")))
     with pytest.raises(InputError, match="different spec"):
         run_sweep(other, local_store, resume=True, processes=1, progress=False)
 
@@ -164,44 +198,52 @@ def test_dask_local_cluster_equals_local_run(tmp_path, local_store):
     from braidsim.sweep import DaskExecutor
 
     spec = load_spec(write(tmp_path, SPEC))
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
-        summary = run_sweep(spec, tmp_path / "dask.zarr", executor=DaskExecutor(client=client), progress=False)
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        summary = run_sweep(
+            spec, tmp_path / "dask.zarr", executor=DaskExecutor(client=client), progress=False
+        )
     assert summary["executor"].startswith("dask")
     assert files(tmp_path / "dask.zarr") == files(local_store)
 
 
-def test_process_pool_equals_local_run_and_retries_a_dead_worker(tmp_path, local_store, monkeypatch):
-    """Two worker processes give the same store; a worker killed by the OS mid-chunk
-    (os._exit) breaks the pool, and the chunk is run again on a new one."""
+def _crash_once(marker: str, base, task):
+    """compute_chunk, except that the worker running chunk 1 dies the first time."""
+    if task.chunk == 1 and not Path(marker).exists():
+        Path(marker).write_text("x")
+        os._exit(1)
+    return compute_chunk(base, task)
+
+
+def test_process_pool_equals_local_run_and_retries_a_dead_worker(tmp_path, local_store):
+    """Two worker processes give the same store; a worker killed mid-chunk (os._exit)
+    breaks the pool, and the chunk is run again on a new one."""
     marker = tmp_path / "crashed-once"
-
-    def crash_once(base, task):
-        if task.chunk == 1 and not marker.exists():
-            marker.write_text("x")
-            os._exit(1)
-        return compute_chunk(base, task)
-
-    monkeypatch.setattr("braidsim.sweep.execute.compute_chunk", crash_once)
     spec = load_spec(write(tmp_path, SPEC))
-    ex = LocalProcesses(2, retries=2, mp_context="fork")
+    ex = LocalProcesses(2, retries=2, task=functools.partial(_crash_once, str(marker)))
     run_sweep(spec, tmp_path / "pool.zarr", executor=ex, progress=False)
     assert marker.exists()
     assert files(tmp_path / "pool.zarr") == files(local_store)
 
 
-def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path, monkeypatch):
+def _broken(base, task):
+    if task.chunk == 2:
+        raise RuntimeError("disk full")
+    return compute_chunk(base, task)
+
+
+def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path):
     from braidsim.sweep import SweepError
 
-    def broken(base, task):
-        if task.chunk == 2:
-            raise RuntimeError("disk full")
-        return compute_chunk(base, task)
-
-    monkeypatch.setattr("braidsim.sweep.execute.compute_chunk", broken)
     spec = load_spec(write(tmp_path, SPEC))
-    with pytest.raises(SweepError, match="chunk 2 failed 3 times.*disk full"):
-        run_sweep(spec, tmp_path / "s.zarr", processes=1, progress=False)
+    with pytest.raises(SweepError, match=r"chunk 2 failed 3 times.*disk full"):
+        run_sweep(
+            spec, tmp_path / "s.zarr", executor=LocalProcesses(1, task=_broken), progress=False
+        )
     done = done_chunks(tmp_path / "s.zarr")
     assert done[:2].all() and not done[2]
 
@@ -209,18 +251,23 @@ def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path,
 @pytest.mark.parametrize(
     ("change", "message"),
     [
-        (('key = "track.vibration_amplitude"', 'key = "track.vibration_amplitud"'),
-         "did you mean 'track.vibration_amplitude'"),
-        (('num = 3', 'num = 0'), "empty range"),
+        (
+            ('key = "track.vibration_amplitude"', 'key = "track.vibration_amplitud"'),
+            "did you mean 'track.vibration_amplitude'",
+        ),
+        (("num = 3", "num = 0"), "empty range"),
         (('stop = "0.18 mm"', 'stop = "0.06 mm"'), "empty range"),
-        (('start = "0.06 mm"', 'start = "0.06 s"'), "track.vibration_amplitude"),
-        (('values = ["120 rpm", "240 rpm"]', 'values = []'), "empty"),
+        (
+            ('start = "0.06 mm"', 'start = "0.06 s"'),
+            r"start \(track.vibration_amplitude\).*wrong unit",
+        ),
+        (('values = ["120 rpm", "240 rpm"]', "values = []"), "empty"),
         (('values = ["120 rpm", "240 rpm"]', 'values = ["120 rpm", "-5 rpm"]'), "out of range"),
         (('window = ["0.02 s", "0.06 s"]', 'window = ["0.02 s", "1 s"]'), "metrics.window"),
         (('window = ["0.02 s", "0.06 s"]', 'window = ["0.02 mm", "0.06 s"]'), "metrics.window"),
-        (('[metrics]', '[metrics]\nkeep = ["regime", "max_force"]'), "unknown metric 'max_force'"),
+        (("[metrics]", '[metrics]\nkeep = ["regime", "max_force"]'), "unknown metric 'max_force'"),
         (('variables = ["x", "track_contact_force"]', 'variables = ["xx"]'), "did you mean 'x'"),
-        (('chunk_size = 2', 'chunk_sise = 2'), "did you mean 'chunk_size'"),
+        (("chunk_size = 2", "chunk_sise = 2"), "did you mean 'chunk_size'"),
         (('[[axes]]\nkey = "horn', '[[axis]]\nkey = "horn'), "did you mean 'axes'"),
         (('scenario = "paper-3.3"', 'scenario = "paper-3.33"'), "did you mean 'paper-3.3'"),
     ],
@@ -240,18 +287,26 @@ def test_bad_spec_is_rejected_before_any_work(tmp_path, capsys, change, message)
 
 
 def test_cli_sweep_json_plot_and_netcdf(tmp_path, capsys, local_store):
-    from braidsim.cli import _register
-
-    _register()
     spec_path = write(tmp_path, SPEC)
     store = tmp_path / "cli.zarr"
     nc = tmp_path / "cli.nc"
-    code = run_app(["sweep", str(spec_path), "--out", str(store), "--processes", "1", "--json",
-                    "--netcdf", str(nc)])
+    code = run_app(
+        [
+            "sweep",
+            str(spec_path),
+            "--out",
+            str(store),
+            "--processes",
+            "1",
+            "--json",
+            "--netcdf",
+            str(nc),
+        ]
+    )
     out = capsys.readouterr().out
     assert code == 0
     summary = json.loads(out)
-    assert summary["runs"] == 6 and summary["chunks"] == 3 and summary["complete"]
+    assert summary["runs"] == 6 and summary["chunks"] == 4 and summary["complete"]  # blocks (1, 2)
     assert summary["dims"] == {"omega": 2, "h_a": 3}
     assert sum(summary["regimes"].values()) == 6 and set(summary["regimes"]) == set(REGIMES)
     assert files(store) == files(local_store)
@@ -259,17 +314,57 @@ def test_cli_sweep_json_plot_and_netcdf(tmp_path, capsys, local_store):
 
     with xr.open_dataset(nc, engine="scipy") as back:
         ds = open_sweep(store)
-        np.testing.assert_array_equal(back["track_max_contact_force"].values, ds["track_max_contact_force"].values)
+        np.testing.assert_array_equal(
+            back["track_max_contact_force"].values, ds["track_max_contact_force"].values
+        )
         np.testing.assert_array_equal(back["x"].values, ds["x"].values)
     heat = tmp_path / "heat.png"
-    assert run_app(["sweep-plot", str(store), "--metric", "regime", "--x", "omega", "--y", "h_a",
-                    "--unit", "omega=rpm", "--unit", "h_a=mm", "--out", str(heat)]) == 0
+    assert (
+        run_app(
+            [
+                "sweep-plot",
+                str(store),
+                "--metric",
+                "regime",
+                "--x",
+                "omega",
+                "--y",
+                "h_a",
+                "--unit",
+                "omega=rpm",
+                "--unit",
+                "h_a=mm",
+                "--out",
+                str(heat),
+            ]
+        )
+        == 0
+    )
     line = tmp_path / "line.png"
-    assert run_app(["sweep-plot", str(store), "--metric", "track_max_contact_force", "--x", "h_a",
-                    "--sel", "omega=240 rpm", "--log", "--out", str(line)]) == 0
+    assert (
+        run_app(
+            [
+                "sweep-plot",
+                str(store),
+                "--metric",
+                "track_max_contact_force",
+                "--x",
+                "h_a",
+                "--sel",
+                "omega=240 rpm",
+                "--log",
+                "--out",
+                str(line),
+            ]
+        )
+        == 0
+    )
     assert heat.stat().st_size > 1000 and line.stat().st_size > 1000
     capsys.readouterr()
-    assert run_app(["sweep-plot", str(store), "--metric", "regime", "--x", "h_a", "--out", str(line)]) == 2
+    assert (
+        run_app(["sweep-plot", str(store), "--metric", "regime", "--x", "h_a", "--out", str(line)])
+        == 2
+    )
     assert "--sel: fix the dimensions omega" in capsys.readouterr().err
 
 
@@ -283,14 +378,22 @@ def test_latin_hypercube_samples_fill_every_stratum():
 
 
 def test_sampled_sweep_has_a_run_dimension(tmp_path):
-    spec = parse_spec({
-        "scenario": "paper-3.3",
-        "duration": "0.02 s",
-        "samples": {"method": "latin_hypercube", "n": 4, "seed": 3,
-                    "ranges": {"track.clearance": {"low": "1 mm", "high": "4 mm", "spacing": "log"},
-                               "track": {"vibration_amplitude": {"low": "0.05 mm", "high": "0.2 mm"}}}},
-        "metrics": {"keep": ["regime", "track_max_contact_force"]},
-    })
+    spec = parse_spec(
+        {
+            "scenario": "paper-3.3",
+            "duration": "0.02 s",
+            "samples": {
+                "method": "latin_hypercube",
+                "n": 4,
+                "seed": 3,
+                "ranges": {
+                    "track.clearance": {"low": "1 mm", "high": "4 mm", "spacing": "log"},
+                    "track": {"vibration_amplitude": {"low": "0.05 mm", "high": "0.2 mm"}},
+                },
+            },
+            "metrics": {"keep": ["regime", "track_max_contact_force"]},
+        }
+    )
     run_sweep(spec, tmp_path / "s.zarr", processes=1, progress=False)
     ds = open_sweep(tmp_path / "s.zarr")
     assert ds["regime"].dims == ("run",)
@@ -299,12 +402,21 @@ def test_sampled_sweep_has_a_run_dimension(tmp_path):
     assert ds["track.clearance"].attrs["units"] == "m" and np.all((c >= 1e-3) & (c <= 4e-3))
     b = braidsim.batch.simulate_batch(
         "paper-3.3",
-        [{"track.clearance": float(c[i]), "track.vibration_amplitude": float(ds["track.vibration_amplitude"][i])}
-         for i in range(4)],
+        [
+            {
+                "track.clearance": float(c[i]),
+                "track.vibration_amplitude": float(ds["track.vibration_amplitude"][i]),
+            }
+            for i in range(4)
+        ],
         0.02,
     )
-    np.testing.assert_array_equal(ds["track_max_contact_force"].values, b.metrics["track_max_contact_force"])
-    fig = plot_sweep(ds, "track_max_contact_force", x="track.clearance", y="track.vibration_amplitude")
+    np.testing.assert_array_equal(
+        ds["track_max_contact_force"].values, b.metrics["track_max_contact_force"]
+    )
+    fig = plot_sweep(
+        ds, "track_max_contact_force", x="track.clearance", y="track.vibration_amplitude"
+    )
     assert fig.axes
 
 

@@ -73,14 +73,17 @@ def sweep(
 @guarded
 def sweep_plot(
     store: Annotated[Path, typer.Argument(help="A sweep store written by `braidsim sweep`.")],
-    metric: Annotated[str, typer.Option(help="Metric to plot (e.g. regime, track_max_contact_force).")],
+    metric: Annotated[
+        str, typer.Option(help="Metric to plot (e.g. regime, track_max_contact_force).")
+    ],
     x: Annotated[str, typer.Option("--x", help="Axis on the horizontal axis.")],
     out: Annotated[Path, typer.Option("--out", help="Image file to write (.png, .pdf, .svg).")],
     y: Annotated[
         str | None, typer.Option("--y", help="Second axis: a heat map (else a line over --x).")
     ] = None,
     sel: Annotated[
-        list[str] | None, typer.Option("--sel", help="AXIS=VALUE fixing another dimension (nearest).")
+        list[str] | None,
+        typer.Option("--sel", help="AXIS=VALUE fixing another dimension (nearest)."),
     ] = None,
     unit: Annotated[
         list[str] | None, typer.Option("--unit", help="NAME=UNIT display unit, e.g. h_a=mm.")
@@ -103,7 +106,9 @@ def sweep_plot(
         return outd
 
     ds = open_sweep(store)
-    fig = plot_sweep(ds, metric, x, y, sel=pairs(sel, "--sel"), units=pairs(unit, "--unit"), log=log)
+    fig = plot_sweep(
+        ds, metric, x, y, sel=pairs(sel, "--sel"), units=pairs(unit, "--unit"), log=log
+    )
     path = save(fig, out)
     if json_:
         print_json({"figure": str(path), "metric": metric, "x": x, "y": y})

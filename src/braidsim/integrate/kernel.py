@@ -853,20 +853,24 @@ def _scan_step(
                 # cannot beat any extreme recorded so far (the function moves by at most about
                 # the neighbouring sample differences between samples): no refinement needed
                 continue
-            if 0 < kb < N_SUB or (kb == N_SUB and kind == 0):
-                a = (kb - 1) / N_SUB
-                b = min(kb + 1, N_SUB) / N_SUB
-                theta = _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, EX, Ys)
-                if kb == N_SUB and theta > 1.0 - 1e-9:
-                    continue  # still rising at the end of the step: the next step has the peak
-                dense_eval(theta, RC, Ys)
-                tq = t0 + theta * h
-                val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, EX)
-                if ie >= 0:
-                    _episode_update(EP, ie, q, val, tq)
-                _update_ranges(tq, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
-                if kind == 0 or kind == 3:
-                    nrow = _write_row(rows, nrow, tq, Ys, mt, ms, v0t, v0s, KIND_PEAK, P, EX)
+            if kb == 0 or kb == N_SUB:
+                # sampled maximum at an end of the step: refine only if the function comes
+                # back down just inside the step (else the neighbouring step has the peak)
+                thin = 0.01 / N_SUB if kb == 0 else 1.0 - 0.01 / N_SUB
+                dense_eval(thin, RC, Ys)
+                if quantity(q, t0 + thin * h, Ys, mt, ms, v0t, v0s, P, EX) <= QV[kind, kb]:
+                    continue
+            a = max(kb - 1, 0) / N_SUB
+            b = min(kb + 1, N_SUB) / N_SUB
+            theta = _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, EX, Ys)
+            dense_eval(theta, RC, Ys)
+            tq = t0 + theta * h
+            val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, EX)
+            if ie >= 0:
+                _episode_update(EP, ie, q, val, tq)
+            _update_ranges(tq, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
+            if kind == 0 or kind == 3:
+                nrow = _write_row(rows, nrow, tq, Ys, mt, ms, v0t, v0s, KIND_PEAK, P, EX)
     return nrow, isamp
 
 
@@ -1016,14 +1020,42 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
         if nsteps >= max_steps:
             status = ST_MAX_STEPS
             break
+        while itr < TR.shape[0] and TR[itr] <= t:
+            # transfer to the next horn gear: the wall the carrier leans on becomes the far wall
+            itr += 1
+            STATS[4] += 1
+            for pair in range(1):
+                ie = open_ep[pair]
+                if ie >= 0:
+                    EP[ie, 1] = t
+                    EP[ie, 13] = ED[pair] - EP[ie, 13]
+                    EP[ie, 14] = 2.0
+                    open_ep[pair] = -1
+            hh, hd = track_h(t, EX)
+            xr = Y[0] - hh
+            eps = P[P_EPS_G]
+            if xr < 0.0:
+                xr = 0.0
+            if xr > eps:
+                xr = eps
+            Y[0] = hh + eps - xr
+            Y[1] = 2.0 * hd - Y[1] + P[P_TRANSFER_SPEED]
+            modes[0] = 0
+            nrow = _write_row(
+                rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_TRANSFER, P, EX
+            )
+            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 1, P, EX)
+            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
+            STATS[3] += 1
         t_stop = t_end
         if itr < TR.shape[0] and TR[itr] < t_stop:
             t_stop = TR[itr]
         hits_stop = False
-        if h >= t_stop - t:
+        if h >= (t_stop - t) * (1.0 - 1e-9):
+            # reach the stop exactly (and never leave a sliver too small to step over)
             h = t_stop - t
             hits_stop = True
-        if h < 4e-16 * max(1.0, abs(t)) * 8:
+        if not hits_stop and h < 4e-16 * max(1.0, abs(t)) * 8:
             status = ST_STEP_COLLAPSE
             break
         _step(t, Y, h, K, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Y1)
@@ -1208,33 +1240,6 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             K[0, i] = K[6, i]
         ED[0] = Y[4]
         ED[1] = Y[5]
-        if hits_stop and itr < TR.shape[0] and t >= TR[itr]:
-            # transfer to the next horn gear: the wall the carrier leans on becomes the far wall
-            itr += 1
-            STATS[4] += 1
-            for pair in range(1):
-                ie = open_ep[pair]
-                if ie >= 0:
-                    EP[ie, 1] = t
-                    EP[ie, 13] = ED[pair] - EP[ie, 13]
-                    EP[ie, 14] = 2.0
-                    open_ep[pair] = -1
-            hh, hd = track_h(t, EX)
-            xr = Y[0] - hh
-            eps = P[P_EPS_G]
-            if xr < 0.0:
-                xr = 0.0
-            if xr > eps:
-                xr = eps
-            Y[0] = hh + eps - xr
-            Y[1] = 2.0 * hd - Y[1] + P[P_TRANSFER_SPEED]
-            modes[0] = 0
-            nrow = _write_row(
-                rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_TRANSFER, P, EX
-            )
-            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 1, P, EX)
-            rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
-            STATS[3] += 1
         h = h_next
     STATS[7] = t
     STATS[8] = modes[0]

@@ -10,8 +10,8 @@ impacts.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -72,7 +72,7 @@ def _paper_lines(
             colors=color,
             linestyles=dashes,
             lw=1.2,
-            label=f"paper, {window}" if first else None,
+            label=f"paper, {window}" if first else "_nolegend_",
             zorder=5,
         )
         first = False
@@ -173,15 +173,15 @@ def paper_figure(
 
 def impacts_figure(result: Result, spec: RunSpec) -> Figure:
     """The added impact-sequence figure of one paper run."""
-    return plot_impacts(result, title=f"Impact sequence, section {spec.section}: {spec.title}")
+    return plot_impacts(result, title=f"Impact sequence, section {spec.section}\n{spec.title}")
 
 
 def phase_figure(result: Result, spec: RunSpec) -> Figure:
     """The added phase portrait of one paper run."""
-    return plot_phase(result, title=f"Phase portrait, section {spec.section}: {spec.title}")
+    return plot_phase(result, title=f"Phase portrait, section {spec.section}\n{spec.title}")
 
 
-def table1_figure(rows: Sequence[dict[str, object]]) -> Figure:
+def table1_figure(rows: Sequence[Mapping[str, Any]]) -> Figure:
     """Table 1: the paper's ranges (open markers) against ours (filled) for every law.
 
     ``rows`` are the entries of :func:`braidsim.paper.report.table1_rows`.
@@ -196,8 +196,8 @@ def table1_figure(rows: Sequence[dict[str, object]]) -> Figure:
         sel = [r for r in rows if r["quantity"] == q]
         scale = 100.0 if q == "depth" else 1.0  # depth in 1e-2 mm, as Table 1
         for j, (key, style) in enumerate((("paper", "o"), ("ours", "s"))):
-            lo = np.array([float(r[f"{key}_min"]) for r in sel]) * scale  # type: ignore[arg-type]
-            hi = np.array([float(r[f"{key}_max"]) for r in sel]) * scale  # type: ignore[arg-type]
+            lo = np.array([float(r[f"{key}_min"]) for r in sel]) * scale
+            hi = np.array([float(r[f"{key}_max"]) for r in sel]) * scale
             off = -0.12 if j == 0 else 0.12
             color = "k" if key == "paper" else "C0"
             mfc = "none" if key == "paper" else color

@@ -92,7 +92,7 @@ def fmt(v: float, digits: int = 5) -> str:
         return str(v)
     e = math.floor(math.log10(abs(v)))
     if -2 <= e < 6:
-        return f"{v:.{digits}g}"
+        return f"{v:.{max(digits, e + 1)}g}"  # whole integer part: 161590, not 1.6159e+05
     m = f"{v / 10.0**e:.{max(digits - 1, 0)}f}".rstrip("0").rstrip(".")
     if m in ("10", "-10"):  # rounding carried into the next decade
         m, e = m[:-1], e + 1
@@ -243,20 +243,20 @@ def gather_evidence(
         dep = _paper(values, it.id.replace("stiffness_force", "depth"))
         if dep is None or dep.value == 0.0:
             continue
-        implied = math.copysign(K * abs(dep.si_value) ** n, dep.si_value)
+        eq4 = math.copysign(K * abs(dep.si_value) ** n, dep.si_value)
         checks.append(
             {
                 "id": it.id,
                 "depth_mm": dep.value,
                 "paper_F": it.value,
-                "eq4_F": implied,
-                "mismatch": it.si_value / implied - 1.0,
+                "eq4_F": eq4,
+                "mismatch": it.si_value / eq4 - 1.0,
             }
         )
     ev["eq4_checks"] = checks
 
     # damping-to-stiffness ratio per run and window, paper and ours
-    ratios = []
+    ratios: list[dict[str, Any]] = []
     for key, spec in values.runs.items():
         for wname, w in spec.windows.items():
             items = {
@@ -283,18 +283,18 @@ def gather_evidence(
     ev["ratios"] = ratios
 
     # initial overlap: elastic release (default) against a damped release with v0 = v_eq
-    veq = {}
+    veq: dict[str, dict[str, float]] = {}
     for k in ("3.3", "3.4a"):
         res = results[(k, "calibrated")]
         w = values.runs[k].windows["initially"]
         ours = _window_range(res, w, "stiffness_force")[1]
         damped = _window_range(extra[f"v_eq.{k}"], w, "stiffness_force")[1]
-        paper = _paper(values, f"{k}.stiffness_force.initially.max")
+        p_item = _paper(values, f"{k}.stiffness_force.initially.max")
         veq[k] = {
             "v_eq": overlap_speed(res.model),
             "elastic": ours,
             "damped": damped,
-            "paper": paper.value if paper else math.nan,
+            "paper": p_item.value if p_item else math.nan,
             "overlap": res.model.scenario["track.vibration_amplitude"]
             - res.model.scenario["initial.x"],
             "damped_change": damped / ours - 1.0,
@@ -327,7 +327,7 @@ def gather_evidence(
 
     # implied damping factor of Table 1 rows on our measured D -> ratio curve
     c_r = sc["contact.track.restitution"]
-    curve = []
+    curve: list[tuple[float, float, float, str]] = []
     for key, spec in values.runs.items():
         if not spec.is_table1:
             continue
@@ -335,12 +335,12 @@ def gather_evidence(
         if not law.dissipative:
             continue
         rr = next(r for r in ratios if r["run"] == key)
-        curve.append((law.damping_factor(c_r), rr["ours"], rr["paper"], spec.law))
+        curve.append((law.damping_factor(c_r), float(rr["ours"]), float(rr["paper"]), spec.law))
     curve.sort()
     d_arr = np.array([c[0] for c in curve])
     r_arr = np.array([c[1] for c in curve])
     monotone = bool(np.all(np.diff(r_arr) > 0))
-    implied = {}
+    implied: dict[str, dict[str, float]] = {}
     for d, ours_r, paper_r, law_name in curve:
         implied[law_name] = {
             "D": d,
@@ -365,7 +365,7 @@ def gather_evidence(
     }
 
     # later states against the start
-    starts: dict[str, list[dict[str, float]]] = {}
+    starts: dict[str, list[dict[str, Any]]] = {}
     for k in ("3.3", "3.4a"):
         w = values.runs[k].windows["later"]
         rows = []
@@ -442,25 +442,36 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     o33 = outcomes.get("3.3.stiffness_force.initially.min")
     o34 = outcomes.get("3.4a.stiffness_force.initially.min")
     ev1 = [
-        f"Eq. (4) with E_i = 200 GPa gives K = {K:.5g} N/m^1.5; with the printed 2 GPa, K = {Kp:.5g} N/m^1.5.",
+        f"Eq. (4) with E_i = 200 GPa gives K = {fmt(K)} N/m^1.5; with the printed 2 GPa, K = "
+        f"{fmt(Kp)} N/m^1.5.",
         f"K (0.120 mm)^1.5 = {K * 1.2e-4**n:.5g} N against the printed -32737 N (3.3); "
-        f"K (0.400 mm)^1.5 = {K * 4e-4**n:.6g} N against -199229 N (3.4). "
-        f"With the printed modulus these are {Kp * 1.2e-4**n:.4g} N and {Kp * 4e-4**n:.5g} N.",
+        f"K (0.400 mm)^1.5 = {fmt(K * 4e-4**n, 6)} N against -199229 N (3.4). "
+        f"With the printed modulus these are {Kp * 1.2e-4**n:.4g} N and {fmt(Kp * 4e-4**n)} N.",
         f"Resting depth under the constant load T1 cos(phi) + m r_c omega^2 = {ev['load']:.5g} N: "
-        f"(F/K)^(2/3) = {ev['rest_static'] * 1e3:.4g} mm (paper -7.53e-4 mm; printed modulus: "
-        f"{ev['rest_static_printed'] * 1e3:.4g} mm).",
+        f"(F/K)^(2/3) = {fmt(ev['rest_static'] * 1e3, 4)} mm (paper -7.53e-4 mm; printed modulus: "
+        f"{fmt(ev['rest_static_printed'] * 1e3, 4)} mm).",
         f"As printed (E = 2 GPa) {ev['printed_within']} of {ev['n_items']} items fall within their "
         f"tolerance; calibrated, see the summary.",
     ]
     if o33 and o34:
         ev1.append(
-            f"Measured: 3.3 initial F_kg min {o33.ours.value:.6g} N, 3.4 initial F_kg min {o34.ours.value:.6g} N."
+            f"Measured: 3.3 initial F_kg min {o33.ours.value:.6g} N, "
+            f"3.4 initial F_kg min {o34.ours.value:.6g} N."
         )
+    for rid in ("3.1.depth.later.rest", "3.2.depth.later.rest"):
+        r = outcomes.get(rid)
+        if r is not None:
+            ev1.append(
+                f"Measured resting depth {rid.split('.')[0] + '.' + rid.split('.')[1]}: "
+                f"{fmt(r.ours.value * 1e3)} mm over [{r.window[0]:g}, {r.window[1]:g}] s "
+                f"(spread {fmt(r.ours.spread * 1e3, 2)} mm: at rest)."
+            )
     out.append(
         Reading(
             "MODEL_NOTES 1",
             "Contact stiffness: E_i = 200 GPa, not the printed 2 GPa",
-            "The calibrated preset (all built-in paper scenarios) uses E_i = 200 GPa; the printed 2 GPa "
+            "The calibrated preset (all built-in paper scenarios) uses E_i = 200 GPa; the "
+            "printed 2 GPa "
             "is run as the *-printed preset and shown beside it in every table.",
             tuple(ev1),
         )
@@ -472,10 +483,13 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         Reading(
             "MODEL_NOTES 2",
             "Track vibration moves the walls",
-            "The inner wall is at x = h(t) = h_a cos(omega_h t), the outer wall at h(t) + eps_g; depth and its "
-            "rate are measured relative to the moving wall, so a carrier at x0 = 0 starts with an overlap h_a.",
+            "The inner wall is at x = h(t) = h_a cos(omega_h t), the outer wall at h(t) + eps_g; "
+            "depth and its "
+            "rate are measured relative to the moving wall, so a carrier at x0 = 0 starts with "
+            "an overlap h_a.",
             tuple(
-                f"{o.item.id}: initial depth {o.ours.value * 1e3:.5g} mm, paper {o.item.value:g} mm "
+                f"{o.item.id}: initial depth {o.ours.value * 1e3:.5g} mm, paper {o.item.value:g} "
+                "mm "
                 f"(= -h_a)"
                 for o in (d33, d34, d4b)
                 if o is not None
@@ -487,15 +501,19 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         Reading(
             "MODEL_NOTES 3",
             "Signs",
-            "Depth, F_kg and F_cg carry the sign of the wall: negative on the inner wall (x < h), positive on "
+            "Depth, F_kg and F_cg carry the sign of the wall: negative on the inner wall (x < "
+            "h), positive on "
             "the outer wall; the contact force is restoring on both walls.",
             (
-                "The printed ranges of 3.1 and Table 1 are two-sided (both walls are hit), and ours carry the "
+                "The printed ranges of 3.1 and Table 1 are two-sided (both walls are hit), and "
+                "ours carry the "
                 f"same signs: 3.1 ({_dev_summary(outcomes, '3.1.')}).",
                 *(
                     (
-                        f"3.2 starts on the outer wall moving outwards: ours depth max {o32.ours.value * 1e3:.4g} mm "
-                        f"(paper {o32.item.value:g} mm) before the carrier crosses to the inner wall.",
+                        "3.2 starts on the outer wall moving outwards: ours depth max "
+                        f"{fmt(o32.ours.value * 1e3, 4)} mm "
+                        f"(paper {fmt(o32.item.value, 4)} mm) before the carrier crosses to the "
+                        "inner wall.",
                     )
                     if o32
                     else ()
@@ -508,9 +526,12 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         Reading(
             "MODEL_NOTES 4",
             "Approach speed latched at each contact onset; policy for a contact present at t = 0",
-            "v0 of Eqs. (5)-(13) is the relative normal speed when the depth becomes non-zero, floored at "
-            f"contact.min_impact_velocity = {ev['min_impact_velocity']:g} m/s. A contact already present at "
-            "t = 0 has no approach speed: it is released elastically (no damping until the next onset).",
+            "v0 of Eqs. (5)-(13) is the relative normal speed when the depth becomes non-zero, "
+            "floored at "
+            f"contact.min_impact_velocity = {ev['min_impact_velocity']:g} m/s. A contact already "
+            "present at "
+            "t = 0 has no approach speed: it is released elastically (no damping until the next "
+            "onset).",
             (
                 f"Sections 3.1 and 3.2 with this latching: {_dev_summary(outcomes, '3.1.')}; "
                 f"{_dev_summary(outcomes, '3.2.')}.",
@@ -528,20 +549,26 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         Reading(
             "MODEL_NOTES 5",
             "Section 3.2 is the transfer: x0 = eps_g = 3 mm, dx0/dt = 2 mm/s",
-            "After a transfer the wall the carrier rested on becomes the far wall; it starts at x0 = eps_g with "
+            "After a transfer the wall the carrier rested on becomes the far wall; it starts at "
+            "x0 = eps_g with "
             "the reported contact speed and crosses the gap under the constant load.",
             (f"Section 3.2 reproduced this way: {_dev_summary(outcomes, '3.2.')}.",),
         )
     )
     imp = ev["implied_D"]
     t1_lines = [
-        f"Hertz row: a load F = {ev['load']:.5g} N applied suddenly on an elastic Hertz contact peaks at "
-        f"(n+1) F = {(n + 1) * ev['load']:.4g} N; measured without friction {ev['hertz_peak_no_friction']:.4g} N, "
-        f"with the x-friction of Eq. (14) ({ev['friction_x']:.3g} N, opposing the fall) {ev['hertz_peak']:.4g} N; "
+        f"Hertz row: a load F = {ev['load']:.5g} N applied suddenly on an elastic Hertz contact "
+        "peaks at "
+        f"(n+1) F = {(n + 1) * ev['load']:.4g} N; measured without friction "
+        f"{ev['hertz_peak_no_friction']:.4g} N, "
+        f"with the x-friction of Eq. (14) ({ev['friction_x']:.3g} N, opposing the fall) "
+        f"{ev['hertz_peak']:.4g} N; "
         "paper -43 N.",
-        f"Braendlein row (n = {ev['brandlein_n']:g}): the same energy balance gives a peak (n+1) F = "
-        f"{(ev['brandlein_n'] + 1) * ev['load']:.4g} N whatever the stiffness; measured without friction "
-        f"{ev['brandlein_peak_no_friction']:.4g} N at K = {ev['brandlein_K']:.4g} and "
+        f"Braendlein row (n = {ev['brandlein_n']:g}): the same energy balance gives a peak (n+1) "
+        "F = "
+        f"{(ev['brandlein_n'] + 1) * ev['load']:.4g} N whatever the stiffness; measured without "
+        "friction "
+        f"{ev['brandlein_peak_no_friction']:.4g} N at K = {fmt(ev['brandlein_K'], 4)} and "
         f"{ev['brandlein_peak_no_friction_stiff']:.4g} N at 10 K; paper -183 N.",
     ]
     for law in (
@@ -556,16 +583,20 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         if law in imp:
             v = imp[law]
             t1_lines.append(
-                f"{law}: D(c_r = {ev['c_r']:.4g}) = {v['D']:.4g}; max|F_cg|/max|F_kg| ours {v['ratio_ours']:.4f}, "
+                f"{law}: D(c_r = {ev['c_r']:.4g}) = {v['D']:.4g}; max|F_cg|/max|F_kg| ours "
+                f"{v['ratio_ours']:.4f}, "
                 f"paper {v['ratio_paper']:.4f} -> paper's row fits D = {v['D_implied']:.3g}."
             )
     out.append(
         Reading(
             "MODEL_NOTES 6",
             "Table 1: the 3.1 conditions for the dissipative laws; the Hertz row released at rest",
-            "Dissipative rows: section 3.1's start (x0 = 0, 0.5 m/s) with the printed damping factors, "
-            "not tuned to the table. Hertz row: the elastic carrier released at rest on the inner wall "
-            "(scenario table1-hertz). Braendlein row: Eq. (4)'s K with n = 1.08 (the paper gives none).",
+            "Dissipative rows: section 3.1's start (x0 = 0, 0.5 m/s) with the printed damping "
+            "factors, "
+            "not tuned to the table. Hertz row: the elastic carrier released at rest on the "
+            "inner wall "
+            "(scenario table1-hertz). Braendlein row: Eq. (4)'s K with n = 1.08 (the paper gives "
+            "none).",
             tuple(t1_lines),
         )
     )
@@ -575,13 +606,17 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         Reading(
             "MODEL_NOTES 7",
             "Leaving the wall: a_p against h_a omega_h^2",
-            "A carrier pressed on the inner wall with a_p = (T1 cos(phi) + m r_c omega^2)/m stays on a wall "
+            "A carrier pressed on the inner wall with a_p = (T1 cos(phi) + m r_c omega^2)/m "
+            "stays on a wall "
             "vibrating as h_a cos(omega_h t) only while a_p >= h_a omega_h^2.",
             (
-                f"3.3: a_p = {lv['3.3']['a_p']:.4g} m/s^2 < h_a omega_h^2 = {lv['3.3']['a_wall']:.4g} m/s^2: "
+                f"3.3: a_p = {lv['3.3']['a_p']:.4g} m/s^2 < h_a omega_h^2 = "
+                f"{lv['3.3']['a_wall']:.4g} m/s^2: "
                 f"measured {lv['3.3']['later_impacts']} impacts in the later window (chatter).",
-                f"3.4 (omega = 8 pi): a_p = {lv['3.4b']['a_p']:.4g} m/s^2 > {lv['3.4b']['a_wall']:.4g} m/s^2: "
-                f"measured {lv['3.4b']['later_impacts']} impacts in the later window; the carrier stays on "
+                f"3.4 (omega = 8 pi): a_p = {lv['3.4b']['a_p']:.4g} m/s^2 > "
+                f"{lv['3.4b']['a_wall']:.4g} m/s^2: "
+                f"measured {lv['3.4b']['later_impacts']} impacts in the later window; the carrier "
+                "stays on "
                 f"the wall from t = {b['t_bond']:.4g} s.",
             ),
         )
@@ -592,13 +627,16 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
         Reading(
             "MODEL_NOTES 8",
             "What the paper does not give, and our choices",
-            "Friction regularisation speed x_hat: the schema default; R4: flat slot wall (the x-only runs "
-            "do not use it); Braendlein stiffness: Eq. (4)'s K; durations and windows: stated per run; "
+            "Friction regularisation speed x_hat: the schema default; R4: flat slot wall (the "
+            "x-only runs "
+            "do not use it); Braendlein stiffness: Eq. (4)'s K; durations and windows: stated "
+            "per run; "
             "approach speed at t = 0: elastic release (note 4); several steady states can coexist.",
             (
                 f"x_hat = {vh['default']:g} m/s (default) against {vh['alt']:g} m/s, 3.2: F_kg max "
-                f"{vh['Fkg_max']:.5g} N vs {vh['Fkg_max_alt']:.5g} N, depth max {vh['depth_max'] * 1e3:.5g} mm vs "
-                f"{vh['depth_max_alt'] * 1e3:.5g} mm (paper 1.2 N, 1.32e-4 mm).",
+                f"{vh['Fkg_max']:.5g} N vs {vh['Fkg_max_alt']:.5g} N, depth max "
+                f"{fmt(vh['depth_max'] * 1e3)} mm vs "
+                f"{fmt(vh['depth_max_alt'] * 1e3)} mm (paper 1.2 N, 1.32e-4 mm).",
                 "3.3 later F_kg min from x0 = "
                 + ", ".join(f"{r['x0'] * 1e3:g} mm: {fmt(r['Fkg'][0])} N" for r in st["3.3"])
                 + " (paper -1511.5 N): coexisting steady states.",
@@ -625,8 +663,10 @@ def _eq4_line(item_id: str, ev: Evidence) -> str:
             "depth", "stiffness_force"
         ):
             return (
-                f"The paper's own pair is inconsistent through Eq. (4): K ({abs(c['depth_mm']):g} mm)^1.5 = "
-                f"{abs(c['eq4_F']):.5g} N against the printed {abs(c['paper_F']):g} N ({_pct(c['mismatch'])})."
+                f"The paper's own pair is inconsistent through Eq. (4): K ({abs(c['depth_mm']):g} "
+                "mm)^1.5 = "
+                f"{abs(c['eq4_F']):.5g} N against the printed {abs(c['paper_F']):g} N "
+                f"({_pct(c['mismatch'])})."
                 if abs(c["mismatch"]) > 0.01
                 else ""
             )
@@ -645,7 +685,8 @@ def _ratio_line(run: str, window: str, ev: Evidence) -> str:
                 else ""
             )
             return (
-                f"Damping-to-stiffness ratio max|F_cg|/max|F_kg| in this window: paper {r['paper']:.3f}, "
+                "Damping-to-stiffness ratio max|F_cg|/max|F_kg| in this window: paper "
+                f"{r['paper']:.3f}, "
                 f"ours {r['ours']:.3f}{ref}."
             )
     return ""
@@ -663,8 +704,10 @@ def _cause_33_later(
         f"{r['x0'] * 1e3:g} mm: {fmt(r[key][idx] * scale, 4)} {unit}" for r in ev["starts"]["3.3"]
     )
     parts = [
-        "Several steady states coexist after the impacts die down (MODEL_NOTES 8): the same parameters "
-        f"started from x0 = {vals} give different later values, so a later range belongs to one run; "
+        "Several steady states coexist after the impacts die down (MODEL_NOTES 8): the same "
+        "parameters "
+        f"started from x0 = {vals} give different later values, so a later range belongs to one "
+        "run; "
         "the paper does not state its start beyond x0 = 0 nor its window.",
         _eq4_line(o.item.id, ev) if q != "damping_force" else "",
         _ratio_line("3.3", "later", ev) if q == "damping_force" else "",
@@ -703,8 +746,10 @@ def _cause_34b_initially(
     lo = -K * abs(dmin.si_value) ** n if dmin else math.nan
     hi = K * abs(dmax.si_value) ** n if dmax else math.nan
     s = (
-        "The printed value contradicts the paper's own depth range (-0.120, 0.101) mm of the same figure group: "
-        f"through Eq. (4) those depths mean F_kg = ({fmt(lo)}, {fmt(hi)}) N (the paper prints -32737 N for "
+        "The printed value contradicts the paper's own depth range (-0.120, 0.101) mm of the "
+        "same figure group: "
+        f"through Eq. (4) those depths mean F_kg = ({fmt(lo)}, {fmt(hi)}) N (the paper prints "
+        "-32737 N for "
         "the identical initial overlap in 3.3). "
     )
     if o.item.quantity == "damping_force":
@@ -713,15 +758,17 @@ def _cause_34b_initially(
         )
         if r:
             s += (
-                f"The printed F_cg range gives max|F_cg|/max|F_kg| = {r['paper']:.3f} (ours {r['ours']:.3f}), "
+                f"The printed F_cg range gives max|F_cg|/max|F_kg| = {r['paper']:.3f} (ours "
+                f"{r['ours']:.3f}), "
                 "beyond any impact of Eq. (5). "
             )
-    f = (
-        outs.get("3.4b.stiffness_force.initially.min"),
-        outs.get("3.4b.stiffness_force.initially.max"),
-    )
-    if all(f):
-        s += f"Ours, consistent with the depths: F_kg ({fmt(f[0].ours.value)}, {fmt(f[1].ours.value)}) N."  # type: ignore[union-attr]
+    f_lo = outs.get("3.4b.stiffness_force.initially.min")
+    f_hi = outs.get("3.4b.stiffness_force.initially.max")
+    if f_lo is not None and f_hi is not None:
+        s += (
+            f"Ours, consistent with the depths: F_kg ({fmt(f_lo.ours.value)}, "
+            f"{fmt(f_hi.ours.value)}) N."
+        )
     return s
 
 
@@ -733,11 +780,16 @@ def _cause_34b_later(
     peaks = ", ".join(f"{p:.4g}" for p in b["last_peaks"])
     times = ", ".join(f"{t:.4g}" for t in b["last_peak_times"])
     s = (
-        f"Our carrier stays on the inner wall from t = {b['t_bond']:.4g} s (a_p > h_a omega_h^2, MODEL_NOTES 7); "
-        f"a carrier bonded to the vibrating wall carries m (a_p -/+ h_a omega_h^2) = {lo:.3g} to {hi:.3g} N, "
-        f"which is what we measure in [{o.window[0]:g}, {o.window[1]:g}] s. The paper's later values "
-        f"(F_kg down to -408.29 N, depth -6.52e-3 mm, F_cg up to 386.4 N) are those of the last bounces "
-        f"before bonding (ours peak at {peaks} N at t = {times} s): its 'later' window must start during "
+        f"Our carrier stays on the inner wall from t = {b['t_bond']:.4g} s (a_p > h_a omega_h^2, "
+        "MODEL_NOTES 7); "
+        f"a carrier bonded to the vibrating wall carries m (a_p -/+ h_a omega_h^2) = {lo:.3g} to "
+        f"{hi:.3g} N, "
+        f"which is what we measure in [{o.window[0]:g}, {o.window[1]:g}] s. The paper's later "
+        "values "
+        "(F_kg down to -408.29 N, depth -6.52e-3 mm, F_cg up to 386.4 N) are those of the last "
+        "bounces "
+        f"before bonding (ours peak at {peaks} N at t = {times} s): its 'later' window must start "
+        "during "
         "the settling, which it does not state."
     )
     eq = _eq4_line(o.item.id, ev)
@@ -747,8 +799,10 @@ def _cause_34b_later(
 def _cause_hertz(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], ev: Evidence) -> str:
     nf = ev["hertz_peak_no_friction"]
     return (
-        f"The x-friction of Eq. (14) (up to {ev['friction_x']:.3g} N) opposes the carrier's fall onto the wall "
-        f"and lowers the dynamic peak; without it the peak is {nf:.4g} N = (n+1) x {ev['load']:.4g} N "
+        f"The x-friction of Eq. (14) (up to {ev['friction_x']:.3g} N) opposes the carrier's fall "
+        "onto the wall "
+        f"and lowers the dynamic peak; without it the peak is {nf:.4g} N = (n+1) x "
+        f"{ev['load']:.4g} N "
         f"({_pct(-nf / o.item.value - 1.0)} from the paper's -43 N). The paper does not say "
         "how its Hertz row was started (MODEL_NOTES 6)."
     )
@@ -759,10 +813,13 @@ def _cause_brandlein(
 ) -> str:
     nb = ev["brandlein_n"]
     return (
-        f"The paper gives no stiffness for n = {nb:g}; we use Eq. (4)'s K in N/m^{nb:g}. Moreover a carrier "
-        f"released at rest under the {ev['load']:.4g} N load peaks at (n+1) F = {(nb + 1) * ev['load']:.4g} N "
+        f"The paper gives no stiffness for n = {nb:g}; we use Eq. (4)'s K in N/m^{nb:g}. Moreover "
+        "a carrier "
+        f"released at rest under the {ev['load']:.4g} N load peaks at (n+1) F = "
+        f"{(nb + 1) * ev['load']:.4g} N "
         f"whatever K is (measured without friction: {ev['brandlein_peak_no_friction']:.4g} N at K, "
-        f"{ev['brandlein_peak_no_friction_stiff']:.4g} N at 10 K), so -183 N needs a start the paper does "
+        f"{ev['brandlein_peak_no_friction_stiff']:.4g} N at 10 K), so -183 N needs a start the "
+        "paper does "
         "not state either."
     )
 
@@ -778,10 +835,14 @@ def _cause_table1_damping(
         law, ""
     )
     return (
-        f"The printed damping factor {eq} gives D = {v['D']:.4g} at c_r = {ev['c_r']:.4g}, and our row follows "
-        f"it (max|F_cg|/max|F_kg| = {v['ratio_ours']:.3f}); the paper's row has {v['ratio_paper']:.3f}, which on "
-        f"our measured D -> ratio curve of the seven dissipative laws means D = {v['D_implied']:.3g}. The paper "
-        "must have used a different damping factor for this row; we keep the printed formula (MODEL_NOTES 6)."
+        f"The printed damping factor {eq} gives D = {v['D']:.4g} at c_r = {ev['c_r']:.4g}, and "
+        "our row follows "
+        f"it (max|F_cg|/max|F_kg| = {v['ratio_ours']:.3f}); the paper's row has "
+        f"{v['ratio_paper']:.3f}, which on "
+        "our measured D -> ratio curve of the seven dissipative laws means D = "
+        f"{v['D_implied']:.3g}. The paper "
+        "must have used a different damping factor for this row; we keep the printed formula "
+        "(MODEL_NOTES 6)."
     )
 
 

@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 from braidsim.io import atomic_directory, atomic_write_text, check_output_directory
 from braidsim.paper import findings as F
 from braidsim.paper.compute import compare, measure, run_spec
-from braidsim.paper.values import PaperValues, load_paper_values
+from braidsim.paper.values import PaperItem, PaperValues, load_paper_values
 
 if TYPE_CHECKING:
     from braidsim.result import Result
@@ -102,7 +102,8 @@ class PaperReport:
                 [i for i in ids if i.startswith(("3.1.", "3.2."))],
             ),
             check(
-                "Table 1 Hunt-Crossley, Lee-Wang, Lankarani-Nikravesh, Zhiying-Qishao rows within 5 %",
+                "Table 1 Hunt-Crossley, Lee-Wang, Lankarani-Nikravesh, Zhiying-Qishao rows "
+                "within 5 %",
                 [i for i in ids if any(i.startswith(f"T1.{r}.") for r in rows)],
             ),
             check(
@@ -112,7 +113,8 @@ class PaperReport:
         ]
 
     def to_json(self) -> dict[str, Any]:
-        """The ``--json`` object: every item in SI units, the counts and the checks."""
+        """The ``--json`` object: every item in SI units, the counts and the checks (strict JSON:
+        no NaN; a relative deviation is null for a printed zero)."""
         items = []
         for o in self.outcomes:
             it = o.item
@@ -146,14 +148,16 @@ class PaperReport:
                     "text": it.text,
                 }
             )
-        return {
-            "paper": self.values.meta.get("paper", ""),
-            "sections": self.values.meta.get("sections", ""),
-            "counts": self.counts(),
-            "checks": self.acceptance(),
-            "items": items,
-            "elapsed_s": self.elapsed_s,
-        }
+        return _clean(
+            {
+                "paper": self.values.meta.get("paper", ""),
+                "sections": self.values.meta.get("sections", ""),
+                "counts": self.counts(),
+                "checks": self.acceptance(),
+                "items": items,
+                "elapsed_s": self.elapsed_s,
+            }
+        )
 
 
 # ------------------------------------------------------------------------------ compute
@@ -335,7 +339,7 @@ def table1_csv(rows: list[dict[str, Any]]) -> str:
 
 
 def _row_status(qs: Mapping[str, dict[str, Any]]) -> str:
-    """"5/7 reproduced, 2 deviate" for one Table 1 row."""
+    """ "5/7 reproduced, 2 deviate" for one Table 1 row."""
     n = sum(r["n_items"] for r in qs.values())
     rep = sum(r["n_reproduced"] for r in qs.values())
     dev = sum(r["n_deviates"] for r in qs.values())
@@ -354,6 +358,15 @@ def _pair(lo: float, hi: float, depth: bool) -> str:
     return f"({lo:.0f}, {hi:.0f})"
 
 
+def _t1_cell(row: Mapping[str, Any]) -> tuple[str, str]:
+    """Paper and ours of one Table 1 cell as printed there ((-4864, 4921); depth in 1e-2 mm)."""
+    d = row["quantity"] == "depth"
+    paper = _pair(row["paper_min"], row["paper_max"], d)
+    if row["paper_min"] == row["paper_max"] == 0.0 and row["quantity"] == "damping_force":
+        paper = "0"  # printed as a single 0
+    return paper, _pair(row["ours_min"], row["ours_max"], d)
+
+
 def table1_markdown(rows: list[dict[str, Any]]) -> str:
     """Table 1 in the paper's layout: each cell "paper / ours" (depth in 1e-2 mm)."""
     laws: dict[str, dict[str, dict[str, Any]]] = {}
@@ -369,15 +382,12 @@ def table1_markdown(rows: list[dict[str, Any]]) -> str:
     for label, qs in laws.items():
         cells = []
         for q, _ in T1_COLUMNS:
-            r = qs.get(q)
-            if r is None:
+            row = qs.get(q)
+            if row is None:
                 cells.append("")
                 continue
-            d = q == "depth"
-            paper = _pair(r["paper_min"], r["paper_max"], d)
-            if r["paper_min"] == r["paper_max"] == 0.0 and q == "damping_force":
-                paper = "0"
-            cells.append(f"**{paper}** / {_pair(r['ours_min'], r['ours_max'], d)}")
+            paper, ours = _t1_cell(row)
+            cells.append(f"**{paper}** / {ours}")
         lines.append(f"| {label} | " + " | ".join(cells) + f" | {_row_status(qs)} |")
     return "\n".join(lines) + "\n"
 
@@ -452,6 +462,15 @@ def _status_md(s: str) -> str:
     }[s]
 
 
+def item_label(it: PaperItem) -> str:
+    """A short human name: "Fig. 4 (3.1): F_kg min, initially", "Table 1, Wang: F_g min"."""
+    stat = {"rest": "at rest", "absmax": "max |.|"}.get(it.statistic, it.statistic)
+    if it.run.startswith("T1."):
+        law = TABLE1_LABELS.get(it.run.split(".", 1)[1], it.run).split(" [")[0]
+        return f"Table 1, {law}: {it.symbol} {stat}"
+    return f"{it.where} ({it.section}): {it.symbol} {stat}, {it.window}"
+
+
 EXCERPT_IDS = (
     "3.1.stiffness_force.initially.min",
     "3.1.damping_force.initially.max",
@@ -471,7 +490,8 @@ def excerpt_markdown(report: PaperReport, ids: tuple[str, ...] = EXCERPT_IDS) ->
     c = report.counts()
     lines = [
         f"`braidsim paper` compares {len(report.outcomes)} numbers of sections 3.1-3.5: "
-        f"{c[F.REPRODUCED]} reproduced (within 5 %; 1 % for the initial peaks), {c[F.DEVIATES]} deviate "
+        f"{c[F.REPRODUCED]} reproduced (within 5 %; 1 % for the initial peaks), {c[F.DEVIATES]} "
+        "deviate "
         f"(cause stated), {c[F.NOT_REPRODUCIBLE]} not reproducible. A few rows:",
         "",
         "| item | paper | braidsim | deviation | status |",
@@ -484,7 +504,7 @@ def excerpt_markdown(report: PaperReport, ids: tuple[str, ...] = EXCERPT_IDS) ->
             continue
         it = o.item
         lines.append(
-            f"| {it.where}, {it.symbol} {it.statistic} ({it.window}) | {fmt(it.value, 6)} {it.unit} | "
+            f"| {item_label(it)} | {fmt(it.value, 6)} {it.unit} | "
             f"{ours_text(o)} {it.unit} | {fmt_dev(o)} | {_status_md(o.status)} |"
         )
     lines.append("")
@@ -512,12 +532,14 @@ def markdown_report(report: PaperReport) -> str:
     L.append("# Reproduction of Zhang et al., sections 3.1-3.5 (`braidsim paper`)")
     L.append("")
     L.append(
-        f"Paper: *{pv.meta.get('paper', '')}*. Generated by `braidsim paper` in {report.elapsed_s:.1f} s "
+        f"Paper: *{pv.meta.get('paper', '')}*. Generated by `braidsim paper` in "
+        f"{report.elapsed_s:.1f} s "
         "(simulations and comparisons; figures and files not included)."
     )
     L.append("")
     L.append(
-        f"**{len(report.outcomes)} numbers** stated by the paper: **{c[F.REPRODUCED]} reproduced** (within 5 %, "
+        f"**{len(report.outcomes)} numbers** stated by the paper: **{c[F.REPRODUCED]} "
+        "reproduced** (within 5 %, "
         f"1 % for the initial peaks), **{c[F.DEVIATES]} deviate** (cause stated), "
         f"**{c[F.NOT_REPRODUCIBLE]} not reproducible** (the paper does not give what they need). "
         "Ours: the calibrated preset, E = 200 GPa (reading 1 below); the as-printed preset "
@@ -543,7 +565,8 @@ def markdown_report(report: PaperReport) -> str:
     L.append("## Runs and time windows")
     L.append("")
     L.append(
-        "The paper states no duration and no time window; ours are below. Ranges are the exact extremes "
+        "The paper states no duration and no time window; ours are below. Ranges are the exact "
+        "extremes "
         "over the window, refined on the integrator's interpolant."
     )
     L.append("")
@@ -552,8 +575,9 @@ def markdown_report(report: PaperReport) -> str:
     for key, info in report.runs.items():
         ws = ", ".join(f"{n} [{a:g}, {b:g}]" for n, (a, b) in info["windows"].items())
         L.append(
-            f"| {key} | `{info['scenario']}` | {_printed_name(info)} | {info['duration']:g} | {ws} | "
-            f"{info['calibrated_stiffness']:.5g} | {info['calibrated_impacts']} |"
+            f"| {key} | `{info['scenario']}` | {_printed_name(info)} | {info['duration']:g} | "
+            f"{ws} | "
+            f"{fmt(info['calibrated_stiffness'])} | {info['calibrated_impacts']} |"
         )
     L.append("")
     for sec in SECTIONS:
@@ -571,7 +595,8 @@ def markdown_report(report: PaperReport) -> str:
             it = o.item
             L.append(
                 f"| `{it.id}` | {it.where} | {it.window} [{o.window[0]:g}, {o.window[1]:g}] | "
-                f"{fmt(it.value, 6)} {it.unit} | {ours_text(o)} {it.unit} | {fmt_dev(o)} | {_status_md(o.status)} | "
+                f"{fmt(it.value, 6)} {it.unit} | {ours_text(o)} {it.unit} | {fmt_dev(o)} | "
+                f"{_status_md(o.status)} | "
                 f"{ours_text(o, True)} {it.unit} | {fmt_dev(o, True)} |"
             )
         L.append("")
@@ -592,14 +617,15 @@ def markdown_report(report: PaperReport) -> str:
     L.append("")
     L.append(
         "Eq. (4) ties each printed F_kg extreme to the printed depth of the same window: "
-        f"F_kg = K |delta|^1.5 with K = {report.evidence['K']:.5g} N/m^1.5."
+        f"F_kg = K |delta|^1.5 with K = {fmt(report.evidence['K'])} N/m^1.5."
     )
     L.append("")
     L.append("| item | paper depth / mm | K depth^1.5 / N | paper F_kg / N | mismatch |")
     L.append("|---|---|---|---|---|")
     for ck in report.evidence["eq4_checks"]:
         L.append(
-            f"| `{ck['id']}` | {fmt(ck['depth_mm'], 6)} | {fmt(ck['eq4_F'])} | {fmt(ck['paper_F'], 6)} | "
+            f"| `{ck['id']}` | {fmt(ck['depth_mm'], 6)} | {fmt(ck['eq4_F'])} | "
+            f"{fmt(ck['paper_F'], 6)} | "
             f"{ck['mismatch'] * 100:+.1f} % |"
         )
     L.append("")
@@ -619,8 +645,8 @@ def markdown_report(report: PaperReport) -> str:
 
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;max-width:1200px;margin:2em auto;
-padding:0 1em;color:#222;line-height:1.45}
+body{font-family:system-ui,-apple-system,Segoe UI,Helvetica,Arial,sans-serif;
+max-width:1200px;margin:2em auto;padding:0 1em;color:#222;line-height:1.45}
 table{border-collapse:collapse;margin:0.8em 0;font-size:0.86em}
 th,td{border:1px solid #ccc;padding:3px 6px;text-align:left;vertical-align:top}
 th{background:#f3f3f3}
@@ -646,18 +672,22 @@ def html_report(report: PaperReport, root: Path) -> str:
         "<title>braidsim paper: reproduction of sections 3.1-3.5</title>",
         f"<style>{_CSS}</style></head><body>",
         "<h1>Reproduction of Zhang et al., sections 3.1-3.5</h1>",
-        f"<p>Paper: <em>{e(pv.meta.get('paper', ''))}</em>. Generated by <code>braidsim paper</code> in "
+        f"<p>Paper: <em>{e(pv.meta.get('paper', ''))}</em>. Generated by <code>braidsim "
+        "paper</code> in "
         f"{report.elapsed_s:.1f} s.</p>",
-        f"<p><b>{len(report.outcomes)} numbers</b>: {_status_html(F.REPRODUCED)} {c[F.REPRODUCED]} (within 5 %, "
+        f"<p><b>{len(report.outcomes)} numbers</b>: {_status_html(F.REPRODUCED)} "
+        f"{c[F.REPRODUCED]} (within 5 %, "
         f"1 % for the initial peaks), {_status_html(F.DEVIATES)} {c[F.DEVIATES]} (cause stated), "
-        f"{_status_html(F.NOT_REPRODUCIBLE)} {c[F.NOT_REPRODUCIBLE]}. Ours: the calibrated preset (E = 200 GPa); "
+        f"{_status_html(F.NOT_REPRODUCIBLE)} {c[F.NOT_REPRODUCIBLE]}. Ours: the calibrated preset "
+        "(E = 200 GPa); "
         "the as-printed preset (E = 2 GPa) beside it.</p>",
         "<table><tr><th>check (issue 3)</th><th>items</th><th>holds</th></tr>",
     ]
     for a in report.acceptance():
         extra = "" if a["ok"] else " (failing: " + e(", ".join(a["failing"])) + ")"
         H.append(
-            f"<tr><td>{e(a['check'])}</td><td>{a['items']}</td><td>{'yes' if a['ok'] else 'no'}{extra}</td></tr>"
+            f"<tr><td>{e(a['check'])}</td><td>{a['items']}</td>"
+            f"<td>{'yes' if a['ok'] else 'no'}{extra}</td></tr>"
         )
     H.append("</table>")
     H.append("<h2>Readings of the paper (from MODEL_NOTES) and the evidence we measured</h2>")
@@ -666,11 +696,13 @@ def html_report(report: PaperReport, root: Path) -> str:
         H.extend(f"<li>{e(x)}</li>" for x in r.evidence)
         H.append("</ul>")
     H.append(
-        "<h2>Runs and time windows</h2><p class='small'>The paper states no duration and no window; "
+        "<h2>Runs and time windows</h2><p class='small'>The paper states no duration and no "
+        "window; "
         "ranges are exact extremes over the window, refined on the integrator's interpolant.</p>"
     )
     H.append(
-        "<table><tr><th>run</th><th>scenario</th><th>as printed</th><th>duration / s</th><th>windows / s</th>"
+        "<table><tr><th>run</th><th>scenario</th><th>as printed</th><th>duration / "
+        "s</th><th>windows / s</th>"
         "<th>K / (N/m^n)</th><th>impacts</th></tr>"
     )
     for key, info in report.runs.items():
@@ -678,7 +710,7 @@ def html_report(report: PaperReport, root: Path) -> str:
         H.append(
             f"<tr><td>{e(key)}</td><td><code>{e(info['scenario'])}</code></td>"
             f"<td>{e(_printed_name(info))}</td><td>{info['duration']:g}</td><td>{e(ws)}</td>"
-            f"<td>{info['calibrated_stiffness']:.5g}</td><td>{info['calibrated_impacts']}</td></tr>"
+            f"<td>{fmt(info['calibrated_stiffness'])}</td><td>{info['calibrated_impacts']}</td></tr>"
         )
     H.append("</table>")
     for sec in SECTIONS:
@@ -687,15 +719,19 @@ def html_report(report: PaperReport, root: Path) -> str:
             continue
         H.append(f"<h2>Section {sec}</h2>")
         H.append(
-            "<table><tr><th>item</th><th>where</th><th>window / s</th><th>paper</th><th>ours (E = 200 GPa)"
-            "</th><th>deviation</th><th>status</th><th>as printed (E = 2 GPa)</th><th>deviation</th></tr>"
+            "<table><tr><th>item</th><th>where</th><th>window / s</th><th>paper</th><th>ours (E "
+            "= 200 GPa)"
+            "</th><th>deviation</th><th>status</th><th>as printed (E = 2 "
+            "GPa)</th><th>deviation</th></tr>"
         )
         for o in outs:
             it = o.item
             H.append(
                 f"<tr><td><code>{e(it.id)}</code></td><td>{e(it.where)}</td>"
-                f"<td>{e(it.window)} [{o.window[0]:g}, {o.window[1]:g}]</td><td>{fmt(it.value, 6)} {it.unit}</td>"
-                f"<td>{ours_text(o)} {it.unit}</td><td>{e(fmt_dev(o))}</td><td>{_status_html(o.status)}</td>"
+                f"<td>{e(it.window)} [{o.window[0]:g}, "
+                f"{o.window[1]:g}]</td><td>{fmt(it.value, 6)} {it.unit}</td>"
+                f"<td>{ours_text(o)} "
+                f"{it.unit}</td><td>{e(fmt_dev(o))}</td><td>{_status_html(o.status)}</td>"
                 f"<td>{ours_text(o, True)} {it.unit}</td><td>{e(fmt_dev(o, True))}</td></tr>"
             )
         H.append("</table>")
@@ -713,14 +749,16 @@ def html_report(report: PaperReport, root: Path) -> str:
         for f in report.figures.get(sec, []):
             H.append(_img(root / f, Path(f).stem))
     H.append("<h2>Consistency of the paper's own numbers</h2>")
-    H.append(f"<p>Eq. (4): F_kg = K |delta|^1.5 with K = {report.evidence['K']:.5g} N/m^1.5.</p>")
+    H.append(f"<p>Eq. (4): F_kg = K |delta|^1.5 with K = {fmt(report.evidence['K'])} N/m^1.5.</p>")
     H.append(
-        "<table><tr><th>item</th><th>paper depth / mm</th><th>K depth^1.5 / N</th><th>paper F_kg / N</th>"
+        "<table><tr><th>item</th><th>paper depth / mm</th><th>K depth^1.5 / N</th><th>paper F_kg "
+        "/ N</th>"
         "<th>mismatch</th></tr>"
     )
     for ck in report.evidence["eq4_checks"]:
         H.append(
-            f"<tr><td><code>{e(ck['id'])}</code></td><td>{fmt(ck['depth_mm'], 6)}</td><td>{fmt(ck['eq4_F'])}</td>"
+            f"<tr><td><code>{e(ck['id'])}</code></td><td>{fmt(ck['depth_mm'], 6)}</td>"
+            f"<td>{fmt(ck['eq4_F'])}</td>"
             f"<td>{fmt(ck['paper_F'], 6)}</td><td>{ck['mismatch'] * 100:+.1f} %</td></tr>"
         )
     H.append("</table><p>Damping-to-stiffness ratio max|F_cg| / max|F_kg|:</p>")
@@ -747,21 +785,19 @@ def _table1_html(rows: list[dict[str, Any]]) -> str:
     for r in rows:
         laws.setdefault(r["label"], {})[r["quantity"]] = r
     out = [
-        "<p>Table 1: <b>paper</b> / ours (E = 200 GPa); depth in 1e-2 mm.</p><table><tr><th>Model</th>"
+        "<p>Table 1: <b>paper</b> / ours (E = 200 GPa); depth in 1e-2 "
+        "mm.</p><table><tr><th>Model</th>"
     ]
     out += [f"<th>{html.escape(h)}</th>" for _, h in T1_COLUMNS] + ["<th>status</th></tr>"]
     for label, qs in laws.items():
         out.append(f"<tr><td>{html.escape(label)}</td>")
         for q, _ in T1_COLUMNS:
-            r = qs.get(q)
-            if r is None:
+            row = qs.get(q)
+            if row is None:
                 out.append("<td></td>")
                 continue
-            d = q == "depth"
-            paper = _pair(r["paper_min"], r["paper_max"], d)
-            if r["paper_min"] == r["paper_max"] == 0.0 and q == "damping_force":
-                paper = "0"
-            out.append(f"<td><b>{paper}</b> / {_pair(r['ours_min'], r['ours_max'], d)}</td>")
+            paper, ours = _t1_cell(row)
+            out.append(f"<td><b>{paper}</b> / {ours}</td>")
         out.append(f"<td>{html.escape(_row_status(qs))}</td></tr>")
     out.append("</table>")
     return "".join(out)

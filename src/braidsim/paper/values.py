@@ -154,14 +154,15 @@ def default_path() -> Path:
 
 
 def _window(run: str, name: str, w: Any, duration: float) -> tuple[float, float]:
-    if not (isinstance(w, list) and len(w) == 2 and all(isinstance(v, int | float) for v in w)):
+    if not (isinstance(w, list) and len(w) == 2 and all(isinstance(v, (int, float)) for v in w)):
         raise InputError(
             f"paper values: run {run} window {name}: expected [t0, t1] in s, got {w!r}"
         )
     t0, t1 = float(w[0]), float(w[1])
     if not (0.0 <= t0 < t1 <= duration + 1e-12):
         raise InputError(
-            f"paper values: run {run} window {name} = [{t0}, {t1}] s; allowed 0 <= t0 < t1 <= {duration} s"
+            f"paper values: run {run} window {name} = [{t0}, {t1}] s; allowed 0 <= t0 < t1 <= "
+            f"{duration} s"
         )
     return (t0, t1)
 
@@ -188,7 +189,7 @@ def parse_paper_values(data: dict[str, Any]) -> PaperValues:
     runs: dict[str, RunSpec] = {}
     for key, r in data.get("runs", {}).items():
         where = f"run {key}"
-        duration = float(_require(r, "duration", int | float, where))
+        duration = float(_require(r, "duration", (int, float), where))
         if not (math.isfinite(duration) and duration > 0):
             raise InputError(f"paper values: {where}: duration {duration} s; allowed > 0 s")
         windows = {
@@ -236,7 +237,7 @@ def parse_paper_values(data: dict[str, Any]) -> PaperValues:
             raise InputError(f"paper values: {where}: unknown run {run!r}")
         if window not in runs[run].windows:
             raise InputError(f"paper values: {where}: run {run} has no window {window!r}")
-        value = float(_require(raw, "value", int | float, where))
+        value = float(_require(raw, "value", (int, float), where))
         abs_tol = raw.get("abs_tol")
         if value == 0.0 and abs_tol is None:
             raise InputError(f"paper values: {where}: a printed zero needs abs_tol")

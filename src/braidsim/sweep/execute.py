@@ -105,11 +105,15 @@ def compute_chunk(base: tuple[Any, ...], task: ChunkTask) -> ChunkOutput:
     opts = task.options
     n = len(task.runs)
     values = np.full((n, len(METRICS)), math.nan)
-    series = np.full((n, len(opts.series), opts.series_times.size), math.nan) if opts.series else None
+    series = (
+        np.full((n, len(opts.series), opts.series_times.size), math.nan) if opts.series else None
+    )
     failures = []
     for i, vals in enumerate(task.runs):
         try:
-            model = build_model(sc.with_overrides(dict(zip(task.keys, vals, strict=True))), task.duration)
+            model = build_model(
+                sc.with_overrides(dict(zip(task.keys, vals, strict=True))), task.duration
+            )
         except InputError as exc:
             values[i, METRIC_INDEX["regime"]] = REGIME_FAILED
             failures.append(f"invalid parameters: {exc}")
@@ -145,43 +149,86 @@ class LocalProcesses:
         Extra attempts of a chunk whose task failed or whose worker died.
     mp_context : str, optional
         Start method of the processes; default :func:`braidsim.batch.process_context`.
+    task : callable
+        The function run per chunk, ``task(base, ChunkTask) -> ChunkOutput`` (picklable;
+        tests put in one that fails).
     """
 
-    def __init__(self, processes: int | None = None, retries: int = 2, mp_context: str | None = None) -> None:
+    def __init__(
+        self,
+        processes: int | None = None,
+        retries: int = 2,
+        mp_context: str | None = None,
+        task: Callable[[tuple[Any, ...], ChunkTask], ChunkOutput] | None = None,
+    ) -> None:
         n = (os.cpu_count() or 1) if processes is None else int(processes)
         if n < 1:
             raise InputError(f"--processes: {n} is out of range; allowed >= 1")
         self.processes = n
         self.retries = retries
         self.mp_context = mp_context
+        self.task = compute_chunk if task is None else task
         self.description = f"local processes ({n})" if n > 1 else "this process"
+        self._pool: Any = None
+
+    def _new_pool(self) -> Any:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        from braidsim.batch import process_context
+
+        ctx = (
+            process_context()
+            if self.mp_context is None
+            else multiprocessing.get_context(self.mp_context)
+        )
+        return ProcessPoolExecutor(max_workers=self.processes, mp_context=ctx)
+
+    def start(self) -> None:
+        """Start the worker processes now.
+
+        :func:`run_sweep` calls this before it opens the store: zarr runs an event-loop
+        thread, and a process is forked safely only while it has a single thread.
+        """
+        if self.processes > 1 and self._pool is None:
+            self._pool = self._new_pool()
+            self._pool.submit(os.getpid).result()  # launches the workers
+
+    def close(self) -> None:
+        """Stop the worker processes."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
 
     def run(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
         if self.processes == 1:
             for task in tasks:
                 self._serial(base, task, on_result)
             return
-        self._pool(base, tasks, on_result)
+        try:
+            self._run_pool(base, tasks, on_result)
+        finally:
+            self.close()
 
     def _serial(self, base: tuple[Any, ...], task: ChunkTask, on_result: OnResult) -> None:
         for attempt in range(self.retries + 1):
             try:
-                out = compute_chunk(base, task)
+                out = self.task(base, task)
             except Exception as exc:  # a bug or a resource error: try again, then give up
                 if attempt == self.retries:
-                    raise SweepError(f"chunk {task.chunk} failed {attempt + 1} times: {exc!r}") from exc
+                    raise SweepError(
+                        f"chunk {task.chunk} failed {attempt + 1} times: {exc!r}"
+                    ) from exc
                 continue
             on_result(out)
             return
 
-    def _pool(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
-        import multiprocessing
-        from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+    def _run_pool(
+        self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult
+    ) -> None:
+        from concurrent.futures import FIRST_COMPLETED, Future, wait
         from concurrent.futures.process import BrokenProcessPool
 
-        from braidsim.batch import process_context
-
-        ctx = process_context() if self.mp_context is None else multiprocessing.get_context(self.mp_context)
         pending = deque(tasks)
         attempts: dict[int, int] = {}
         inflight: dict[Future[ChunkOutput], ChunkTask] = {}
@@ -192,34 +239,31 @@ class LocalProcesses:
                 raise SweepError(f"chunk {task.chunk} failed {attempts[task.chunk]} times: {why}")
             pending.appendleft(task)
 
-        pool = ProcessPoolExecutor(max_workers=self.processes, mp_context=ctx)
-        try:
-            while pending or inflight:
-                while pending and len(inflight) < 2 * self.processes:
-                    task = pending.popleft()
-                    inflight[pool.submit(compute_chunk, base, task)] = task
-                done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
-                broken = False
-                for fut in done:
-                    task = inflight.pop(fut)
-                    try:
-                        out = fut.result()
-                    except BrokenProcessPool:
-                        broken = True
-                        again(task, "a worker process died")
-                    except Exception as exc:
-                        again(task, repr(exc))
-                    else:
-                        on_result(out)
-                if broken:
-                    # every task still in flight on the broken pool is lost: run it again
-                    for task in inflight.values():
-                        again(task, "a worker process died")
-                    inflight.clear()
-                    pool.shutdown(wait=True, cancel_futures=True)
-                    pool = ProcessPoolExecutor(max_workers=self.processes, mp_context=ctx)
-        finally:
-            pool.shutdown(wait=True, cancel_futures=True)
+        self.start()
+        while pending or inflight:
+            while pending and len(inflight) < 2 * self.processes:
+                task = pending.popleft()
+                inflight[self._pool.submit(self.task, base, task)] = task
+            done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
+            broken = False
+            for fut in done:
+                task = inflight.pop(fut)
+                try:
+                    out = fut.result()
+                except BrokenProcessPool:
+                    broken = True
+                    again(task, "a worker process died")
+                except Exception as exc:
+                    again(task, repr(exc))
+                else:
+                    on_result(out)
+            if broken:
+                # every task still in flight on the broken pool is lost: run it again
+                for task in inflight.values():
+                    again(task, "a worker process died")
+                inflight.clear()
+                self.close()
+                self.start()
 
 
 class DaskExecutor:
@@ -272,7 +316,9 @@ class DaskExecutor:
             try:
                 client = Client(self.scheduler, timeout="20s")
             except (OSError, TimeoutError) as exc:
-                raise InputError(f"--scheduler: cannot connect to {self.scheduler} ({exc})") from None
+                raise InputError(
+                    f"--scheduler: cannot connect to {self.scheduler} ({exc})"
+                ) from None
             return client, [client]
         cluster = LocalCluster(
             n_workers=self.workers,
@@ -290,13 +336,18 @@ class DaskExecutor:
         client, owned = self._connect()
         try:
             base_f = client.scatter(base, broadcast=True)
-            futs = {client.submit(compute_chunk, base_f, t, retries=self.retries, pure=False): t for t in tasks}
+            futs = {
+                client.submit(compute_chunk, base_f, t, retries=self.retries, pure=False): t
+                for t in tasks
+            }
             for fut in as_completed(list(futs)):
                 task = futs[fut]
                 try:
                     out = fut.result()
                 except Exception as exc:
-                    raise SweepError(f"chunk {task.chunk} failed after {self.retries} retries: {exc!r}") from exc
+                    raise SweepError(
+                        f"chunk {task.chunk} failed after {self.retries} retries: {exc!r}"
+                    ) from exc
                 on_result(out)
                 fut.release()
         finally:
@@ -413,19 +464,60 @@ def run_sweep(
     path = Path(store)
     if executor is None:
         if workers is not None and scheduler is not None:
-            raise InputError("--workers/--scheduler: give one of them (a local cluster or an existing one)")
+            raise InputError(
+                "--workers/--scheduler: give one of them (a local cluster or an existing one)"
+            )
         if (workers is not None or scheduler is not None) and processes is not None:
             raise InputError("--processes: applies to the local executor, not to a Dask cluster")
         if workers is not None or scheduler is not None:
             executor = DaskExecutor(scheduler=scheduler, workers=workers, retries=spec.retries)
         else:
             executor = LocalProcesses(processes, retries=spec.retries)
+    if path.exists() and not resume:
+        raise InputError(
+            f"--out: {path} exists; pass --resume to finish it, or choose another path"
+        )
+    start = getattr(executor, "start", None)
+    if start is not None:
+        start()  # before the first zarr call (see LocalProcesses.start)
+    try:
+        t0, n_before, runs_before, todo, failed = _execute(spec, path, executor, progress)
+    finally:
+        close = getattr(executor, "close", None)
+        if close is not None:
+            close()
+    elapsed = time.perf_counter() - t0
+    runs_now = spec.n_runs - runs_before
+    return {
+        "store": str(path),
+        "spec": str(spec.path) if spec.path else None,
+        "dims": dict(zip(spec.dims, spec.shape, strict=True)),
+        "runs": spec.n_runs,
+        "chunks": spec.n_chunks,
+        "chunks_done_before": n_before,
+        "chunks_computed": len(todo),
+        "runs_computed": runs_now,
+        "failed_runs_computed": failed,
+        "executor": executor.description,
+        "elapsed_s": elapsed,
+        "runs_per_second": runs_now / elapsed if elapsed > 0 else None,
+        **summarize_store(path),
+    }
+
+
+def _execute(
+    spec: SweepSpec, path: Path, executor: Executor, progress: bool
+) -> tuple[float, int, int, list[int], int]:
+    """Open or create the store, run the chunks not done, write each as it finishes.
+
+    Returns (start time, chunks done before, runs done before, chunks run now, failed runs).
+    """
     if path.exists():
-        if not resume:
-            raise InputError(f"--out: {path} exists; pass --resume to finish it, or choose another path")
         attrs = store_attrs(path)
         if attrs.get("spec_sha256") != spec.digest():
-            raise InputError(f"--resume: {path} was made from a different spec; allowed the same spec")
+            raise InputError(
+                f"--resume: {path} was made from a different spec; allowed the same spec"
+            )
         remove_partial_files(path)
     else:
         create_store(spec, path)
@@ -455,23 +547,7 @@ def run_sweep(
         executor.run(scenario_payload(spec.base), _tasks(spec, todo), on_result)
     finally:
         bar.stop()
-    elapsed = time.perf_counter() - t0
-    runs_now = spec.n_runs - runs_before
-    return {
-        "store": str(path),
-        "spec": str(spec.path) if spec.path else None,
-        "dims": dict(zip(spec.dims, spec.shape, strict=True)),
-        "runs": spec.n_runs,
-        "chunks": spec.n_chunks,
-        "chunks_done_before": n_before,
-        "chunks_computed": len(todo),
-        "runs_computed": runs_now,
-        "failed_runs_computed": counts["failed"],
-        "executor": executor.description,
-        "elapsed_s": elapsed,
-        "runs_per_second": runs_now / elapsed if elapsed > 0 else None,
-        **summarize_store(path),
-    }
+    return t0, n_before, runs_before, todo, counts["failed"]
 
 
 def _chunk_size(spec: SweepSpec, chunk: int) -> int:

@@ -34,7 +34,9 @@ def _factor(name: str, si_unit: str, unit: str | None) -> tuple[float, str]:
     try:
         f = float(ureg.Quantity(1.0, si_unit or "dimensionless").to(unit).magnitude)
     except Exception as exc:  # pint raises several types for bad or incompatible units
-        raise InputError(f"--unit: cannot show {name} [{si_unit}] in {unit!r} ({exc.__class__.__name__})") from None
+        raise InputError(
+            f"--unit: cannot show {name} [{si_unit}] in {unit!r} ({exc.__class__.__name__})"
+        ) from None
     return f, unit
 
 
@@ -51,7 +53,10 @@ def _edges(c: np.ndarray, log: bool) -> np.ndarray:
 def _select(ds: xr.Dataset, da: xr.DataArray, sel: Mapping[str, Any] | None) -> xr.DataArray:
     for dim, value in (sel or {}).items():
         if dim not in da.dims:
-            raise InputError(f"--sel: {dim!r} is not a dimension of the sweep; allowed {', '.join(map(str, da.dims))}")
+            raise InputError(
+                f"--sel: {dim!r} is not a dimension of the sweep; "
+                f"allowed {', '.join(map(str, da.dims))}"
+            )
         coord = ds[dim]
         v = value
         if coord.dtype.kind == "f":
@@ -106,13 +111,19 @@ def plot_sweep(
 
         close = difflib.get_close_matches(metric, [str(v) for v in ds.data_vars], n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise InputError(f"--metric: {metric!r} is not in the sweep{hint}; allowed {', '.join(map(str, ds.data_vars))}")
+        raise InputError(
+            f"--metric: {metric!r} is not in the sweep{hint}; "
+            f"allowed {', '.join(map(str, ds.data_vars))}"
+        )
     units = dict(units or {})
     da = _select(ds, ds[metric], sel)
     names = [x] if y is None else [x, y]
     for n in names:
         if n not in ds.variables:
-            raise InputError(f"--x/--y: {n!r} is not an axis of the sweep; allowed {', '.join(map(str, ds.coords))}")
+            raise InputError(
+                f"--x/--y: {n!r} is not an axis of the sweep; "
+                f"allowed {', '.join(map(str, ds.coords))}"
+            )
     sampled = "run" in da.dims
     left = [str(d) for d in da.dims if d != "t"]
     want = ["run"] if sampled else names
@@ -172,7 +183,9 @@ def plot_sweep(
                 grid = grid * fm
             xlog = ds[x].attrs.get("spacing") == "log"
             ylog = ds[y].attrs.get("spacing") == "log"
-            art = ax.pcolormesh(_edges(xs, xlog), _edges(ys, ylog), grid, cmap=cmap, norm=norm, shading="flat")
+            art = ax.pcolormesh(
+                _edges(xs, xlog), _edges(ys, ylog), grid, cmap=cmap, norm=norm, shading="flat"
+            )
             if xlog:
                 ax.set_xscale("log")
             if ylog:
@@ -181,7 +194,9 @@ def plot_sweep(
         ax.set_ylabel(f"{y} [{uy}]" if uy else y)
         cb = fig.colorbar(art, ax=ax, label=mlabel)
         if is_regime:
-            cb.set_ticks(range(-1, len(REGIMES)), labels=["failed", *(r.replace("_", " ") for r in REGIMES)])
+            cb.set_ticks(
+                range(-1, len(REGIMES)), labels=["failed", *(r.replace("_", " ") for r in REGIMES)]
+            )
     where = ", ".join(f"{k} = {v}" for k, v in (sel or {}).items())
     ax.set_title(title if title is not None else (f"{metric}" + (f" ({where})" if where else "")))
     return fig

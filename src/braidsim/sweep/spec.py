@@ -74,8 +74,18 @@ from braidsim.errors import InputError
 from braidsim.params import SCHEMA, Scenario, builtin_names, convert, flatten, load_scenario
 from braidsim.units import to_si
 
-TOP_KEYS = ("name", "description", "scenario", "duration", "overrides", "axes", "samples", "metrics",
-            "series", "execution")
+TOP_KEYS = (
+    "name",
+    "description",
+    "scenario",
+    "duration",
+    "overrides",
+    "axes",
+    "samples",
+    "metrics",
+    "series",
+    "execution",
+)
 AXIS_KEYS = ("key", "name", "values", "start", "stop", "num", "spacing")
 SAMPLES_KEYS = ("method", "n", "seed", "ranges")
 RANGE_KEYS = ("low", "high", "spacing")
@@ -87,7 +97,8 @@ SPACINGS = ("linear", "log")
 AXIS_KINDS = ("float", "int", "choice", "bool")
 RUN_DIM = "run"
 TIME_DIM = "t"
-MAX_AUTO_CHUNK = 64
+MIN_AUTO_CHUNK = 16
+MAX_AUTO_CHUNK = 256
 
 
 def _closest(word: str, choices: Sequence[str]) -> str:
@@ -98,7 +109,9 @@ def _closest(word: str, choices: Sequence[str]) -> str:
 def _check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
     for k in table:
         if k not in allowed:
-            raise InputError(f"{where}{k}: unknown key{_closest(k, allowed)}; allowed {', '.join(allowed)}")
+            raise InputError(
+                f"{where}{k}: unknown key{_closest(k, allowed)}; allowed {', '.join(allowed)}"
+            )
 
 
 def _table(where: str, value: Any) -> Mapping[str, Any]:
@@ -124,7 +137,9 @@ def _param_key(where: str, key: Any) -> str:
     if not isinstance(key, str) or key not in SCHEMA:
         close = difflib.get_close_matches(str(key), list(SCHEMA), n=1, cutoff=0.4)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise InputError(f"{where}: unknown parameter {key!r}{hint}; `braidsim scenarios --keys` lists all")
+        raise InputError(
+            f"{where}: unknown parameter {key!r}{hint}; `braidsim scenarios --keys` lists all"
+        )
     return key
 
 
@@ -317,7 +332,9 @@ class SweepSpec:
                 "low": list(s.low),
                 "high": list(s.high),
                 "spacing": list(s.spacing),
-                "values_sha256": hashlib.sha256(np.ascontiguousarray(s.values).tobytes()).hexdigest(),
+                "values_sha256": hashlib.sha256(
+                    np.ascontiguousarray(s.values).tobytes()
+                ).hexdigest(),
             }
         o = self.options
         return {
@@ -353,7 +370,8 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
     spec = SCHEMA[key]
     if spec.kind not in AXIS_KINDS:
         raise InputError(
-            f"{where}key: {key} ({spec.kind}) cannot be an axis; allowed keys that hold one number, "
+            f"{where}key: {key} ({spec.kind}) cannot be an axis; "
+            "allowed keys that hold one number, "
             "choice or boolean"
         )
     name = t.get("name", key)
@@ -369,28 +387,39 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         raw = t["values"]
         if not isinstance(raw, list) or not raw:
             raise InputError(f"{where}values: empty; allowed a non-empty list of values of {key}")
-        vals: list[Any] = [convert(spec, v) for v in raw]
+        try:
+            vals: list[Any] = [convert(spec, v) for v in raw]
+        except InputError as exc:
+            raise InputError(f"{where}values: {exc}") from None
         spacing = "values"
     else:
         for k in ("start", "stop", "num"):
             if k not in t:
-                raise InputError(f"{where}{k}: missing; a range needs start, stop and num (or give values)")
+                raise InputError(
+                    f"{where}{k}: missing; a range needs start, stop and num (or give values)"
+                )
         if spec.kind not in ("float", "int"):
             raise InputError(f"{where}start: {key} takes {spec.range_text()}; give explicit values")
         num = t["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise InputError(f"{where}num: {num!r} gives an empty range; allowed an integer >= 1")
-        start = spec.check_number(to_si(f"{where}start", t["start"], spec.unit))
-        stop = spec.check_number(to_si(f"{where}stop", t["stop"], spec.unit))
+        start = spec.check_number(to_si(f"{where}start ({key})", t["start"], spec.unit))
+        stop = spec.check_number(to_si(f"{where}stop ({key})", t["stop"], spec.unit))
         spacing = t.get("spacing", "linear")
         if spacing not in SPACINGS:
-            raise InputError(f"{where}spacing: {spacing!r} is not allowed{_closest(str(spacing), SPACINGS)}; "
-                             f"allowed {', '.join(SPACINGS)}")
+            raise InputError(
+                f"{where}spacing: {spacing!r} is not allowed{_closest(str(spacing), SPACINGS)}; "
+                f"allowed {', '.join(SPACINGS)}"
+            )
         if num > 1 and start == stop:
-            raise InputError(f"{where}stop: equals start ({start:g}), an empty range; allowed stop != start")
+            raise InputError(
+                f"{where}stop: equals start ({start:g}), an empty range; allowed stop != start"
+            )
         if spacing == "log":
             if start <= 0.0 or stop <= 0.0:
-                raise InputError(f"{where}start: a log range needs start > 0 and stop > 0 (in {spec.unit})")
+                raise InputError(
+                    f"{where}start: a log range needs start > 0 and stop > 0 (in {spec.unit})"
+                )
             arr = np.geomspace(start, stop, num)
         else:
             arr = np.linspace(start, stop, num)
@@ -423,22 +452,28 @@ def _samples(table: Any, base: Scenario) -> Samples:
     _check_keys("samples.", t, SAMPLES_KEYS)
     method = t.get("method", "latin_hypercube")
     if method not in SAMPLE_METHODS:
-        raise InputError(f"samples.method: {method!r} is not allowed{_closest(str(method), SAMPLE_METHODS)}; "
-                         f"allowed {', '.join(SAMPLE_METHODS)}")
+        raise InputError(
+            f"samples.method: {method!r} is not allowed{_closest(str(method), SAMPLE_METHODS)}; "
+            f"allowed {', '.join(SAMPLE_METHODS)}"
+        )
     if "n" not in t:
         raise InputError("samples.n: missing; allowed an integer >= 1")
     n = _int("samples.n", t["n"], 1)
     seed = _int("samples.seed", t.get("seed", 0), 0)
     ranges = _flatten_ranges(_table("samples.ranges", t.get("ranges", {})))
     if not ranges:
-        raise InputError("samples.ranges: empty; allowed a table {KEY = {low = ..., high = ...}, ...}")
+        raise InputError(
+            "samples.ranges: empty; allowed a table {KEY = {low = ..., high = ...}, ...}"
+        )
     keys, lows, highs, spacings = [], [], [], []
     for key, rng in ranges.items():
         where = f"samples.ranges.{key}"
         _param_key(where, key)
         spec = SCHEMA[key]
         if spec.kind != "float":
-            raise InputError(f"{where}: {key} takes {spec.range_text()}; only keys with a number can be sampled")
+            raise InputError(
+                f"{where}: {key} takes {spec.range_text()}; only keys with a number can be sampled"
+            )
         r = _table(where, rng)
         _check_keys(f"{where}.", r, RANGE_KEYS)
         for k in ("low", "high"):
@@ -447,12 +482,19 @@ def _samples(table: Any, base: Scenario) -> Samples:
         lo = spec.check_number(to_si(f"{where}.low", r["low"], spec.unit))
         hi = spec.check_number(to_si(f"{where}.high", r["high"], spec.unit))
         if not hi > lo:
-            raise InputError(f"{where}.high: {hi:g} is not above low ({lo:g}), an empty range; allowed high > low")
+            raise InputError(
+                f"{where}.high: {hi:g} is not above low ({lo:g}), an empty range; "
+                "allowed high > low"
+            )
         sp = r.get("spacing", "linear")
         if sp not in SPACINGS:
-            raise InputError(f"{where}.spacing: {sp!r} is not allowed; allowed {', '.join(SPACINGS)}")
+            raise InputError(
+                f"{where}.spacing: {sp!r} is not allowed; allowed {', '.join(SPACINGS)}"
+            )
         if sp == "log" and lo <= 0.0:
-            raise InputError(f"{where}.low: a log range needs low > 0 (in {spec.unit or 'no unit'})")
+            raise InputError(
+                f"{where}.low: a log range needs low > 0 (in {spec.unit or 'no unit'})"
+            )
         for v in (lo, hi):
             try:
                 base.with_overrides({key: v})
@@ -474,12 +516,14 @@ def _samples(table: Any, base: Scenario) -> Samples:
 
 
 def auto_chunk_size(n_runs: int) -> int:
-    """Runs per chunk when the spec gives none: about 1/64 of the runs, between 1 and 64.
+    """Runs per chunk when the spec gives none: 1/64 of the runs, between 16 and 256.
 
-    It depends on the number of runs only (not on the executor), so that a store can be
-    resumed with other workers.
+    At least 16 runs, so that writing a chunk (about 2 ms per array, some 25 arrays) costs a
+    few per cent of computing it (25-100 ms per one-second run); at most 256, so that a
+    million runs still make thousands of tasks to spread over a cluster. It depends on the
+    number of runs only (not on the executor), so a store can be resumed with other workers.
     """
-    return int(min(MAX_AUTO_CHUNK, max(1, -(-n_runs // 64))))
+    return int(min(MAX_AUTO_CHUNK, max(MIN_AUTO_CHUNK, -(-n_runs // 64))))
 
 
 def chunk_shape_for(shape: Sequence[int], size: int) -> tuple[int, ...]:
@@ -504,11 +548,15 @@ def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np
     _check_keys("series.", t, SERIES_KEYS)
     names = t.get("variables", [])
     if not isinstance(names, list) or not names:
-        raise InputError(f"series.variables: empty; allowed a list of {', '.join(SERIES_VARIABLES)}")
+        raise InputError(
+            f"series.variables: empty; allowed a list of {', '.join(SERIES_VARIABLES)}"
+        )
     for v in names:
         if v not in SERIES_VARIABLES:
-            raise InputError(f"series.variables: unknown variable {v!r}{_closest(str(v), SERIES_VARIABLES)}; "
-                             f"allowed {', '.join(SERIES_VARIABLES)}")
+            raise InputError(
+                f"series.variables: unknown variable {v!r}{_closest(str(v), SERIES_VARIABLES)}; "
+                f"allowed {', '.join(SERIES_VARIABLES)}"
+            )
     if "times" in t:
         if any(k in t for k in ("start", "stop", "num")):
             raise InputError("series.times: give either times or start/stop/num, not both")
@@ -519,7 +567,9 @@ def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np
     else:
         for k in ("start", "stop", "num"):
             if k not in t:
-                raise InputError(f"series.{k}: missing; the series needs times = [...] or start, stop and num")
+                raise InputError(
+                    f"series.{k}: missing; the series needs times = [...] or start, stop and num"
+                )
         num = _int("series.num", t["num"], 1)
         a, b = _time("series.start", t["start"]), _time("series.stop", t["stop"])
         if num > 1 and not b > a:
@@ -527,7 +577,10 @@ def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np
         times = np.linspace(a, b, num)
     tmin = min(durations)
     if times.max() > tmin * (1 + 1e-12):
-        raise InputError(f"series: sample time {times.max():g} s is after the end of the shortest run ({tmin:g} s)")
+        raise InputError(
+            f"series: sample time {times.max():g} s is after the end of the shortest run "
+            f"({tmin:g} s)"
+        )
     if np.any(np.diff(times) <= 0.0):
         raise InputError("series.times: must increase strictly")
     return tuple(names), times
@@ -548,8 +601,8 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     if not isinstance(ref, str):
         raise InputError(f"scenario: {ref!r} is not a name or a path")
     scen: str | Path = ref
-    if ref not in builtin_names() and path is not None and not Path(ref).is_absolute():
-        scen = path.parent / ref
+    if ref not in builtin_names() and path is not None and (path.parent / ref).is_file():
+        scen = path.parent / ref  # a scenario file next to the spec
     overrides = flatten(_table("overrides", data.get("overrides", {})))
     base = load_scenario(scen, overrides=overrides or None)
     duration = None
@@ -563,27 +616,39 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     axes = tuple(_axis(i, a, base) for i, a in enumerate(raw_axes))
     samples = _samples(data["samples"], base) if "samples" in data else None
     if not axes and samples is None:
-        raise InputError("axes: the spec has no [[axes]] and no [samples]; allowed at least one of them")
+        raise InputError(
+            "axes: the spec has no [[axes]] and no [samples]; allowed at least one of them"
+        )
     names = [a.name for a in axes]
     keys = [a.key for a in axes] + list(samples.keys if samples else ())
     for seq, what in ((names, "name"), (keys, "key")):
         dup = {x for x in seq if seq.count(x) > 1}
         if dup:
-            raise InputError(f"axes: {what} {sorted(dup)[0]!r} appears twice; allowed each {what} once")
+            raise InputError(
+                f"axes: {what} {sorted(dup)[0]!r} appears twice; allowed each {what} once"
+            )
     if duration is not None and "simulation.duration" in keys:
-        raise InputError("duration: set both at the top and as an axis/sample of simulation.duration; keep one")
+        raise InputError(
+            "duration: set both at the top and as an axis/sample of simulation.duration; keep one"
+        )
     if samples is not None and "simulation.duration" in samples.keys:
-        raise InputError("samples.ranges.simulation.duration: the duration cannot be sampled; make it an axis")
+        raise InputError(
+            "samples.ranges.simulation.duration: the duration cannot be sampled; make it an axis"
+        )
 
     met = _table("metrics", data.get("metrics", {}))
     _check_keys("metrics.", met, METRICS_KEYS)
     keep = met.get("keep", list(METRIC_NAMES))
     if not isinstance(keep, list) or not keep:
-        raise InputError("metrics.keep: empty; allowed a list of metric names (braidsim.batch.METRICS)")
+        raise InputError(
+            "metrics.keep: empty; allowed a list of metric names (braidsim.batch.METRICS)"
+        )
     for m in keep:
         if m not in METRIC_NAMES:
-            raise InputError(f"metrics.keep: unknown metric {m!r}{_closest(str(m), METRIC_NAMES)}; "
-                             f"allowed {', '.join(METRIC_NAMES)}")
+            raise InputError(
+                f"metrics.keep: unknown metric {m!r}{_closest(str(m), METRIC_NAMES)}; "
+                f"allowed {', '.join(METRIC_NAMES)}"
+            )
     if len(set(keep)) != len(keep):
         raise InputError("metrics.keep: a metric appears twice")
     metrics = tuple(m for m in METRIC_NAMES if m in keep)  # canonical order
@@ -595,7 +660,9 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
         window = (_time("metrics.window", w[0]), _time("metrics.window", w[1]))
     rms = _time("metrics.rms_interval", met["rms_interval"]) if "rms_interval" in met else None
 
-    partial = SweepSpec(path, text, "", ref, base, duration, axes, samples, metrics, RunOptions(), (1,), 0)
+    partial = SweepSpec(
+        path, text, "", ref, base, duration, axes, samples, metrics, RunOptions(), (1,), 0
+    )
     durations = partial.run_durations()
     series_names: tuple[str, ...] = ()
     series_times = None
@@ -605,17 +672,35 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
         opts = check_options(durations, window, rms, series_names, series_times)
     except InputError as exc:
         msg = str(exc)
-        raise InputError(f"metrics.{msg}" if msg.startswith(("window", "rms_interval")) else msg) from None
+        raise InputError(
+            f"metrics.{msg}" if msg.startswith(("window", "rms_interval")) else msg
+        ) from None
 
     ex = _table("execution", data.get("execution", {}))
     _check_keys("execution.", ex, EXECUTION_KEYS)
     shape = partial.shape
     n_runs = int(np.prod(shape, dtype=np.int64))
-    size = _int("execution.chunk_size", ex["chunk_size"], 1) if "chunk_size" in ex else auto_chunk_size(n_runs)
+    size = (
+        _int("execution.chunk_size", ex["chunk_size"], 1)
+        if "chunk_size" in ex
+        else auto_chunk_size(n_runs)
+    )
     retries = _int("execution.retries", ex.get("retries", 2), 0)
     name = data.get("name", path.stem if path else "sweep")
-    return SweepSpec(path, text, str(name), ref, base, duration, axes, samples, metrics, opts,
-                     chunk_shape_for(shape, size), retries)
+    return SweepSpec(
+        path,
+        text,
+        str(name),
+        ref,
+        base,
+        duration,
+        axes,
+        samples,
+        metrics,
+        opts,
+        chunk_shape_for(shape, size),
+        retries,
+    )
 
 
 def load_spec(path: str | Path) -> SweepSpec:

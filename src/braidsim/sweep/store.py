@@ -78,7 +78,9 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
         "duration": "simulation.duration of each run" if spec.duration is None else spec.duration,
         "metrics_window": "whole run" if o.window is None else list(o.window),
         "rms_interval": "half the maximum step" if o.rms_interval is None else o.rms_interval,
-        "regime_labels": json.dumps({str(REGIME_FAILED): "failed", **{str(i): r for i, r in enumerate(REGIMES)}}),
+        "regime_labels": json.dumps(
+            {str(REGIME_FAILED): "failed", **{str(i): r for i, r in enumerate(REGIMES)}}
+        ),
         "dims": list(spec.dims),
         "chunk_shape": list(spec.chunk_shape),
         "n_runs": spec.n_runs,
@@ -98,7 +100,9 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
     zarr = _zarr()
     final = Path(path)
     if final.exists():
-        raise InputError(f"--out: {final} exists; pass --resume to finish it, or choose another path")
+        raise InputError(
+            f"--out: {final} exists; pass --resume to finish it, or choose another path"
+        )
     final.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.parent / f".{final.name}.creating-{uuid.uuid4().hex[:8]}"
     try:
@@ -111,15 +115,25 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
                 chunks=(len(a.values),),
                 dtype=_coord_dtype(a.values),
                 dimension_names=[a.name],
-                attributes={"units": a.unit, "key": a.key, "spacing": a.spacing,
-                            "description": SCHEMA[a.key].doc},
+                attributes={
+                    "units": a.unit,
+                    "key": a.key,
+                    "spacing": a.spacing,
+                    "description": SCHEMA[a.key].doc,
+                },
             )
             arr[:] = np.array(a.values, dtype=_coord_dtype(a.values))
         coords_attr = ""
         if spec.samples is not None:
             s = spec.samples
-            r = g.create_array(RUN_DIM, shape=(s.n,), chunks=(s.n,), dtype=np.int64, dimension_names=[RUN_DIM],
-                               attributes={"description": f"{s.method} sample number (seed {s.seed})"})
+            r = g.create_array(
+                RUN_DIM,
+                shape=(s.n,),
+                chunks=(s.n,),
+                dtype=np.int64,
+                dimension_names=[RUN_DIM],
+                attributes={"description": f"{s.method} sample number (seed {s.seed})"},
+            )
             r[:] = np.arange(s.n)
             for j, key in enumerate(s.keys):
                 arr = g.create_array(
@@ -128,9 +142,16 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
                     chunks=(s.n,),
                     dtype=np.float64,
                     dimension_names=[RUN_DIM],
-                    attributes={"units": SCHEMA[key].unit, "key": key, "low": s.low[j], "high": s.high[j],
-                                "spacing": s.spacing[j], "method": s.method, "seed": s.seed,
-                                "description": SCHEMA[key].doc},
+                    attributes={
+                        "units": SCHEMA[key].unit,
+                        "key": key,
+                        "low": s.low[j],
+                        "high": s.high[j],
+                        "spacing": s.spacing[j],
+                        "method": s.method,
+                        "seed": s.seed,
+                        "description": SCHEMA[key].doc,
+                    },
                 )
                 arr[:] = s.values[:, j]
             coords_attr = " ".join(s.keys)
@@ -141,24 +162,61 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             if name == "regime":
                 attrs["flag_values"] = [REGIME_FAILED, *range(len(REGIMES))]
                 attrs["flag_meanings"] = " ".join(("failed", *REGIMES))
-            g.create_array(name, shape=spec.shape, chunks=spec.chunk_shape, dtype=m.dtype, fill_value=m.fill,
-                           dimension_names=list(dims), attributes=attrs)
-        g.create_array("failure", shape=spec.shape, chunks=spec.chunk_shape, dtype=str, fill_value="",
-                       dimension_names=list(dims),
-                       attributes={"description": "why a run failed (empty: it finished)", **extra})
+            g.create_array(
+                name,
+                shape=spec.shape,
+                chunks=spec.chunk_shape,
+                dtype=m.dtype,
+                fill_value=m.fill,
+                dimension_names=list(dims),
+                attributes=attrs,
+            )
+        g.create_array(
+            "failure",
+            shape=spec.shape,
+            chunks=spec.chunk_shape,
+            dtype=str,
+            fill_value="",
+            dimension_names=list(dims),
+            attributes={"description": "why a run failed (empty: it finished)", **extra},
+        )
         o = spec.options
         if o.series:
             nt = o.series_times.size
-            t = g.create_array(TIME_DIM, shape=(nt,), chunks=(nt,), dtype=np.float64, dimension_names=[TIME_DIM],
-                               attributes={"units": "s", "description": "sample times of the series"})
+            t = g.create_array(
+                TIME_DIM,
+                shape=(nt,),
+                chunks=(nt,),
+                dtype=np.float64,
+                dimension_names=[TIME_DIM],
+                attributes={"units": "s", "description": "sample times of the series"},
+            )
             t[:] = o.series_times
             for name in o.series:
-                g.create_array(name, shape=(*spec.shape, nt), chunks=(*spec.chunk_shape, nt), dtype=np.float64,
-                               fill_value=np.nan, dimension_names=[*dims, TIME_DIM],
-                               attributes={"units": SERIES_UNITS[name], "description": f"sampled {name}", **extra})
-        sub = g.create_group("_sweep", attributes={"description": "progress of the sweep (chunks done)"})
-        sub.create_array("done", shape=(spec.n_chunks,), chunks=(1,), dtype=np.int8, fill_value=0,
-                         dimension_names=["chunk"])
+                g.create_array(
+                    name,
+                    shape=(*spec.shape, nt),
+                    chunks=(*spec.chunk_shape, nt),
+                    dtype=np.float64,
+                    fill_value=np.nan,
+                    dimension_names=[*dims, TIME_DIM],
+                    attributes={
+                        "units": SERIES_UNITS[name],
+                        "description": f"sampled {name}",
+                        **extra,
+                    },
+                )
+        sub = g.create_group(
+            "_sweep", attributes={"description": "progress of the sweep (chunks done)"}
+        )
+        sub.create_array(
+            "done",
+            shape=(spec.n_chunks,),
+            chunks=(1,),
+            dtype=np.int8,
+            fill_value=0,
+            dimension_names=["chunk"],
+        )
         os.rename(tmp, final)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -180,12 +238,14 @@ def store_attrs(path: str | Path) -> Mapping[str, Any]:
         raise InputError(f"STORE: {p} is not a sweep store (no zarr.json)")
     attrs = dict(zarr.open_group(str(p), mode="r").attrs)
     if attrs.get("format") != STORE_FORMAT:
-        raise InputError(f"STORE: {p} is not a braidsim sweep store (format {attrs.get('format')!r})")
+        raise InputError(
+            f"STORE: {p} is not a braidsim sweep store (format {attrs.get('format')!r})"
+        )
     return attrs
 
 
 def remove_partial_files(path: str | Path) -> int:
-    """Delete the temporary files a killed writer left behind (``*.partial``); return their number."""
+    """Delete the temporary files a killed writer left (``*.partial``); return how many."""
     n = 0
     for p in Path(path).rglob("*.partial"):
         p.unlink(missing_ok=True)
@@ -204,10 +264,11 @@ class StoreWriter:
     """Writes finished chunks into a store (one writer: the process that runs the sweep)."""
 
     def __init__(self, path: str | Path, spec: SweepSpec) -> None:
-        zarr = _zarr()
         self.spec = spec
-        self.group: zarr.Group = zarr.open_group(str(path), mode="r+")
-        self.arrays = {name: self.group[name] for name in (*spec.metrics, "failure", *spec.options.series)}
+        self.group: zarr.Group = _zarr().open_group(str(path), mode="r+")
+        self.arrays = {
+            name: self.group[name] for name in (*spec.metrics, "failure", *spec.options.series)
+        }
         self.done = self.group["_sweep/done"]
 
     def write_chunk(
@@ -266,7 +327,9 @@ def export_netcdf(path: str | Path, out: str | Path) -> Path:
         if v.dtype.kind == "T" or v.dtype.kind == "U":
             ds[name] = v.astype(object)
         elif v.dtype == np.int64:
-            if v.size and (int(v.max()) > np.iinfo(np.int32).max or int(v.min()) < np.iinfo(np.int32).min):
+            if v.size and (
+                int(v.max()) > np.iinfo(np.int32).max or int(v.min()) < np.iinfo(np.int32).min
+            ):
                 raise InputError(f"--netcdf: {name} does not fit netCDF-3 int32")
             ds[name] = v.astype(np.int32)
         elif v.dtype == bool:

@@ -1,0 +1,158 @@
+"""Throughput of the batch API and of a sweep against solve_ivp run once per parameter set.
+
+Run: ``python benchmarks/bench_batch.py [--runs 64] [--processes 2] [--scipy-runs 4]``
+
+The workload is the issue's: one-second runs of the paper-3.3 carrier (x only, 60 Hz track
+vibration, the carrier chatters on the inner wall), ``--runs`` parameter sets with
+h_a spread over 0.11-0.13 mm so that every run is a different, real simulation of the same
+regime. Each run is reduced to the metrics of :mod:`braidsim.batch` (metrics window: the
+whole run).
+
+Printed:
+
+1. braidsim in this process (``simulate_batch(workers=1)``): runs/s, and where the time of a
+   run goes: building the model (``with_overrides`` + ``build_model``), the compiled kernel
+   alone (``run_kernel`` without samples), and the metrics (the RMS grid of the dense output
+   and the reductions), as medians over the runs;
+2. braidsim over ``--processes`` local processes: ``simulate_batch(workers=N)`` and a whole
+   ``run_sweep`` into a temporary zarr store (chunks, store writes, process start included);
+3. SciPy: :func:`braidsim.integrate.scipy_backend.simulate_scipy` (solve_ivp, DOP853, rtol
+   1e-8, events at contact onset and exit, peaks refined on the dense output) once per
+   parameter set, one after the other in this process, on the first ``--scipy-runs`` sets;
+4. the ratios braidsim runs/s over SciPy runs/s (the processes' wall clock against SciPy's,
+   and per core) and the runs per minute, against the issue's targets (>= 200x, >= 10,000
+   one-second runs per minute on 2 cores).
+
+Wall-clock times on a machine shared with other jobs are noisy; the CPU times of this
+process are printed beside them where they apply.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from braidsim.batch import RunOptions, run_kernel_samples, run_metrics, simulate_batch
+from braidsim.integrate.scipy_backend import simulate_scipy
+from braidsim.model import build_model
+from braidsim.params import load_scenario
+from braidsim.sweep import load_spec, run_sweep
+
+DURATION = 1.0
+TARGET_RATIO = 200.0
+TARGET_PER_MINUTE = 10_000.0
+
+
+def parameter_sets(n: int) -> list[dict[str, float]]:
+    return [{"track.vibration_amplitude": float(h)} for h in np.linspace(0.11e-3, 0.13e-3, n)]
+
+
+def timed(fn):  # type: ignore[no-untyped-def]
+    t0, c0 = time.perf_counter(), time.process_time()
+    out = fn()
+    return time.perf_counter() - t0, time.process_time() - c0, out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=64, help="parameter sets (default 64)")
+    ap.add_argument("--processes", type=int, default=2, help="local processes (default 2)")
+    ap.add_argument("--scipy-runs", type=int, default=4, help="parameter sets run by SciPy")
+    args = ap.parse_args()
+    sets = parameter_sets(args.runs)
+    sc = load_scenario("paper-3.3")
+    print(
+        f"paper-3.3, {DURATION:g} s per run (x only), {args.runs} parameter sets "
+        f"(h_a 0.11-0.13 mm); machine: {os.cpu_count()} cores"
+    )
+    simulate_batch(sc, sets[:1], 0.01)  # warm-up: load the compiled kernel
+
+    # 1. one process, and where the time of a run goes
+    wall1, cpu1, b1 = timed(lambda: simulate_batch(sc, sets, DURATION))
+    t_build, t_kernel, t_metrics = [], [], []
+    W = np.array([[0.0, DURATION]])
+    for ov in sets:
+        t0 = time.perf_counter()
+        model = build_model(sc.with_overrides(ov), DURATION)
+        t1 = time.perf_counter()
+        run_kernel_samples(model, np.zeros(0), W)
+        t2 = time.perf_counter()
+        run_metrics(model, RunOptions())
+        t3 = time.perf_counter()
+        t_build.append(t1 - t0)
+        t_kernel.append(t2 - t1)
+        t_metrics.append((t3 - t2) - (t2 - t1))
+    steps = statistics.median(b1.metrics["steps"].tolist())
+    rhs = statistics.median(b1.metrics["rhs_evaluations"].tolist())
+    rate1 = args.runs / wall1
+    print("\n1. braidsim, this process (simulate_batch, workers=1)")
+    print(f"   {rate1:8.1f} runs/s wall  ({args.runs / cpu1:.1f} runs/s of CPU time)")
+    print(
+        f"   per run (medians): model {statistics.median(t_build) * 1e3:.3f} ms, "
+        f"kernel {statistics.median(t_kernel) * 1e3:.2f} ms "
+        f"({steps:.0f} steps, {rhs:.0f} rhs evaluations, "
+        f"{statistics.median(t_kernel) / rhs * 1e9:.0f} ns per rhs evaluation all included), "
+        f"metrics {statistics.median(t_metrics) * 1e3:.3f} ms"
+    )
+    print(f"   regimes: {sorted(set(b1.regime_labels()))}, failed runs: {int(b1.failed.sum())}")
+
+    # 2. N processes
+    n = args.processes
+    wall2, _, b2 = timed(lambda: simulate_batch(sc, sets, DURATION, workers=n))
+    same = all(np.array_equal(b1.metrics[k], b2.metrics[k]) for k in b1.metrics)
+    rate2 = args.runs / wall2
+    print(f"\n2. braidsim, {n} processes")
+    print(
+        f"   simulate_batch(workers={n}): {rate2:8.1f} runs/s wall = {rate2 * 60:9.0f} runs/min "
+        f"({rate2 / rate1:.2f}x one process; same bits as one process: {same})"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        spec_path = Path(tmp) / "bench.toml"
+        spec_path.write_text(
+            'scenario = "paper-3.3"\nduration = "1 s"\n[[axes]]\nkey = "track.vibration_amplitude"\n'
+            f'name = "h_a"\nstart = "0.11 mm"\nstop = "0.13 mm"\nnum = {args.runs}\n'
+        )
+        spec = load_spec(spec_path)
+        wall3, _, summary = timed(
+            lambda: run_sweep(spec, Path(tmp) / "bench.zarr", processes=n, progress=False)
+        )
+    rate3 = args.runs / wall3
+    print(
+        f"   run_sweep(processes={n}) into zarr: {rate3:8.1f} runs/s wall = {rate3 * 60:9.0f} "
+        f"runs/min ({summary['chunks']} chunks of {spec.chunk_shape[-1]} runs)"
+    )
+
+    # 3. SciPy, one parameter set after the other in this process
+    k = max(1, min(args.scipy_runs, args.runs))
+    wall_s, cpu_s, res = timed(lambda: [simulate_scipy(sc, DURATION, overrides=ov) for ov in sets[:k]])
+    rate_s = k / wall_s
+    print(f"\n3. SciPy solve_ivp (simulate_scipy, DOP853, rtol 1e-8), {k} parameter sets")
+    print(
+        f"   {rate_s:8.2f} runs/s wall ({k / cpu_s:.2f} runs/s of CPU time), "
+        f"{statistics.median([r.stats['rhs_evaluations'] for r in res]):.0f} rhs evaluations per run"
+    )
+
+    # 4. ratios and targets
+    ratio = rate2 / rate_s
+    print("\n4. summary")
+    print(f"   braidsim {n} processes / SciPy one process: {ratio:7.1f}x  (target >= {TARGET_RATIO:g}x)")
+    print(f"   braidsim one process / SciPy one process:   {rate1 / rate_s:7.1f}x  (per core)")
+    print(
+        f"   one-second runs per minute on {n} processes: {rate2 * 60:9.0f} "
+        f"(target >= {TARGET_PER_MINUTE:,.0f}); a whole sweep: {rate3 * 60:9.0f}"
+    )
+    need = TARGET_PER_MINUTE / 60.0 / n
+    print(
+        f"   the per-minute target needs <= {1e3 / need:.1f} ms of CPU per run on each of {n} "
+        f"cores; the kernel takes {statistics.median(t_kernel) * 1e3:.1f} ms"
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,131 @@
+"""Many steady-state runs, in this process or over local worker processes.
+
+Bifurcation diagrams and basins need, per parameter set, the stroboscopic samples of the
+settled motion *at that run's own excitation phase* (the sampling times depend on omega_h and
+on the vibration phase, both of which can be swept) and the contact episodes (rule 3 of
+:mod:`braidsim.analysis.regimes` needs the longest contact). :func:`braidsim.batch.simulate_batch`
+takes one list of sample times for all runs and reduces the episodes to counts, so this module
+runs :func:`braidsim.analysis.regimes.steady_state` per set instead, reusing the batch
+engine's validated-scenario payloads and process start method. Runs are independent and
+deterministic: the same set gives the same bits in any process, order or chunk.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from braidsim.analysis.regimes import (
+    DEFAULT_CYCLES,
+    DEFAULT_MAX_PERIOD,
+    DEFAULT_PERIOD_TOL,
+    DEFAULT_TRANSIENT_CYCLES,
+    SteadyState,
+    check_window_options,
+    failed_steady_state,
+    reference_period,
+    steady_state,
+    strobe_times,
+)
+from braidsim.errors import InputError, SimulationError
+from braidsim.params import Scenario
+
+
+def _options(
+    transient_cycles: float, cycles: int, strobe_phase: float, period_tol: float, max_period: int
+) -> dict[str, Any]:
+    return {
+        "transient_cycles": transient_cycles,
+        "cycles": cycles,
+        "strobe_phase": strobe_phase,
+        "period_tol": period_tol,
+        "max_period": max_period,
+    }
+
+
+def _run_one(sc: Scenario, overrides: Mapping[str, Any], opts: Mapping[str, Any]) -> SteadyState:
+    try:
+        return steady_state(sc, overrides, **opts)
+    except SimulationError as exc:
+        T = reference_period(sc.with_overrides(overrides))
+        st = strobe_times(
+            sc.with_overrides(overrides),
+            opts["transient_cycles"] * T,
+            opts["cycles"],
+            opts["strobe_phase"],
+        )
+        return failed_steady_state(overrides, str(exc), (float(st[0]), float(st[-1])), T)
+
+
+def _run_chunk(
+    payload: tuple[Any, ...], sets: Sequence[Mapping[str, Any]], opts: Mapping[str, Any]
+) -> list[SteadyState]:
+    """Worker-process entry: rebuild the base scenario and run its share of the sets."""
+    from braidsim.batch import scenario_from_payload
+
+    base = scenario_from_payload(payload)
+    return [_run_one(base, ov, opts) for ov in sets]
+
+
+def run_steady_states(
+    base: Scenario,
+    parameter_sets: Sequence[Mapping[str, Any]],
+    *,
+    transient_cycles: float = DEFAULT_TRANSIENT_CYCLES,
+    cycles: int = DEFAULT_CYCLES,
+    strobe_phase: float = 0.0,
+    period_tol: float = DEFAULT_PERIOD_TOL,
+    max_period: int = DEFAULT_MAX_PERIOD,
+    workers: int = 1,
+) -> list[SteadyState]:
+    """The :class:`~braidsim.analysis.regimes.SteadyState` of every parameter set.
+
+    Every set is validated before any run starts. A run that fails numerically gives a
+    record with ``regime.label == "failed"`` and the reason, the others go on.
+
+    Parameters
+    ----------
+    base : Scenario
+        The base scenario.
+    parameter_sets : sequence of mappings
+        ``{dotted key: value}`` per run, on top of ``base``.
+    transient_cycles, cycles, strobe_phase, period_tol, max_period
+        As in :func:`braidsim.analysis.regimes.steady_state`.
+    workers : int
+        Local processes; 1 runs here, 0 or less uses all cores.
+
+    Raises
+    ------
+    InputError
+        A bad set (with its index) or option.
+    """
+    check_window_options(transient_cycles, cycles, period_tol, max_period)
+    if not math.isfinite(strobe_phase):
+        raise InputError(f"strobe_phase: {strobe_phase!r} rad is out of range; allowed finite")
+    sets = [dict(ov) for ov in parameter_sets]
+    for i, ov in enumerate(sets):
+        try:
+            base.with_overrides(ov)
+        except InputError as exc:
+            raise InputError(f"parameter set {i}: {exc}") from None
+    opts = _options(transient_cycles, cycles, strobe_phase, period_tol, max_period)
+    nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)
+    nw = max(1, min(nw, len(sets)))
+    if nw == 1:
+        return [_run_one(base, ov, opts) for ov in sets]
+    from concurrent.futures import ProcessPoolExecutor
+
+    from braidsim.batch import process_context, scenario_payload
+
+    n = len(sets)
+    k = min(n, 4 * nw)  # interleaved slices balance costs that vary along the sets
+    payload = scenario_payload(base)
+    out: list[SteadyState | None] = [None] * n
+    with ProcessPoolExecutor(max_workers=nw, mp_context=process_context()) as pool:
+        futs = [pool.submit(_run_chunk, payload, sets[j::k], opts) for j in range(k)]
+        for j, fut in enumerate(futs):
+            for i, st in zip(range(j, n, k), fut.result(), strict=True):
+                out[i] = st
+    return [s for s in out if s is not None]

@@ -1,0 +1,60 @@
+"""Verb ``machine``: simulate a whole braiding machine and write its report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from braidsim.cli.common import app, guarded, print_json
+
+
+@app.command()
+@guarded
+def machine(
+    spec: Annotated[Path, typer.Argument(help="Machine spec TOML (see braidsim.machine.spec).")],
+    out: Annotated[Path, typer.Option("--out", help="Report directory to write.")],
+    duration: Annotated[
+        float | None,
+        typer.Option(help="Simulated time [s] (default: the spec's duration or revolutions)."),
+    ] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Local worker processes (default: all cores).")
+    ] = None,
+    frames: Annotated[
+        int | None, typer.Option(help="Animation frames (default: the spec's; 0: no animation).")
+    ] = None,
+    json_: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
+) -> None:
+    """Simulate every carrier of a braiding machine through its transfers; write tables,
+    figures and an animation of the carriers coloured by contact force into --out."""
+    from braidsim.errors import InputError
+    from braidsim.io import check_output_directory
+    from braidsim.machine import load_machine_spec, run_machine, write_report
+    from braidsim.machine.report import REPORT_KIND
+
+    if frames is not None and frames < 0:
+        raise InputError(f"--frames: {frames} is out of range; allowed >= 0")
+    if workers is not None and workers < 0:
+        raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
+    s = load_machine_spec(spec)
+    check_output_directory(out, REPORT_KIND)  # fail before the run, not after it
+    run = run_machine(s, duration=duration, workers=workers, frames=frames)
+    data = write_report(run, out, animation=frames != 0)
+    if json_:
+        print_json(data)
+        return
+    from rich.console import Console
+
+    t = data["totals"]
+    con = Console()
+    con.print(
+        f"[bold]{data['name']}[/bold]: {t['carriers']} carriers, {t['transfers']} transfers in "
+        f"{run.duration:.4g} s simulated ({run.elapsed:.3g} s on {run.workers} process(es))"
+    )
+    con.print(
+        f"impacts/s {t['impacts_per_second']:.4g}, impact energy/s {t['impact_energy_per_second']:.4g} W, "
+        f"largest peak force {t['max_peak_force']:.4g} N (carrier {t['worst_carrier']['carrier']})"
+    )
+    con.print(f"report: {data['out']}/report.md")

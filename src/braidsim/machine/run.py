@@ -1,0 +1,438 @@
+"""The machine run: every carrier through its own arcs and transfers, reduced per transfer.
+
+Each loaded carrier is one run of the single-carrier model (:func:`braidsim.simulate`) with
+its own ``transfer.times``: the times at which the horn-gear rotation ``Omega(t)`` reaches the
+carrier's crossings (:meth:`MachineGeometry.transfer_events` and
+:meth:`SpeedLaw.time_at_angle`). At each of them the kernel applies the transfer map of the
+paper's section 3.2 (MODEL_NOTES section 5): the carrier's position is mirrored across the
+track, so that the wall it leaned on becomes the far wall (on the next gear the arc curves the
+other way and the centrifugal load points to the other side of the track), its radial speed
+relative to the track is reversed and the contact speed ``transfer.contact_speed`` is added.
+In the model's frame the load always pushes towards x < 0; the mirror is the flip of its sense.
+Inner and outer arcs differ in length, so the carriers spend alternately
+``(pi - 2 pi/N)/omega`` and ``(pi + 2 pi/N)/omega`` between transfers.
+
+Engine
+------
+The batch engine (:mod:`braidsim.batch`) reduces every run to whole-window metrics; the
+machine needs the impacts of each run grouped by transfer interval, so it runs its own small
+process pool (:func:`run_carriers`) over :func:`braidsim.simulate` with only the samples it
+needs (the transfer times for the energy integrals, the animation frames) and no event rows.
+Runs are independent and deterministic: the result does not depend on the number of workers.
+
+Reduction
+---------
+A carrier's run is cut at its transfer times ``t_1 < t_2 < ...`` into intervals
+``[t_k, t_{k+1})`` (interval 0 is the start, before the first transfer). For each interval:
+
+* impacts: track contact onsets in it (a contact present at the start of the run with an
+  overlap is not an impact); the 2 mm/s touch of the new far wall at the transfer itself is
+  one, as in the paper's Fig. 8 (F_kg up to 1.2 N);
+* peak force [N]: the largest peak of the normal contact force of those impacts;
+* approach speed [m/s]: the largest approach speed at their onsets;
+* impact energy [J]: sum of m v^2 / 2 over those onsets (kinetic energy brought into the
+  wall: a noise and wear proxy);
+* dissipated energy [J]: the kernel's integral of the track contact damping power
+  ``int (N - K p^n) pdot dt`` over the interval (exact up to the integrator's tolerance);
+  friction energy the same for ``int f v dt``.
+
+Machine totals: impacts per second and impact energy per second (over all carriers and the
+whole run), dissipated power, the worst carrier (largest peak force) and the worst transfer.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from braidsim.errors import SimulationError
+from braidsim.integrate import kernel as K
+from braidsim.machine.geometry import TransferEvent
+from braidsim.machine.kinematics import SpeedLaw
+from braidsim.machine.spec import MachineSpec
+from braidsim.model import build_model
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+SAMPLED = ("track_dissipated", "friction_work_x", "friction_work_y", "track_contact_force")
+"""Kernel columns sampled per carrier (at transfer times and animation frames)."""
+_EP = {name: i for i, name in enumerate(K.EPISODE_COLUMNS)}
+
+
+@dataclass(frozen=True)
+class CarrierPlan:
+    """One carrier's transfers.
+
+    Attributes
+    ----------
+    carrier : str
+        Name ``A<lane>`` / ``B<lane>``.
+    group : str
+        ``A`` (counter-clockwise round the machine) or ``B``.
+    lane : int
+        Lane on its path.
+    events : tuple of TransferEvent
+        Crossings passed, in order.
+    times : np.ndarray
+        Transfer times [s], increasing, all < the run's duration.
+    """
+
+    carrier: str
+    group: str
+    lane: int
+    events: tuple[TransferEvent, ...]
+    times: np.ndarray
+
+
+def plan_transfers(spec: MachineSpec, duration: float | None = None) -> tuple[SpeedLaw, list[CarrierPlan]]:
+    """The transfer times of every loaded carrier from the horn-gear rotation.
+
+    Transfers happen at whole horn-gear angles (the crossing angles of the geometry); their
+    times invert ``Omega(t) = int omega dt`` of the carrier model's speed law."""
+    T = spec.duration if duration is None else float(duration)
+    geom = spec.geometry
+    law = SpeedLaw.from_model(build_model(spec.scenario, T))
+    _, ang = law.rotation([T])
+    end = int(math.floor(float(ang[0]) / geom.quantum + 1e-9))
+    plans = []
+    for g, lane in spec.loading.carriers:
+        ev = [e for e in geom.transfer_events(g, lane, end)]
+        times = law.time_at_angle(np.array([e.angle for e in ev], dtype=float) * geom.quantum)
+        keep = times < T
+        plans.append(
+            CarrierPlan(f"{g}{lane}", g, lane, tuple(e for e, k in zip(ev, keep, strict=True) if k), times[keep])
+        )
+    return law, plans
+
+
+# ----------------------------------------------------------------------------------------
+# running carriers (in this process or a pool)
+# ----------------------------------------------------------------------------------------
+
+
+def _run_one(sc: Any, times: np.ndarray, duration: float, samples: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    from braidsim.simulate import simulate
+
+    scn = sc.with_overrides({"transfer.times": [float(t) for t in times]})
+    res = simulate(scn, duration, sample_times=samples, record_events=False)
+    t = res.series["t"]
+    if t.size != samples.size or not np.array_equal(t, samples):
+        # without event rows the kernel writes exactly the samples asked for, in order
+        raise AssertionError("kernel returned a series that does not match the sample times")
+    cols = np.stack([res.series[c] for c in SAMPLED])
+    return np.asarray(res.episodes), cols, int(res.stats["steps"]), int(res.stats["transfers"])
+
+
+def _run_chunk(
+    payload: tuple[Any, ...],
+    jobs: Sequence[tuple[str, np.ndarray, np.ndarray]],
+    duration: float,
+) -> list[tuple[np.ndarray, np.ndarray, int, int]]:
+    """Worker entry: rebuild the scenario, run each (name, transfer times, samples)."""
+    from braidsim.batch import scenario_from_payload
+
+    sc = scenario_from_payload(payload)
+    out = []
+    for name, times, samples in jobs:
+        try:
+            out.append(_run_one(sc, times, duration, samples))
+        except SimulationError as exc:
+            raise SimulationError(f"carrier {name}: {exc}", exc.time) from None
+    return out
+
+
+def run_carriers(
+    spec: MachineSpec,
+    jobs: Sequence[tuple[str, np.ndarray, np.ndarray]],
+    duration: float,
+    workers: int,
+) -> list[tuple[np.ndarray, np.ndarray, int, int]]:
+    """Run every carrier; ``workers`` local processes (1: here).
+
+    Returns, per job: (episodes, sampled columns (len(SAMPLED), n samples), steps, transfers).
+    """
+    from braidsim.batch import scenario_payload
+
+    payload = scenario_payload(spec.scenario)
+    n = len(jobs)
+    nw = max(1, min(workers, n))
+    if nw == 1:
+        return _run_chunk(payload, jobs, duration)
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    k = min(n, 2 * nw)
+    out: list[Any] = [None] * n
+    ctx = multiprocessing.get_context("forkserver")
+    with ProcessPoolExecutor(max_workers=nw, mp_context=ctx) as pool:
+        futs = [pool.submit(_run_chunk, payload, list(jobs[j::k]), duration) for j in range(k)]
+        for j, fut in enumerate(futs):
+            for i, r in zip(range(j, n, k), fut.result(), strict=True):
+                out[i] = r
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# the result
+# ----------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MachineRun:
+    """What :func:`run_machine` returns.
+
+    Attributes
+    ----------
+    spec : MachineSpec
+        The machine.
+    duration : float
+        Simulated time [s].
+    speed : SpeedLaw
+        Horn-gear speed and rotation.
+    plans : list of CarrierPlan
+        Transfers of each carrier.
+    transfers : pd.DataFrame
+        One row per transfer (module docstring), SI units.
+    carriers : pd.DataFrame
+        One row per carrier.
+    impacts : pd.DataFrame
+        Every track impact: carrier, interval (transfer index, 0 before the first), t, wall,
+        velocity, peak_force, dissipated_energy.
+    totals : dict
+        Machine totals (module docstring).
+    frame_times : np.ndarray
+        Animation frame times [s].
+    frame_positions : np.ndarray
+        (frames, carriers, 2) carrier positions [m].
+    frame_forces : np.ndarray
+        (frames, carriers) largest |contact force| since the previous frame [N].
+    elapsed : float
+        Wall time of the carrier runs [s].
+    workers : int
+        Processes used.
+    """
+
+    spec: MachineSpec
+    duration: float
+    speed: SpeedLaw
+    plans: list[CarrierPlan]
+    transfers: pd.DataFrame
+    carriers: pd.DataFrame
+    impacts: pd.DataFrame
+    totals: dict[str, Any]
+    frame_times: np.ndarray
+    frame_positions: np.ndarray
+    frame_forces: np.ndarray
+    elapsed: float
+    workers: int
+    steps: int = 0
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def frame_times(spec: MachineSpec, duration: float, frames: int | None = None) -> np.ndarray:
+    """Animation frame times: ``frames`` points over [0, T_anim], T_anim the animation's
+    duration (default: the run, at most one carrier revolution)."""
+    a = spec.animation
+    n = a.frames if frames is None else int(frames)
+    span = a.duration if a.duration is not None else min(duration, spec.revolution_time)
+    span = min(span, duration)
+    if not a.enabled or n <= 0:
+        return np.zeros(0)
+    return np.linspace(0.0, span, n)
+
+
+def run_machine(
+    spec: MachineSpec,
+    duration: float | None = None,
+    workers: int | None = None,
+    frames: int | None = None,
+) -> MachineRun:
+    """Simulate every carrier of the machine and reduce the runs per transfer.
+
+    Parameters
+    ----------
+    spec : MachineSpec
+        From :func:`~braidsim.machine.spec.load_machine_spec`.
+    duration : float, optional
+        Simulated time [s]; default ``spec.duration``.
+    workers : int, optional
+        Local processes; default all cores (at most one per carrier); 1 runs here.
+    frames : int, optional
+        Animation frames (default the spec's; 0: none).
+
+    Raises
+    ------
+    InputError
+        A bad duration.
+    SimulationError
+        A carrier's run failed (the message names the carrier).
+    """
+    import pandas as pd
+
+    if duration is not None:
+        spec = spec.with_duration(duration)
+    T = spec.duration
+    geom = spec.geometry
+    law, plans = plan_transfers(spec, T)
+    ft = frame_times(spec, T, frames)
+    jobs = []
+    for p in plans:
+        samples = np.unique(np.concatenate([[0.0, T], p.times, ft]))
+        jobs.append((p.carrier, p.times, samples))
+    nw = (os.cpu_count() or 1) if workers is None or workers <= 0 else int(workers)
+    nw = max(1, min(nw, len(jobs)))
+    t0 = time.perf_counter()
+    outs = run_carriers(spec, jobs, T, nw)
+    elapsed = time.perf_counter() - t0
+
+    mass = float(spec.scenario["carrier.mass"])
+    tr_rows: list[dict[str, Any]] = []
+    ca_rows: list[dict[str, Any]] = []
+    im_parts = []
+    frame_forces = np.zeros((ft.size, len(plans)))
+    steps = 0
+    om_tr = {p.carrier: law.rotation(p.times)[0] for p in plans}
+    for j, (p, (_, _, samples), (EP, cols, nsteps, ntr)) in enumerate(zip(plans, jobs, outs, strict=True)):
+        steps += nsteps
+        if ntr != p.times.size:
+            raise AssertionError(f"carrier {p.carrier}: {ntr} transfers applied, {p.times.size} planned")
+        edges = np.concatenate([[0.0], p.times, [T]])
+        ie = np.searchsorted(samples, edges)
+        diss = cols[0][ie]
+        fric = cols[1][ie] + cols[2][ie]
+        track = EP[:, _EP["pair"]] == 0.0
+        onset = track & (EP[:, _EP["initial"]] == 0.0)
+        t_on = EP[onset, _EP["t"]]
+        vel = EP[onset, _EP["velocity"]]
+        peak = EP[onset, _EP["peak_force"]]
+        k_of = np.searchsorted(edges[1:-1], t_on, side="right")  # interval index 0..n
+        im_parts.append(
+            pd.DataFrame(
+                {
+                    "carrier": p.carrier,
+                    "interval": k_of,
+                    "t": t_on,
+                    "wall": np.where(EP[onset, _EP["wall"]] < 0, "inner", "outer"),
+                    "velocity": vel,
+                    "peak_force": peak,
+                    "dissipated_energy": EP[onset, _EP["dissipated_energy"]],
+                }
+            )
+        )
+        n_int = p.times.size + 1
+        cnt = np.bincount(k_of, minlength=n_int)
+        pk = np.zeros(n_int)
+        vmax = np.zeros(n_int)
+        ekin = np.zeros(n_int)
+        np.maximum.at(pk, k_of, peak)
+        np.maximum.at(vmax, k_of, vel)
+        np.add.at(ekin, k_of, 0.5 * mass * vel * vel)
+        for k in range(1, n_int):
+            e = p.events[k - 1]
+            tr_rows.append(
+                {
+                    "carrier": p.carrier,
+                    "group": p.group,
+                    "lane": p.lane,
+                    "transfer": k,
+                    "t": float(edges[k]),
+                    "crossing": e.crossing,
+                    "from_gear": e.from_gear,
+                    "to_gear": e.to_gear,
+                    "arc": e.next_side,
+                    "interval": float(edges[k + 1] - edges[k]),
+                    "complete": bool(k < n_int - 1),
+                    "omega": float(om_tr[p.carrier][k - 1]),
+                    "impacts": int(cnt[k]),
+                    "peak_force": float(pk[k]),
+                    "approach_speed": float(vmax[k]),
+                    "impact_energy": float(ekin[k]),
+                    "dissipated_energy": float(diss[k + 1] - diss[k]),
+                    "friction_energy": float(fric[k + 1] - fric[k]),
+                }
+            )
+        worst_k = int(np.argmax(pk[1:]) + 1) if n_int > 1 else 0
+        ca_rows.append(
+            {
+                "carrier": p.carrier,
+                "group": p.group,
+                "lane": p.lane,
+                "transfers": int(p.times.size),
+                "impacts": int(cnt.sum()),
+                "impacts_per_second": float(cnt.sum() / T),
+                "max_peak_force": float(pk.max()) if pk.size else 0.0,
+                "mean_peak_force": float(pk[1:].mean()) if n_int > 1 else 0.0,
+                "max_approach_speed": float(vmax.max()) if vmax.size else 0.0,
+                "impact_energy": float(ekin.sum()),
+                "dissipated_energy": float(diss[-1] - diss[0]),
+                "friction_energy": float(fric[-1] - fric[0]),
+                "worst_transfer": worst_k,
+            }
+        )
+        if ft.size:
+            ifr = np.searchsorted(samples, ft)
+            f_now = np.abs(cols[3][ifr])
+            t_pk = EP[track, _EP["t_peak_force"]]
+            v_pk = EP[track, _EP["peak_force"]]
+            fb = np.searchsorted(ft, t_pk, side="left")  # frame f gets peaks in (t_{f-1}, t_f]
+            ok = fb < ft.size
+            np.maximum.at(f_now, fb[ok], v_pk[ok])
+            frame_forces[:, j] = f_now
+
+    transfers = pd.DataFrame(tr_rows)
+    carriers = pd.DataFrame(ca_rows)
+    impacts = pd.concat(im_parts, ignore_index=True) if im_parts else pd.DataFrame()
+    positions = geom.carrier_points(spec.loading.carriers, law.rotation(ft)[1]) if ft.size else np.zeros((0, len(plans), 2))
+    totals = _totals(spec, T, transfers, carriers)
+    return MachineRun(
+        spec, T, law, plans, transfers, carriers, impacts, totals, ft, positions, frame_forces, elapsed, nw, steps
+    )
+
+
+def _totals(spec: MachineSpec, T: float, transfers: pd.DataFrame, carriers: pd.DataFrame) -> dict[str, Any]:
+    n_imp = int(carriers["impacts"].sum())
+    out: dict[str, Any] = {
+        "carriers": len(carriers),
+        "duration": T,
+        "transfers": int(carriers["transfers"].sum()),
+        "transfers_per_second": float(carriers["transfers"].sum() / T),
+        "impacts": n_imp,
+        "impacts_per_second": n_imp / T,
+        "impact_energy_per_second": float(carriers["impact_energy"].sum() / T),
+        "dissipated_power": float(carriers["dissipated_energy"].sum() / T),
+        "friction_power": float(carriers["friction_energy"].sum() / T),
+        "max_peak_force": float(carriers["max_peak_force"].max()),
+    }
+    w = carriers.loc[carriers["max_peak_force"].idxmax()]
+    out["worst_carrier"] = {
+        "carrier": str(w["carrier"]),
+        "max_peak_force": float(w["max_peak_force"]),
+        "impacts_per_second": float(w["impacts_per_second"]),
+        "impact_energy": float(w["impact_energy"]),
+    }
+    if len(transfers):
+        r = transfers.loc[transfers["peak_force"].idxmax()]
+        out["worst_transfer"] = {
+            "carrier": str(r["carrier"]),
+            "transfer": int(r["transfer"]),
+            "t": float(r["t"]),
+            "crossing": int(r["crossing"]),
+            "arc": str(r["arc"]),
+            "peak_force": float(r["peak_force"]),
+            "approach_speed": float(r["approach_speed"]),
+            "impacts": int(r["impacts"]),
+        }
+        done = transfers[transfers["complete"]]
+        if len(done):
+            out["mean_peak_force_per_transfer"] = float(done["peak_force"].mean())
+            out["mean_impacts_per_transfer"] = float(done["impacts"].mean())
+    else:
+        out["worst_transfer"] = None
+    return out
