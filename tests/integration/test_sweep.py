@@ -194,21 +194,30 @@ def test_resume_refuses_another_spec(tmp_path, local_store):
 
 
 def test_dask_local_cluster_equals_local_run(tmp_path, local_store):
+    """--scheduler ADDRESS: the chunks run as tasks of an existing Dask cluster."""
     distributed = pytest.importorskip("distributed")
-    from braidsim.sweep import DaskExecutor
-
     spec = load_spec(write(tmp_path, SPEC))
-    with (
-        distributed.LocalCluster(
-            n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
-        ) as cluster,
-        distributed.Client(cluster) as client,
-    ):
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+    ) as cluster:
         summary = run_sweep(
-            spec, tmp_path / "dask.zarr", executor=DaskExecutor(client=client), progress=False
+            spec, tmp_path / "dask.zarr", scheduler=cluster.scheduler_address, progress=False
         )
-    assert summary["executor"].startswith("dask")
+    assert summary["executor"].startswith("dask scheduler")
     assert files(tmp_path / "dask.zarr") == files(local_store)
+
+
+@pytest.mark.slow
+def test_cli_workers_starts_a_local_dask_cluster(tmp_path, capsys, local_store):
+    """--workers 2: a local cluster of two worker processes; the same store."""
+    pytest.importorskip("distributed")
+    store = tmp_path / "w.zarr"
+    code = run_app(
+        ["sweep", str(write(tmp_path, SPEC)), "--out", str(store), "--workers", "2", "--json"]
+    )
+    assert code == 0
+    assert json.loads(capsys.readouterr().out)["executor"] == "local dask cluster (2 workers)"
+    assert files(store) == files(local_store)
 
 
 def _crash_once(marker: str, base, task):

@@ -188,11 +188,18 @@ def test_reproduced_items_stay_within_tolerance(report):
 
 def test_known_deviations_have_causes(report):
     for o in report.outcomes:
-        if o.item.id not in KNOWN_NOT_REPRODUCED:
-            continue
+        if o.item.id not in KNOWN_NOT_REPRODUCED or o.status == F.REPRODUCED:
+            continue  # (an item that comes within tolerance is reproduced, not a failure)
         want = F.NOT_REPRODUCIBLE if o.item.id in NOT_REPRODUCIBLE else F.DEVIATES
         assert o.status == want, o.item.id
         assert o.cause and o.cause != F.UNEXPLAINED, o.item.id
+
+
+def test_every_item_outside_tolerance_has_a_cause(report):
+    unexplained = [o.item.id for o in report.outcomes if o.cause == F.UNEXPLAINED]
+    assert not unexplained
+    for o in report.outcomes:
+        assert (o.status == F.REPRODUCED) == o.cmp.within, o.item.id
 
 
 def test_issue_minimum_is_met(report):

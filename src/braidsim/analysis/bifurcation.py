@@ -50,8 +50,10 @@ def check_scalar_key(key: str) -> None:
 
         close = difflib.get_close_matches(key, list(SCHEMA), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise InputError(f"parameter: unknown key {key!r}{hint}; allowed a scalar key, e.g. "
-                         + ", ".join(SWEEPABLE_EXAMPLES))
+        raise InputError(
+            f"parameter: unknown key {key!r}{hint}; allowed a scalar key, e.g. "
+            + ", ".join(SWEEPABLE_EXAMPLES)
+        )
     if SCHEMA[key].kind != "float":
         raise InputError(
             f"parameter: {key!r} is not a scalar number; allowed a scalar key, e.g. "
@@ -134,7 +136,9 @@ class BifurcationDiagram:
         }
 
 
-def transitions(values: Sequence[float] | np.ndarray, classes: Sequence[Hashable]) -> list[dict[str, Any]]:
+def transitions(
+    values: Sequence[float] | np.ndarray, classes: Sequence[Hashable]
+) -> list[dict[str, Any]]:
     """Brackets [values[i], values[i+1]] where ``classes`` changes.
 
     Returns a list of ``{"lower", "upper", "from", "to"}`` (classes as given).

@@ -22,7 +22,9 @@ LOGISTIC_FIRST_DOUBLING = 3.0
 LOGISTIC_SECOND_DOUBLING = 1.0 + math.sqrt(6.0)
 
 
-def logistic_orbit(r: float, transient: int = 20_000, keep: int = 256, x0: float = 0.2) -> np.ndarray:
+def logistic_orbit(
+    r: float, transient: int = 20_000, keep: int = 256, x0: float = 0.2
+) -> np.ndarray:
     """``keep`` iterates of the logistic map after ``transient`` discarded ones."""
     return _logistic(float(r), int(transient), int(keep), float(x0))
 
@@ -42,7 +44,7 @@ def _logistic(r: float, transient: int, keep: int, x0: float) -> np.ndarray:
 @njit(cache=True)
 def _lorenz_rk4(y: np.ndarray, T: float, dt: float, s: float, r: float, b: float) -> np.ndarray:
     """Classical RK4 over [0, T] with n = ceil(T/dt) equal steps."""
-    n = max(1, int(math.ceil(T / dt - 1e-9)))
+    n = max(1, int(T / dt - 1e-9) + 1)  # ceil(T / dt), tolerant of rounding
     h = T / n
     x0, y0, z0 = y[0], y[1], y[2]
     for _ in range(n):

@@ -156,7 +156,13 @@ def contact_loss_bound(scenario: Scenario | str | Any) -> dict[str, Any]:
         at which a_p = a_w when only one parameter changes: ``critical_amplitude``
         a_p / omega_h^2 [m], ``critical_vibration_frequency`` sqrt(a_p / h_a) [rad/s],
         ``critical_angular_velocity`` sqrt((h_a omega_h^2 - T1 cos phi / m) / r_c) [rad/s]
-        (None where it does not exist), ``formula``.
+        (None where it does not exist), ``formula``; and the refinement with the friction
+        force f_x = mu1 |m g - T2| of Eq. (14), which is saturated (|x'| >> x_hat) and pulls
+        the carrier off the wall once the wall moves away from it:
+        ``pressing_acceleration_with_friction`` a_p - mu1 |m g - T2| / m [m/s^2] and
+        ``critical_amplitude_with_friction`` [m]. The simulated carrier (compliant contact)
+        leaves the wall within 2 % of these amplitudes
+        (``tests/integration/test_analysis.py``).
     """
     sc = as_scenario(scenario)
     ap = pressing_acceleration(sc)
@@ -167,6 +173,15 @@ def contact_loss_bound(scenario: Scenario | str | Any) -> dict[str, Any]:
     load_per_mass = float(sc["yarn.tension_horizontal"]) * math.cos(float(sc["yarn.angle"])) / m
     rc = float(sc["carrier.turning_radius"])
     crit_amp = ap / (w_h * w_h) if w_h > 0.0 and ap > 0.0 else None
+    # friction of Eq. (14) (saturated) pulls the carrier off the wall as soon as the wall
+    # moves away from it: a refinement of MODEL_NOTES section 7
+    mu_n = 0.0
+    if sc["friction.law"] != "none":
+        mu_n = float(sc["friction.carrier_horn_gear"]) * abs(
+            m * float(sc["gravity"]) - float(sc["yarn.tension_vertical"])
+        )
+    ap_f = ap - mu_n / m
+    crit_amp_f = ap_f / (w_h * w_h) if w_h > 0.0 and ap_f > 0.0 else None
     crit_wh = math.sqrt(ap / h_a) if h_a > 0.0 and ap > 0.0 else None
     rhs = (h_a * w_h * w_h - load_per_mass) / rc
     crit_w = math.sqrt(rhs) if rhs > 0.0 else None
@@ -179,6 +194,8 @@ def contact_loss_bound(scenario: Scenario | str | Any) -> dict[str, Any]:
         "critical_vibration_frequency": crit_wh,
         "critical_angular_velocity": crit_w,
         "formula": "stays on the inner wall while (T1 cos phi + m r_c omega^2)/m >= h_a omega_h^2",
+        "pressing_acceleration_with_friction": ap_f,
+        "critical_amplitude_with_friction": crit_amp_f,
     }
 
 

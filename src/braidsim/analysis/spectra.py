@@ -45,7 +45,9 @@ def amplitude_spectrum(y: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     return f, A
 
 
-def dominant_peaks(f: np.ndarray, A: np.ndarray, n: int = 8, rel: float = 1e-3) -> list[dict[str, float]]:
+def dominant_peaks(
+    f: np.ndarray, A: np.ndarray, n: int = 8, rel: float = 1e-3
+) -> list[dict[str, float]]:
     """The ``n`` largest local maxima of A above ``rel`` times the largest.
 
     Returns ``[{"frequency": Hz, "amplitude": A at the peak bin}]``, largest first.
@@ -67,7 +69,9 @@ def dominant_peaks(f: np.ndarray, A: np.ndarray, n: int = 8, rel: float = 1e-3) 
     return out
 
 
-def harmonic_amplitudes(f: np.ndarray, A: np.ndarray, f0: float, count: int = 10) -> list[dict[str, float]]:
+def harmonic_amplitudes(
+    f: np.ndarray, A: np.ndarray, f0: float, count: int = 10
+) -> list[dict[str, float]]:
     """Amplitude at k f0, k = 1..count (the largest bin within half a bin of k f0)."""
     if f0 <= 0 or f.size < 2:
         return []

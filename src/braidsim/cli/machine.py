@@ -54,7 +54,8 @@ def machine(
         f"{run.duration:.4g} s simulated ({run.elapsed:.3g} s on {run.workers} process(es))"
     )
     con.print(
-        f"impacts/s {t['impacts_per_second']:.4g}, impact energy/s {t['impact_energy_per_second']:.4g} W, "
+        f"impacts/s {t['impacts_per_second']:.4g}, "
+        f"impact energy/s {t['impact_energy_per_second']:.4g} W, "
         f"largest peak force {t['max_peak_force']:.4g} N (carrier {t['worst_carrier']['carrier']})"
     )
     con.print(f"report: {data['out']}/report.md")

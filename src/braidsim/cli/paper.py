@@ -22,8 +22,9 @@ def paper(
 ) -> None:
     """Reproduce sections 3.1-3.5: Figures 3-22, Table 1 and a report of every number.
 
-    Writes report.md, report.html (self-contained), items.json/csv, table1.csv/md, excerpt.md
-    and figures/ into OUT, built in a temporary directory and renamed into place at the end.
+    Files: report.md, report.html, items.json, items.csv, table1.csv, table1.md, figures/.
+
+    OUT is built aside and renamed into place at the end: complete or absent.
     """
     from rich.console import Console
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn

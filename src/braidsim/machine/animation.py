@@ -62,7 +62,7 @@ def draw_machine(
         ax.plot(pts[:, 0], pts[:, 1], color=GROUP_COLOURS[g], lw=0.8, alpha=0.45)
     cr = geom.crossings * mm
     ax.plot(cr[:, 0], cr[:, 1], "k.", ms=3)
-    slots = LineCollection(_slot_segments(geom, omega_angle) * mm, colors="0.35", lw=1.2)
+    slots = LineCollection(list(_slot_segments(geom, omega_angle) * mm), colors="0.35", lw=1.2)
     ax.add_collection(slots)
     pos = geom.carrier_points(carriers, np.array([omega_angle]))[0] * mm
     edge = [GROUP_COLOURS[g] for g, _ in carriers]
@@ -70,7 +70,9 @@ def draw_machine(
     texts = []
     if labels:
         for (g, k), p in zip(carriers, pos, strict=True):
-            texts.append(ax.annotate(f"{g}{k}", p, xytext=(4, 4), textcoords="offset points", fontsize=6))
+            texts.append(
+                ax.annotate(f"{g}{k}", p, xytext=(4, 4), textcoords="offset points", fontsize=6)
+            )
     lim = (geom.ring_radius + 1.25 * geom.pitch_radius) * mm
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)

@@ -312,13 +312,24 @@ class MachineGeometry:
 
     @cached_property
     def transfer_cycle(self) -> int:
-        """Horn-gear rotation between successive slot meetings anywhere in the machine
-        [quanta]: the spacing of the distinct meshing phases when they are equally spaced
-        (pi/4 for N = 8, S = 4), else the slot pitch. Every transfer of every carrier happens
-        at a whole number of cycles from Omega = 0."""
+        """Horn-gear rotation after which the pattern of slot meetings repeats [quanta].
+
+        The meshing phases of the crossings (:meth:`meshing_phase`) take one or two values
+        modulo the slot pitch; when they are equally spaced (N = 8, S = 4: 0 and pi/4) the
+        cycle is their spacing and every transfer of every carrier happens at a whole number
+        of cycles from Omega = 0; otherwise (N = 6, S = 4) it is the slot pitch and the
+        transfers fall at the phases of :attr:`transfer_phases` within it."""
         phases = sorted({self.meshing_phase(c) for c in range(self.N)})
-        gaps = {b - a for a, b in zip(phases, phases[1:] + [phases[0] + self.slot_pitch], strict=True)}
+        gaps = {
+            b - a for a, b in zip(phases, [*phases[1:], phases[0] + self.slot_pitch], strict=True)
+        }
         return gaps.pop() if len(gaps) == 1 else self.slot_pitch
+
+    @property
+    def transfer_phases(self) -> tuple[int, ...]:
+        """Distinct phases of the slot meetings within a transfer cycle [quanta], from 0."""
+        cyc = self.transfer_cycle
+        return tuple(sorted({self.meshing_phase(c) % cyc for c in range(self.N)}))
 
     # ------------------------------------------------------------------ paths
     @cached_property
@@ -342,7 +353,16 @@ class MachineGeometry:
                     c_in, c_out = g, (g - 1) % N
                 angle = self.outer_arc if outer else self.inner_arc
                 arcs.append(
-                    Arc(g, s, start % self.full_turn, angle, "outer" if outer else "inner", pos, c_in, c_out)
+                    Arc(
+                        g,
+                        s,
+                        start % self.full_turn,
+                        angle,
+                        "outer" if outer else "inner",
+                        pos,
+                        c_in,
+                        c_out,
+                    )
                 )
                 pos += angle
             out[group] = tuple(arcs)
@@ -398,7 +418,9 @@ class MachineGeometry:
         r = self.pitch_radius
         return np.stack([c[..., 0] + r * np.cos(ang), c[..., 1] + r * np.sin(ang)], axis=-1)
 
-    def carrier_points(self, carriers: list[tuple[str, int]], omega_angle: np.ndarray) -> np.ndarray:
+    def carrier_points(
+        self, carriers: list[tuple[str, int]], omega_angle: np.ndarray
+    ) -> np.ndarray:
         """Positions of carriers ``[(group, lane), ...]`` at horn-gear rotations ``omega_angle``
         [rad]: array (len(omega_angle), len(carriers), 2) [m]."""
         om = np.asarray(omega_angle, dtype=float).reshape(-1) / self.quantum
@@ -461,7 +483,9 @@ class MachineGeometry:
 # ----------------------------------------------------------------------------------------
 
 
-def find_collisions(geom: MachineGeometry, loading: Loading, first_only: bool = False) -> list[tuple[str, str, int, int]]:
+def find_collisions(
+    geom: MachineGeometry, loading: Loading, first_only: bool = False
+) -> list[tuple[str, str, int, int]]:
     """Pairs of carriers that would occupy the same slot pocket.
 
     Returns

@@ -161,7 +161,11 @@ class SpeedLaw:
         sorted_t = np.empty(a.size)
         _invert(
             np.ascontiguousarray(a[order]),
-            self.model.P, self.model.excitation, self.minimum, self.mean, sorted_t
+            self.model.P,
+            self.model.excitation,
+            self.minimum,
+            self.mean,
+            sorted_t,
         )
         out[order] = sorted_t
         return out

@@ -49,7 +49,7 @@ def geometry_summary(spec: MachineSpec) -> dict[str, Any]:
     g = spec.geometry
     q = g.quantum
     cyc = g.transfer_cycle
-    phases = sorted({(g.meshing_phase(c) % cyc) / cyc for c in range(g.N)})
+    phases = [p / cyc for p in g.transfer_phases]
     return {
         "horn_gears": g.N,
         "slots": g.S,
@@ -138,7 +138,8 @@ def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
             "integration_steps": run.steps,
             "elapsed_s": run.elapsed,
             "workers": run.workers,
-            "engine": "braidsim.simulate per carrier over a local process pool",
+            "engine": "braidsim.simulate per carrier, "
+            + ("in one process" if run.workers == 1 else f"over {run.workers} local processes"),
             "track_vibration_amplitude": sc["track.vibration_amplitude"],
             "transfer_contact_speed": sc["transfer.contact_speed"],
         },
@@ -165,13 +166,14 @@ def peak_force_figure(run: MachineRun) -> Figure:
             sel = (tr["group"] == g) & (tr["arc"] == side) if len(tr) else []
             if not len(tr) or not np.any(sel):
                 continue
-            lab = f"group {g}, onto an {side} arc"
+            lab: str | None = f"group {g}, onto an {side} arc"
             for done in (True, False):
                 d = tr[sel & (tr["complete"] == done)]
                 if not len(d):
                     continue
                 # open markers: the run ended before the next transfer (interval cut short)
-                kw = {"mfc": colour if done else "none", "label": lab if done else None}
+                kw = {"mfc": colour if done else "none", "label": lab}
+                lab = None
                 ax1.plot(d["t"], d["peak_force"], marker, color=colour, ms=4, ls="none", **kw)
                 ax2.plot(d["t"], d["impacts"], marker, color=colour, ms=4, ls="none", **kw)
     ax1.set_ylabel("peak contact force / N")
@@ -276,8 +278,16 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
                 {"q": "outer arc pi + 2 pi/N", "v": math.degrees(g["outer_arc_angle"]), "u": "deg"},
                 {"q": "path length of a carrier", "v": g["path_length"] * 1e3, "u": "mm"},
                 {"q": "loading", "v": data["loading"]["title"], "u": ""},
-                {"q": "carriers per group (A, B)", "v": str(data["loading"]["carriers_per_group"]), "u": ""},
-                {"q": "braid pattern (interlacing)", "v": data["loading"]["braid_pattern"], "u": ""},
+                {
+                    "q": "carriers per group (A, B)",
+                    "v": str(data["loading"]["carriers_per_group"]),
+                    "u": "",
+                },
+                {
+                    "q": "braid pattern (interlacing)",
+                    "v": data["loading"]["braid_pattern"],
+                    "u": "",
+                },
                 {"q": "transfer cycle", "v": math.degrees(g["transfer_cycle_angle"]), "u": "deg"},
             ],
             [("q", "quantity"), ("v", "value"), ("u", "unit")],
@@ -288,11 +298,23 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
     ]
     krows = [
         {"q": "mean horn-gear speed", "v": k["mean_speed_rpm"], "u": "rpm"},
-        {"q": "carrier speed round the machine omega_c = 2 omega / N", "v": k["carrier_angular_speed"], "u": "rad/s"},
+        {
+            "q": "carrier speed round the machine omega_c = 2 omega / N",
+            "v": k["carrier_angular_speed"],
+            "u": "rad/s",
+        },
         {"q": "carrier revolution time N pi / omega", "v": k["revolution_time"], "u": "s"},
         {"q": "carrier speed along the path r omega", "v": k["carrier_path_speed"], "u": "m/s"},
-        {"q": "time on an inner / outer arc", "v": f"{k['inner_arc_time']:.4g} / {k['outer_arc_time']:.4g}", "u": "s"},
-        {"q": "transfers per carrier per second", "v": k["transfers_per_carrier_per_second"], "u": "1/s"},
+        {
+            "q": "time on an inner / outer arc",
+            "v": f"{k['inner_arc_time']:.4g} / {k['outer_arc_time']:.4g}",
+            "u": "s",
+        },
+        {
+            "q": "transfers per carrier per second",
+            "v": k["transfers_per_carrier_per_second"],
+            "u": "1/s",
+        },
     ]
     if "braid" in k:
         b = k["braid"]
@@ -304,9 +326,16 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
         ]
     if "speed_profile" in k:
         p = k["speed_profile"]
-        krows.append({"q": "speed profile (phase: factor x scale)", "v": ", ".join(
-            f"{a:g}: {f * p['scale']:.3g}" for a, f in zip(p["phase"], p["factor"], strict=True)
-        ), "u": "of the mean"})
+        krows.append(
+            {
+                "q": "speed profile (phase: factor x scale)",
+                "v": ", ".join(
+                    f"{a:g}: {f * p['scale']:.3g}"
+                    for a, f in zip(p["phase"], p["factor"], strict=True)
+                ),
+                "u": "of the mean",
+            }
+        )
     lines += [markdown_table(krows, [("q", "quantity"), ("v", "value"), ("u", "unit")]), ""]
     lines += ["## Machine totals", ""]
     trow = [
@@ -314,17 +343,28 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
         {"q": "transfers simulated", "v": t["transfers"], "u": ""},
         {"q": "impacts", "v": t["impacts"], "u": ""},
         {"q": "impacts per second", "v": t["impacts_per_second"], "u": "1/s"},
-        {"q": "impact energy per second (sum of m v^2/2 at onsets)", "v": t["impact_energy_per_second"], "u": "W"},
+        {
+            "q": "impact energy per second (sum of m v^2/2 at onsets)",
+            "v": t["impact_energy_per_second"],
+            "u": "W",
+        },
         {"q": "power dissipated by the track contacts", "v": t["dissipated_power"], "u": "W"},
         {"q": "largest peak force", "v": t["max_peak_force"], "u": "N"},
         {"q": "worst carrier", "v": t["worst_carrier"]["carrier"], "u": ""},
     ]
     wt = t.get("worst_transfer")
     if wt:
-        trow.append({"q": "worst transfer", "v": (
-            f"{wt['carrier']} #{wt['transfer']} at t = {wt['t']:.4g} s, crossing {wt['crossing']} "
-            f"(onto an {wt['arc']} arc): {wt['peak_force']:.4g} N, {wt['approach_speed']:.4g} m/s"
-        ), "u": ""})
+        trow.append(
+            {
+                "q": "worst transfer",
+                "v": (
+                    f"{wt['carrier']} #{wt['transfer']} at t = {wt['t']:.4g} s, "
+                    f"crossing {wt['crossing']} (onto an {wt['arc']} arc): "
+                    f"{wt['peak_force']:.4g} N, {wt['approach_speed']:.4g} m/s"
+                ),
+                "u": "",
+            }
+        )
     lines += [markdown_table(trow, [("q", "quantity"), ("v", "value"), ("u", "unit")]), ""]
     lines += [
         "## Per carrier",
@@ -415,7 +455,9 @@ def write_report(run: MachineRun, out: str | Path, animation: bool = True) -> di
         files += ["report.md", "summary.json"]
         data = summary(run, files)
         atomic_write_text(tmp / "report.md", markdown(run, data, figs))
-        atomic_write_text(tmp / "summary.json", json.dumps(_clean(data), indent=1, allow_nan=False) + "\n")
+        atomic_write_text(
+            tmp / "summary.json", json.dumps(_clean(data), indent=1, allow_nan=False) + "\n"
+        )
     data["out"] = str(out)
     return data
 

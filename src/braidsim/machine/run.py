@@ -29,7 +29,11 @@ A carrier's run is cut at its transfer times ``t_1 < t_2 < ...`` into intervals
   overlap is not an impact); the 2 mm/s touch of the new far wall at the transfer itself is
   one, as in the paper's Fig. 8 (F_kg up to 1.2 N);
 * peak force [N]: the largest peak of the normal contact force of those impacts;
-* approach speed [m/s]: the largest approach speed at their onsets;
+* approach speed [m/s]: the largest approach speed at their onsets; gap crossing speed: the
+  approach speed of the first impact on the inner wall (the carrier arriving from the far
+  wall; NaN when there is none). They differ when the load grows while the carrier bounces:
+  the centrifugal load m r_c omega(t)^2 then does more work on the way back than it took on
+  the way out, and a later impact can be harder than the first;
 * impact energy [J]: sum of m v^2 / 2 over those onsets (kinetic energy brought into the
   wall: a noise and wear proxy);
 * dissipated energy [J]: the kernel's integral of the track contact damping power
@@ -46,7 +50,7 @@ import math
 import os
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -91,7 +95,9 @@ class CarrierPlan:
     times: np.ndarray
 
 
-def plan_transfers(spec: MachineSpec, duration: float | None = None) -> tuple[SpeedLaw, list[CarrierPlan]]:
+def plan_transfers(
+    spec: MachineSpec, duration: float | None = None
+) -> tuple[SpeedLaw, list[CarrierPlan]]:
     """The transfer times of every loaded carrier from the horn-gear rotation.
 
     Transfers happen at whole horn-gear angles (the crossing angles of the geometry); their
@@ -100,14 +106,20 @@ def plan_transfers(spec: MachineSpec, duration: float | None = None) -> tuple[Sp
     geom = spec.geometry
     law = SpeedLaw.from_model(build_model(spec.scenario, T))
     _, ang = law.rotation([T])
-    end = int(math.floor(float(ang[0]) / geom.quantum + 1e-9))
+    end = math.floor(float(ang[0]) / geom.quantum + 1e-9)
     plans = []
     for g, lane in spec.loading.carriers:
         ev = [e for e in geom.transfer_events(g, lane, end)]
         times = law.time_at_angle(np.array([e.angle for e in ev], dtype=float) * geom.quantum)
         keep = times < T
         plans.append(
-            CarrierPlan(f"{g}{lane}", g, lane, tuple(e for e, k in zip(ev, keep, strict=True) if k), times[keep])
+            CarrierPlan(
+                f"{g}{lane}",
+                g,
+                lane,
+                tuple(e for e, k in zip(ev, keep, strict=True) if k),
+                times[keep],
+            )
         )
     return law, plans
 
@@ -117,7 +129,9 @@ def plan_transfers(spec: MachineSpec, duration: float | None = None) -> tuple[Sp
 # ----------------------------------------------------------------------------------------
 
 
-def _run_one(sc: Any, times: np.ndarray, duration: float, samples: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+def _run_one(
+    sc: Any, times: np.ndarray, duration: float, samples: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, int, int]:
     from braidsim.simulate import simulate
 
     scn = sc.with_overrides({"transfer.times": [float(t) for t in times]})
@@ -148,27 +162,23 @@ def _run_chunk(
     return out
 
 
-def run_carriers(
-    spec: MachineSpec,
+AUTO_POOL_SECONDS = 5.0
+"""With ``workers=None`` the remaining carriers go to a process pool only when running them
+here is expected to take longer than this [s]: starting a worker (interpreter, imports, loading
+the compiled kernel) costs about a second, which a short run does not win back."""
+
+
+def _pool(
+    payload: tuple[Any, ...],
     jobs: Sequence[tuple[str, np.ndarray, np.ndarray]],
     duration: float,
-    workers: int,
+    nw: int,
 ) -> list[tuple[np.ndarray, np.ndarray, int, int]]:
-    """Run every carrier; ``workers`` local processes (1: here).
-
-    Returns, per job: (episodes, sampled columns (len(SAMPLED), n samples), steps, transfers).
-    """
-    from braidsim.batch import scenario_payload
-
-    payload = scenario_payload(spec.scenario)
-    n = len(jobs)
-    nw = max(1, min(workers, n))
-    if nw == 1:
-        return _run_chunk(payload, jobs, duration)
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    k = min(n, 2 * nw)
+    n = len(jobs)
+    k = min(n, 2 * nw)  # interleaved slices balance carriers of different cost
     out: list[Any] = [None] * n
     ctx = multiprocessing.get_context("forkserver")
     with ProcessPoolExecutor(max_workers=nw, mp_context=ctx) as pool:
@@ -177,6 +187,47 @@ def run_carriers(
             for i, r in zip(range(j, n, k), fut.result(), strict=True):
                 out[i] = r
     return out
+
+
+def run_carriers(
+    spec: MachineSpec,
+    jobs: Sequence[tuple[str, np.ndarray, np.ndarray]],
+    duration: float,
+    workers: int | None,
+) -> tuple[list[tuple[np.ndarray, np.ndarray, int, int]], int]:
+    """Run every carrier.
+
+    Parameters
+    ----------
+    workers : int or None
+        Local processes: 1 runs here, 0 uses every core, None decides: the first carrier
+        runs here and the others go to a pool of all cores when running them here would take
+        longer than :data:`AUTO_POOL_SECONDS`.
+
+    Returns
+    -------
+    results : list
+        Per job: (episodes, sampled columns (len(SAMPLED), n samples), steps, transfers).
+    workers : int
+        Processes that ran carriers (1: this one only).
+    """
+    from braidsim.batch import scenario_payload
+
+    payload = scenario_payload(spec.scenario)
+    n = len(jobs)
+    cores = os.cpu_count() or 1
+    if workers is None:
+        t0 = time.perf_counter()
+        first = _run_chunk(payload, jobs[:1], duration)
+        rest_estimate = (time.perf_counter() - t0) * (n - 1)
+        if n > 1 and cores > 1 and rest_estimate > AUTO_POOL_SECONDS:
+            nw = min(cores, n - 1)
+            return first + _pool(payload, jobs[1:], duration, nw), nw
+        return first + _run_chunk(payload, jobs[1:], duration), 1
+    nw = max(1, min(cores if workers <= 0 else int(workers), n))
+    if nw == 1:
+        return _run_chunk(payload, jobs, duration), 1
+    return _pool(payload, jobs, duration, nw), nw
 
 
 # ----------------------------------------------------------------------------------------
@@ -216,7 +267,9 @@ class MachineRun:
     elapsed : float
         Wall time of the carrier runs [s].
     workers : int
-        Processes used.
+        Processes that ran carriers.
+    steps : int
+        Accepted integration steps of all carriers (cost).
     """
 
     spec: MachineSpec
@@ -233,7 +286,6 @@ class MachineRun:
     elapsed: float
     workers: int
     steps: int = 0
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def frame_times(spec: MachineSpec, duration: float, frames: int | None = None) -> np.ndarray:
@@ -263,7 +315,8 @@ def run_machine(
     duration : float, optional
         Simulated time [s]; default ``spec.duration``.
     workers : int, optional
-        Local processes; default all cores (at most one per carrier); 1 runs here.
+        Local processes: 1 runs here, 0 every core; default: decided from the cost of the
+        first carrier (:func:`run_carriers`).
     frames : int, optional
         Animation frames (default the spec's; 0: none).
 
@@ -286,10 +339,8 @@ def run_machine(
     for p in plans:
         samples = np.unique(np.concatenate([[0.0, T], p.times, ft]))
         jobs.append((p.carrier, p.times, samples))
-    nw = (os.cpu_count() or 1) if workers is None or workers <= 0 else int(workers)
-    nw = max(1, min(nw, len(jobs)))
     t0 = time.perf_counter()
-    outs = run_carriers(spec, jobs, T, nw)
+    outs, nw = run_carriers(spec, jobs, T, workers)
     elapsed = time.perf_counter() - t0
 
     mass = float(spec.scenario["carrier.mass"])
@@ -299,10 +350,14 @@ def run_machine(
     frame_forces = np.zeros((ft.size, len(plans)))
     steps = 0
     om_tr = {p.carrier: law.rotation(p.times)[0] for p in plans}
-    for j, (p, (_, _, samples), (EP, cols, nsteps, ntr)) in enumerate(zip(plans, jobs, outs, strict=True)):
+    for j, (p, (_, _, samples), (EP, cols, nsteps, ntr)) in enumerate(
+        zip(plans, jobs, outs, strict=True)
+    ):
         steps += nsteps
         if ntr != p.times.size:
-            raise AssertionError(f"carrier {p.carrier}: {ntr} transfers applied, {p.times.size} planned")
+            raise AssertionError(
+                f"carrier {p.carrier}: {ntr} transfers applied, {p.times.size} planned"
+            )
         edges = np.concatenate([[0.0], p.times, [T]])
         ie = np.searchsorted(samples, edges)
         diss = cols[0][ie]
@@ -334,6 +389,11 @@ def run_machine(
         np.maximum.at(pk, k_of, peak)
         np.maximum.at(vmax, k_of, vel)
         np.add.at(ekin, k_of, 0.5 * mass * vel * vel)
+        # the gap crossing: the first impact on the inner wall of each interval
+        inner = EP[onset, _EP["wall"]] < 0
+        v_gap = np.full(n_int, np.nan)
+        ki, first = np.unique(k_of[inner], return_index=True)
+        v_gap[ki] = vel[inner][first]
         for k in range(1, n_int):
             e = p.events[k - 1]
             tr_rows.append(
@@ -353,6 +413,7 @@ def run_machine(
                     "impacts": int(cnt[k]),
                     "peak_force": float(pk[k]),
                     "approach_speed": float(vmax[k]),
+                    "gap_crossing_speed": float(v_gap[k]),
                     "impact_energy": float(ekin[k]),
                     "dissipated_energy": float(diss[k + 1] - diss[k]),
                     "friction_energy": float(fric[k + 1] - fric[k]),
@@ -389,14 +450,33 @@ def run_machine(
     transfers = pd.DataFrame(tr_rows)
     carriers = pd.DataFrame(ca_rows)
     impacts = pd.concat(im_parts, ignore_index=True) if im_parts else pd.DataFrame()
-    positions = geom.carrier_points(spec.loading.carriers, law.rotation(ft)[1]) if ft.size else np.zeros((0, len(plans), 2))
+    positions = (
+        geom.carrier_points(spec.loading.carriers, law.rotation(ft)[1])
+        if ft.size
+        else np.zeros((0, len(plans), 2))
+    )
     totals = _totals(spec, T, transfers, carriers)
     return MachineRun(
-        spec, T, law, plans, transfers, carriers, impacts, totals, ft, positions, frame_forces, elapsed, nw, steps
+        spec,
+        T,
+        law,
+        plans,
+        transfers,
+        carriers,
+        impacts,
+        totals,
+        ft,
+        positions,
+        frame_forces,
+        elapsed,
+        nw,
+        steps,
     )
 
 
-def _totals(spec: MachineSpec, T: float, transfers: pd.DataFrame, carriers: pd.DataFrame) -> dict[str, Any]:
+def _totals(
+    spec: MachineSpec, T: float, transfers: pd.DataFrame, carriers: pd.DataFrame
+) -> dict[str, Any]:
     n_imp = int(carriers["impacts"].sum())
     out: dict[str, Any] = {
         "carriers": len(carriers),

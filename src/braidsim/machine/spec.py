@@ -117,7 +117,9 @@ def _table(where: str, value: Any) -> Mapping[str, Any]:
 
 def _int(where: str, value: Any, low: int, high: int) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise InputError(f"{where}: {value!r} is not allowed; allowed an integer from {low} to {high}")
+        raise InputError(
+            f"{where}: {value!r} is not allowed; allowed an integer from {low} to {high}"
+        )
     return int(value)
 
 
@@ -302,14 +304,15 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
         raise InputError("machine.horn_gears: missing; allowed an even number from 4 to 1000")
     n_gears = _int("machine.horn_gears", m["horn_gears"], 4, 1000)
     slots = _int("machine.slots", m.get("slots", 4), 2, 64)
-    pitch = _positive("machine.pitch_radius", m["pitch_radius"], "m") if "pitch_radius" in m else None
+    pitch = (
+        _positive("machine.pitch_radius", m["pitch_radius"], "m") if "pitch_radius" in m else None
+    )
     ring = _positive("machine.ring_radius", m["ring_radius"], "m") if "ring_radius" in m else None
     if pitch is None and ring is None:
         pitch = float(base["carrier.turning_radius"])
     geom = MachineGeometry(n_gears, slots, pitch_radius=pitch, ring_radius=ring)
-    if (
-        "carrier.turning_radius" in base.explicit
-        and not _same(base["carrier.turning_radius"], geom.pitch_radius)
+    if "carrier.turning_radius" in base.explicit and not _same(
+        base["carrier.turning_radius"], geom.pitch_radius
     ):
         raise InputError(
             f"carrier.turning_radius: {base['carrier.turning_radius']:g} m differs from the "
@@ -389,8 +392,10 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
         raise InputError("duration: given together with revolutions; allowed one of them")
     if "revolutions" in data:
         rev = data["revolutions"]
-        if isinstance(rev, bool) or not isinstance(rev, int | float) or not (
-            math.isfinite(rev) and rev > 0
+        if (
+            isinstance(rev, bool)
+            or not isinstance(rev, int | float)
+            or not (math.isfinite(rev) and rev > 0)
         ):
             raise InputError(f"revolutions: {rev!r} is out of range; allowed a number > 0")
         duration = float(rev) * t_rev
@@ -410,7 +415,11 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
             raise InputError(
                 "braid.take_up_speed: give exactly one of braid.take_up_speed and braid.braid_angle"
             )
-        v = _positive("braid.take_up_speed", b["take_up_speed"], "m/s") if "take_up_speed" in b else None
+        v = (
+            _positive("braid.take_up_speed", b["take_up_speed"], "m/s")
+            if "take_up_speed" in b
+            else None
+        )
         alpha = None
         if "braid_angle" in b:
             alpha = to_si("braid.braid_angle", b["braid_angle"], "rad")

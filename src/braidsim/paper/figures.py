@@ -134,7 +134,10 @@ def paper_figure(
         later = [o.item.value for o in own if o.item.window == "later"]
         lo, hi = min([y0, *later]), max([y1, *later])
         center, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
-        half = max(1.08 * half, 0.05 * abs(center))
+        main_lo, main_hi = ax.get_ylim()
+        # never zoom below 0.2 % of the whole-run scale: integrator-level noise (uN on a
+        # carrier at rest) is not a feature
+        half = max(1.08 * half, 0.05 * abs(center), 2e-3 * (main_hi - main_lo))
         if half > 0.0:
             axz.set_ylim(center - half, center + half)
         axz.ticklabel_format(axis="y", useOffset=False)

@@ -162,6 +162,13 @@ def evidence_runs(values: PaperValues) -> list[EvidenceRun]:
             values.runs["3.2"].windows["initially"][1],
             "friction regularisation speed / 10",
         ),
+        EvidenceRun(
+            "vhat.3.3",
+            "3.3",
+            {"friction.regularization_velocity": vhat * 10.0},
+            values.runs["3.3"].duration,
+            "friction regularisation speed x 10",
+        ),
     ]
     for k in ("3.3", "3.4a"):
         for x0 in (1e-3, 2e-3):
@@ -362,6 +369,11 @@ def gather_evidence(
         "Fkg_max_alt": _window_range(extra["vhat.3.2"], w32, "stiffness_force")[1],
         "depth_max": _window_range(results[("3.2", "calibrated")], w32, "depth")[1],
         "depth_max_alt": _window_range(extra["vhat.3.2"], w32, "depth")[1],
+        "alt33": vhat * 10.0,
+        "later33": {
+            q: _window_range(extra["vhat.3.3"], values.runs["3.3"].windows["later"], q)
+            for q in ("stiffness_force", "damping_force", "depth")
+        },
     }
 
     # later states against the start
@@ -639,7 +651,8 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
                 f"{fmt(vh['depth_max_alt'] * 1e3)} mm (paper 1.2 N, 1.32e-4 mm).",
                 "3.3 later F_kg min from x0 = "
                 + ", ".join(f"{r['x0'] * 1e3:g} mm: {fmt(r['Fkg'][0])} N" for r in st["3.3"])
-                + " (paper -1511.5 N): coexisting steady states.",
+                + " (paper -1511.5 N): coexisting steady states. From x0 = 0 with x_hat = "
+                + f"{vh['alt33']:g} m/s: {fmt(vh['later33']['stiffness_force'][0])} N.",
                 "3.4 (h_a = 0.4 mm) later F_kg range from x0 = "
                 + ", ".join(
                     f"{r['x0'] * 1e3:g} mm: ({fmt(r['Fkg'][0])}, {fmt(r['Fkg'][1])}) N"
@@ -700,15 +713,23 @@ def _cause_33_later(
     scale = 1e3 if q == "depth" else 1.0
     unit = "mm" if q == "depth" else "N"
     idx = 0 if o.item.statistic == "min" else 1
-    vals = ", ".join(
-        f"{r['x0'] * 1e3:g} mm: {fmt(r[key][idx] * scale, 4)} {unit}" for r in ev["starts"]["3.3"]
-    )
+    rows = ev["starts"]["3.3"]
+    vals = [r[key][idx] * scale for r in rows]
+    starts = ", ".join(f"{r['x0'] * 1e3:g}" for r in rows)
+    listed = " / ".join(fmt(v, 4) for v in vals)
+    vh = ev["vhat"]
+    alt = vh["later33"][q][idx] * scale
+    inside = min(vals) <= o.item.value <= max(vals)
     parts = [
-        "Several steady states coexist after the impacts die down (MODEL_NOTES 8): the same "
-        "parameters "
-        f"started from x0 = {vals} give different later values, so a later range belongs to one "
-        "run; "
-        "the paper does not state its start beyond x0 = 0 nor its window.",
+        "Several steady impact patterns coexist once the first impacts have died down "
+        f"(MODEL_NOTES 8): from x0 = {starts} mm the same parameters settle into patterns with "
+        f"{o.item.symbol} {o.item.statistic} = {listed} {unit} in the later window, and the "
+        f"unstated friction regularisation speed x_hat = {vh['alt33']:g} m/s (instead of "
+        f"{vh['default']:g}) moves the paper's own start to {fmt(alt, 4)} {unit}. "
+        + f"The paper's {fmt(o.item.value, 6)} {unit} lies "
+        + ("within" if inside else "outside")
+        + " that spread. Which pattern a run ends in depends on details the paper does not "
+        "give, so a later range belongs to one run, not to the parameters.",
         _eq4_line(o.item.id, ev) if q != "damping_force" else "",
         _ratio_line("3.3", "later", ev) if q == "damping_force" else "",
     ]

@@ -353,9 +353,13 @@ def _row_status(qs: Mapping[str, dict[str, Any]]) -> str:
 
 
 def _pair(lo: float, hi: float, depth: bool) -> str:
-    if depth:
-        return f"({lo * 100:.2f}, {hi * 100:.2f})"
-    return f"({lo:.0f}, {hi:.0f})"
+    """A range as Table 1 prints it: integers in N, depth in 1e-2 mm to 2 decimals, 0 as 0."""
+
+    def one(v: float) -> str:
+        text = f"{v * 100:.2f}" if depth else f"{v:.0f}"
+        return "0" if float(text) == 0.0 else text
+
+    return f"({one(lo)}, {one(hi)})"
 
 
 def _t1_cell(row: Mapping[str, Any]) -> tuple[str, str]:

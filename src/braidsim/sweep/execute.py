@@ -335,7 +335,7 @@ class DaskExecutor:
 
         client, owned = self._connect()
         try:
-            base_f = client.scatter(base, broadcast=True)
+            (base_f,) = client.scatter([base], broadcast=True)  # one object, on every worker
             futs = {
                 client.submit(compute_chunk, base_f, t, retries=self.retries, pure=False): t
                 for t in tasks
@@ -388,6 +388,7 @@ class _Progress:
             MofNCompleteColumn(),
             TextColumn("runs"),
             TextColumn("{task.fields[rate]}"),
+            TextColumn("elapsed"),
             TimeElapsedColumn(),
             TextColumn("left"),
             TimeRemainingColumn(),
@@ -500,7 +501,7 @@ def run_sweep(
         "failed_runs_computed": failed,
         "executor": executor.description,
         "elapsed_s": elapsed,
-        "runs_per_second": runs_now / elapsed if elapsed > 0 else None,
+        "runs_per_second": runs_now / elapsed if runs_now and elapsed > 0 else None,
         **summarize_store(path),
     }
 

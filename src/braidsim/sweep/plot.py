@@ -192,7 +192,7 @@ def plot_sweep(
                 ax.set_yscale("log")
         ax.set_xlabel(xlab)
         ax.set_ylabel(f"{y} [{uy}]" if uy else y)
-        cb = fig.colorbar(art, ax=ax, label=mlabel)
+        cb = fig.colorbar(art, ax=ax, label="" if is_regime else mlabel)
         if is_regime:
             cb.set_ticks(
                 range(-1, len(REGIMES)), labels=["failed", *(r.replace("_", " ") for r in REGIMES)]

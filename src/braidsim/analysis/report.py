@@ -1,0 +1,170 @@
+"""Everything :mod:`braidsim.analysis` says about one run (``braidsim analyze RUN``).
+
+:func:`analyze` simulates a scenario once, sampled uniformly at a whole number of points per
+excitation cycle and phase-locked to the track vibration (so that every M-th sample is a
+stroboscopic one and a window of whole cycles puts the harmonics on spectral bins), and
+reports its impact statistics, energy balance, steady-state regime over the window after
+the transient, the contact-loss bound and the spectra of displacement and contact force.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from braidsim.analysis.impacts import (
+    EnergyBalance,
+    ImpactStatistics,
+    energy_balance,
+    impact_statistics,
+)
+from braidsim.analysis.regimes import (
+    DEFAULT_MAX_PERIOD,
+    DEFAULT_PERIOD_TOL,
+    SteadyState,
+    as_scenario,
+    contact_loss_bound,
+    reference_period,
+    steady_state_from_result,
+    strobe_times,
+)
+from braidsim.analysis.spectra import Spectrum, run_spectra
+from braidsim.errors import InputError
+from braidsim.params import Scenario
+
+if TYPE_CHECKING:
+    from braidsim.result import Result
+
+
+@dataclass(frozen=True)
+class RunAnalysis:
+    """What :func:`analyze` returns.
+
+    Attributes
+    ----------
+    result : Result
+        The run.
+    window : (float, float)
+        Steady-state window [s] (after the transient).
+    impacts : ImpactStatistics
+        Over the whole run.
+    impacts_window : ImpactStatistics
+        Over the steady-state window.
+    energy : EnergyBalance
+        Over the whole run.
+    steady : SteadyState or None
+        Classification over the window (None: the window is shorter than 2 cycles).
+    bound : dict
+        :func:`braidsim.analysis.regimes.contact_loss_bound`.
+    spectra : list of Spectrum
+        Of x and the track contact force over the window.
+    """
+
+    result: Result
+    window: tuple[float, float]
+    impacts: ImpactStatistics
+    impacts_window: ImpactStatistics
+    energy: EnergyBalance
+    steady: SteadyState | None
+    bound: dict[str, Any]
+    spectra: list[Spectrum]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (SI)."""
+        sc = self.result.model.scenario
+        return {
+            "scenario": sc.name,
+            "duration": float(self.result.final["t"]),
+            "window": list(self.window),
+            "impacts": self.impacts.to_dict(sequence=True),
+            "impacts_in_window": self.impacts_window.to_dict(sequence=False),
+            "energy_balance": self.energy.to_dict(),
+            "regime": None if self.steady is None else self.steady.to_dict(samples=False),
+            "contact_loss_bound": self.bound,
+            "spectra": [s.to_dict() for s in self.spectra],
+        }
+
+
+def sample_grid(sc: Scenario, duration: float, per_cycle: int) -> np.ndarray:
+    """Times in [0, duration] at ``per_cycle`` points per reference period, phase-locked to
+    the track vibration (omega_h t + phase = 2 pi j / per_cycle)."""
+    T = reference_period(sc)
+    dt = T / per_cycle
+    w = float(sc["track.vibration_frequency"])
+    offset = 0.0
+    if w > 0.0:
+        offset = (-float(sc["track.vibration_phase"]) / w) % T
+    offset = offset % dt
+    n = math.floor((duration - offset) / dt + 1e-9) + 1
+    return offset + dt * np.arange(n)
+
+
+def analyze(
+    scenario: Scenario | str | Any,
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    duration: float | None = None,
+    transient: float | None = None,
+    per_cycle: int = 256,
+    period_tol: float = DEFAULT_PERIOD_TOL,
+    max_period: int = DEFAULT_MAX_PERIOD,
+) -> RunAnalysis:
+    """Simulate one scenario and analyse it (module docstring).
+
+    Parameters
+    ----------
+    scenario : Scenario, str, Path or mapping
+        The scenario.
+    overrides : mapping, optional
+        ``{key: value}`` on top of it.
+    duration : float, optional
+        [s]; default ``simulation.duration``.
+    transient : float, optional
+        Start of the steady-state window [s]; default half the duration.
+    per_cycle : int
+        Samples per excitation period (>= 16).
+    period_tol, max_period
+        Regime rule 4 (:mod:`braidsim.analysis.regimes`).
+    """
+    from braidsim.simulate import simulate
+
+    sc = as_scenario(scenario, overrides)
+    T_run = float(sc["simulation.duration"] if duration is None else duration)
+    if not (math.isfinite(T_run) and T_run > 0):
+        raise InputError(f"duration: {T_run!r} s is out of range; allowed > 0 s")
+    t_tr = 0.5 * T_run if transient is None else float(transient)
+    if not (math.isfinite(t_tr) and 0 <= t_tr < T_run):
+        raise InputError(f"transient: {t_tr!r} s is out of range; allowed 0 <= T < {T_run:g} s")
+    if int(per_cycle) != per_cycle or per_cycle < 16:
+        raise InputError(f"per_cycle: {per_cycle!r} is out of range; allowed an integer >= 16")
+    T = reference_period(sc)
+    grid = sample_grid(sc, T_run, int(per_cycle))
+    res = simulate(sc, duration=T_run, sample_times=grid)
+    n_cyc = math.floor((T_run - t_tr) / T + 1e-9)
+    steady = None
+    window = (t_tr, T_run)
+    if n_cyc >= 2:
+        st = strobe_times(sc, t_tr, n_cyc)
+        if st[-1] > T_run + 1e-12:
+            st = st[:-1]
+        # the strobe times are grid points: take them from the grid to share bits
+        idx = np.clip(np.searchsorted(grid, st - 1e-12), 0, grid.size - 1)
+        st = grid[idx]
+        if st.size >= 3:
+            window = (float(st[0]), float(st[-1]))
+            steady = steady_state_from_result(res, window, st, None, period_tol, max_period)
+    spectra = run_spectra(res, window)
+    return RunAnalysis(
+        res,
+        window,
+        impact_statistics(res),
+        impact_statistics(res, window),
+        energy_balance(res),
+        steady,
+        contact_loss_bound(sc),
+        spectra,
+    )

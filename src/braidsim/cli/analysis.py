@@ -1,0 +1,392 @@
+"""Verbs ``restitution``, ``bifurcation``, ``basins``, ``lyapunov`` and ``analyze``.
+
+Thin wrappers over :mod:`braidsim.analysis`; each takes ``--json`` (one JSON object on
+stdout) and ``--out DIR`` (figures and ``*.json`` written as a whole directory, or not at all).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from braidsim.cli.common import app, guarded, parse_sets, print_json
+from braidsim.errors import InputError
+
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
+OutOpt = Annotated[
+    Path | None, typer.Option("--out", help="Write figures and JSON into this directory.")
+]
+SetOpt = Annotated[list[str] | None, typer.Option("--set", help="KEY=VALUE override (repeatable).")]
+WorkersOpt = Annotated[
+    int, typer.Option(help="Local worker processes (1: this process; 0: all cores).")
+]
+TransientOpt = Annotated[
+    float, typer.Option("--transient-cycles", help="Discarded start [excitation cycles].")
+]
+CyclesOpt = Annotated[
+    int, typer.Option("--cycles", help="Steady-state window [excitation cycles].")
+]
+
+
+def _write_outputs(
+    out: Path, kind: str, payload: dict[str, Any], figures: dict[str, Callable[[], Any]]
+) -> None:
+    """Write ``<kind>.json`` and the figures into ``out`` as one atomic directory."""
+    from braidsim.cli.common import _clean
+    from braidsim.io import atomic_directory
+    from braidsim.plotting import save
+
+    with atomic_directory(out, kind=f"analysis-{kind}") as tmp:
+        (tmp / f"{kind}.json").write_text(json.dumps(_clean(payload), indent=1), encoding="utf-8")
+        for name, make in figures.items():
+            save(make(), tmp / name)
+
+
+def _console() -> Any:
+    from rich.console import Console
+
+    return Console()
+
+
+# ----------------------------------------------------------------------------------------
+# restitution
+# ----------------------------------------------------------------------------------------
+
+
+@app.command()
+@guarded
+def restitution(
+    law: Annotated[
+        list[str] | None, typer.Option("--law", help="Contact law (repeatable; default all).")
+    ] = None,
+    c_min: Annotated[float, typer.Option(help="Smallest nominal c_r.")] = 0.1,
+    c_max: Annotated[float, typer.Option(help="Largest nominal c_r.")] = 1.0,
+    points: Annotated[int, typer.Option(help="Number of c_r values.")] = 10,
+    velocity: Annotated[float, typer.Option(help="Approach speed [m/s].")] = 0.5,
+    mass: Annotated[float, typer.Option(help="Mass [kg].")] = 1.2,
+    out: OutOpt = None,
+    json_: JsonOpt = False,
+) -> None:
+    """Effective restitution of each contact law against its nominal c_r (simulated impacts
+    beside the exact relation of the family)."""
+    import numpy as np
+
+    from braidsim.analysis.restitution import restitution_table
+
+    for name, v in (("--c-min", c_min), ("--c-max", c_max)):
+        if not (0.0 < v <= 1.0):
+            raise InputError(f"{name}: {v!r} is out of range; allowed 0 < c_r <= 1")
+    if c_min > c_max:
+        raise InputError(f"--c-min: {c_min!r} is above --c-max {c_max!r}; allowed c_min <= c_max")
+    if points < 1:
+        raise InputError(f"--points: {points!r} is out of range; allowed >= 1")
+    if not velocity > 0:
+        raise InputError(f"--velocity: {velocity!r} m/s is out of range; allowed > 0 m/s")
+    if not mass > 0:
+        raise InputError(f"--mass: {mass!r} kg is out of range; allowed > 0 kg")
+    table = restitution_table(law, np.linspace(c_min, c_max, points), velocity, mass)
+    payload = table.to_dict()
+    if out is not None:
+        from braidsim.analysis.plots import plot_restitution
+
+        _write_outputs(
+            out, "restitution", payload, {"restitution.png": lambda: plot_restitution(table)}
+        )
+    if json_:
+        print_json(payload)
+        return
+    from rich.table import Table
+
+    tab = Table("law", *(f"{c:.3g}" for c in table.nominal), title="effective restitution e")
+    for i, name in enumerate(table.laws):
+        tab.add_row(name, *(f"{e:.4f}" for e in table.simulated[i]))
+    con = _console()
+    con.print(tab)
+    con.print(f"largest |simulated - exact| = {table.max_deviation:.2g}")
+    if out is not None:
+        con.print(f"written to {out}")
+
+
+# ----------------------------------------------------------------------------------------
+# bifurcation
+# ----------------------------------------------------------------------------------------
+
+
+@app.command()
+@guarded
+def bifurcation(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    param: Annotated[
+        str, typer.Option("--param", help="Scalar parameter, e.g. track.vibration_amplitude.")
+    ],
+    start: Annotated[str, typer.Option("--from", help="First value, e.g. '0.05 mm'.")],
+    stop: Annotated[str, typer.Option("--to", help="Last value, e.g. '0.3 mm'.")],
+    points: Annotated[int, typer.Option(help="Number of values.")] = 41,
+    set_: SetOpt = None,
+    transient_cycles: TransientOpt = 100.0,
+    cycles: CyclesOpt = 50,
+    workers: WorkersOpt = 1,
+    out: OutOpt = None,
+    json_: JsonOpt = False,
+) -> None:
+    """Stroboscopic bifurcation diagram of the settled motion against one parameter."""
+    import braidsim
+    from braidsim.analysis.bifurcation import bifurcation as run_bifurcation
+    from braidsim.analysis.bifurcation import parameter_values
+
+    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
+    from braidsim.params import parse_set_value
+
+    values = parameter_values(
+        param, parse_set_value(param, start), parse_set_value(param, stop), points
+    )
+    diag = run_bifurcation(
+        sc, param, values, transient_cycles=transient_cycles, cycles=cycles, workers=workers
+    )
+    payload = diag.to_dict(samples=True)
+    if out is not None:
+        from braidsim.analysis.plots import plot_bifurcation
+
+        _write_outputs(
+            out, "bifurcation", payload, {"bifurcation.png": lambda: plot_bifurcation(diag)}
+        )
+    if json_:
+        print_json(payload)
+        return
+    from rich.table import Table
+
+    tab = Table(param, "regime", "period", "impacts/cycle", title=f"{sc.name}: steady states")
+    for v, s in zip(diag.values, diag.states, strict=True):
+        r = s.regime
+        tab.add_row(f"{v:.6g}", r.label, str(r.period or "-"), f"{r.impacts_per_cycle:.3g}")
+    con = _console()
+    con.print(tab)
+    for tr in diag.transitions():
+        con.print(
+            f"change between {tr['lower']:.6g} and {tr['upper']:.6g}: {tr['from']} -> {tr['to']}"
+        )
+    if out is not None:
+        con.print(f"written to {out}")
+
+
+# ----------------------------------------------------------------------------------------
+# basins
+# ----------------------------------------------------------------------------------------
+
+
+@app.command()
+@guarded
+def basins(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    x: Annotated[str, typer.Option("--x", help="First grid parameter.")] = "initial.x",
+    x_from: Annotated[str, typer.Option("--x-from", help="First value of x.")] = "0 mm",
+    x_to: Annotated[str, typer.Option("--x-to", help="Last value of x.")] = "3 mm",
+    nx: Annotated[int, typer.Option("--nx", help="Values of x.")] = 16,
+    y: Annotated[str, typer.Option("--y", help="Second grid parameter.")] = "initial.vx",
+    y_from: Annotated[str, typer.Option("--y-from", help="First value of y.")] = "-0.6 m/s",
+    y_to: Annotated[str, typer.Option("--y-to", help="Last value of y.")] = "0.6 m/s",
+    ny: Annotated[int, typer.Option("--ny", help="Values of y.")] = 16,
+    set_: SetOpt = None,
+    transient_cycles: TransientOpt = 100.0,
+    cycles: CyclesOpt = 50,
+    workers: WorkersOpt = 1,
+    out: OutOpt = None,
+    json_: JsonOpt = False,
+) -> None:
+    """Basins of attraction: the steady state reached from each start of a 2-D grid."""
+    import braidsim
+    from braidsim.analysis.basins import basins as run_basins
+    from braidsim.analysis.bifurcation import parameter_values
+    from braidsim.params import parse_set_value
+
+    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
+    xs = parameter_values(x, parse_set_value(x, x_from), parse_set_value(x, x_to), nx)
+    ys = parameter_values(y, parse_set_value(y, y_from), parse_set_value(y, y_to), ny)
+    bmap = run_basins(
+        sc, x, xs, y, ys, transient_cycles=transient_cycles, cycles=cycles, workers=workers
+    )
+    payload = bmap.to_dict()
+    if out is not None:
+        from braidsim.analysis.plots import plot_basins
+
+        _write_outputs(out, "basins", payload, {"basins.png": lambda: plot_basins(bmap)})
+    if json_:
+        print_json(payload)
+        return
+    from rich.table import Table
+
+    tab = Table("id", "regime", "period", "walls", "starts", title=f"{sc.name}: attractors")
+    for a in bmap.attractors:
+        tab.add_row(str(a.id), a.label, str(a.period or "-"), a.walls, str(a.count))
+    con = _console()
+    con.print(tab)
+    failed = int((bmap.ids < 0).sum())
+    if failed:
+        con.print(f"{failed} runs failed numerically")
+    if out is not None:
+        con.print(f"written to {out}")
+
+
+# ----------------------------------------------------------------------------------------
+# lyapunov
+# ----------------------------------------------------------------------------------------
+
+
+@app.command()
+@guarded
+def lyapunov(
+    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    set_: SetOpt = None,
+    transient_cycles: TransientOpt = 100.0,
+    cycles: Annotated[float, typer.Option(help="Measuring time [excitation cycles].")] = 100.0,
+    interval: Annotated[
+        float | None, typer.Option(help="Renormalisation interval [s] (default T_h/16).")
+    ] = None,
+    d0: Annotated[float, typer.Option(help="Separation of the two trajectories [m].")] = 1e-9,
+    out: OutOpt = None,
+    json_: JsonOpt = False,
+) -> None:
+    """Largest Lyapunov exponent of the settled motion (two nearby trajectories)."""
+    import braidsim
+    from braidsim.analysis.lyapunov import carrier_lyapunov
+
+    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
+    res = carrier_lyapunov(
+        sc, transient_cycles=transient_cycles, cycles=cycles, interval=interval, d0=d0
+    )
+    payload = res.to_dict(curve=True)
+    if out is not None:
+        from braidsim.analysis.plots import plot_lyapunov
+
+        _write_outputs(
+            out,
+            "lyapunov",
+            payload,
+            {"lyapunov.png": lambda: plot_lyapunov(res.estimate, f"{sc.name}: convergence")},
+        )
+    if json_:
+        print_json(payload)
+        return
+    con = _console()
+    est = res.estimate
+    con.print(
+        f"[bold]{sc.name}[/bold]: largest Lyapunov exponent {est.exponent:.5g} 1/s "
+        f"({est.times.size} intervals of {est.interval:.3g} s after {res.transient:g} s; "
+        f"range of the running estimate over the last half {est.spread():.3g} 1/s)"
+    )
+    if out is not None:
+        con.print(f"written to {out}")
+
+
+# ----------------------------------------------------------------------------------------
+# analyze
+# ----------------------------------------------------------------------------------------
+
+
+def _run_source(run: str) -> tuple[Any, float | None]:
+    """(scenario, duration) of RUN: a folder written by ``braidsim run --out`` (its
+    summary.json) or a scenario name / TOML file."""
+    import braidsim
+
+    p = Path(run)
+    if p.is_dir():
+        summary = p / "summary.json"
+        if not summary.is_file():
+            raise InputError(
+                f"RUN: folder {run!r} has no summary.json; allowed a folder written by "
+                "`braidsim run --out` or a scenario"
+            )
+        data = json.loads(summary.read_text(encoding="utf-8"))
+        params = {k: v for k, v in data["parameters"].items() if v is not None}
+        sc = braidsim.load_scenario(params).with_overrides(None, name=data.get("scenario", "run"))
+        return sc, float(data["final"]["t"])
+    return braidsim.load_scenario(run), None
+
+
+@app.command()
+@guarded
+def analyze(
+    run: Annotated[
+        str,
+        typer.Argument(
+            help="Scenario name or TOML file, or a folder written by `braidsim run --out` "
+            "(the run is repeated from its parameters; runs are deterministic)."
+        ),
+    ],
+    set_: SetOpt = None,
+    duration: Annotated[float | None, typer.Option(help="Simulated time [s].")] = None,
+    transient: Annotated[
+        float | None, typer.Option(help="Start of the steady-state window [s] (default: half).")
+    ] = None,
+    out: OutOpt = None,
+    json_: JsonOpt = False,
+) -> None:
+    """Impact statistics, energy balance, regime, contact-loss bound and spectra of a run."""
+    from braidsim.analysis.report import analyze as run_analyze
+
+    sc, dur = _run_source(run)
+    sets = parse_sets(set_)
+    if sets:
+        sc = sc.with_overrides(sets)
+    a = run_analyze(sc, duration=duration if duration is not None else dur, transient=transient)
+    payload = a.to_dict()
+    if out is not None:
+        from braidsim.analysis import plots
+
+        figs: dict[str, Callable[[], Any]] = {
+            "impacts.png": lambda: plots.plot_impact_statistics(a.impacts),
+            "energy.png": lambda: plots.plot_energy_balance(a.energy),
+            "spectra.png": lambda: plots.plot_spectra(a.spectra),
+        }
+        steady = a.steady
+        if steady is not None:
+            figs["poincare.png"] = lambda: plots.plot_poincare(steady)
+        _write_outputs(out, "analyze", payload, figs)
+    if json_:
+        print_json(payload)
+        return
+    _print_analysis(payload, out)
+
+
+def _print_analysis(d: dict[str, Any], out: Path | None) -> None:
+    con = _console()
+    con.print(
+        f"[bold]{d['scenario']}[/bold]: {d['duration']:g} s, window {d['window'][0]:.4g}-"
+        f"{d['window'][1]:.4g} s"
+    )
+    imp = d["impacts"]
+    v = imp["approach_speed"]
+    counts = ", ".join(f"{k} {n}" for k, n in imp["counts"].items()) or "-"
+    con.print(
+        f"impacts: {imp['count']} ({counts})"
+        + (f", approach speed {v['min']:.3g}-{v['max']:.3g} m/s" if v["max"] is not None else "")
+        + f", track contact {100 * imp['contact_fraction']['track']:.3g} % of the time"
+    )
+    e = d["energy_balance"]
+    t = e["totals"]
+    con.print(
+        f"energy: contact losses {t['contact_dissipated']:.4g} J, "
+        f"friction {t['friction_dissipated']:.4g} J, "
+        f"wall work {t['track_work'] + t['slot_work']:.4g} J, load work {t['load_work']:.4g} J; "
+        f"balance closes to {e['closure']:.2g}"
+    )
+    r = d["regime"]
+    if r is not None:
+        reg = r["regime"]
+        per = f", period {reg['period']} cycles" if reg["period"] else ""
+        con.print(f"steady state: {reg['label']}{per} ({reg['rule']})")
+    b = d["contact_loss_bound"]
+    con.print(
+        f"contact-loss bound: a_p = {b['pressing_acceleration']:.4g} m/s^2, h_a omega_h^2 = "
+        f"{b['wall_acceleration']:.4g} m/s^2 -> "
+        + ("stays on the wall" if b["stays_on_wall"] else "leaves the wall")
+    )
+    for sp in d["spectra"]:
+        pk = ", ".join(f"{p['frequency']:.4g} Hz" for p in sp["peaks"][:4])
+        con.print(f"spectrum of {sp['quantity']}: dominant {pk}")
+    if out is not None:
+        con.print(f"written to {out}")

@@ -1,0 +1,374 @@
+"""Impact and nonlinear-dynamics analysis of the carrier against independent answers."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim import contact
+from braidsim.analysis import (
+    analyze,
+    basins,
+    carrier_lyapunov,
+    contact_loss_bound,
+    energy_balance,
+    impact_statistics,
+    locate_transition,
+    restitution_table,
+    run_spectra,
+    steady_state,
+)
+from braidsim.cli import main
+
+
+def test_restitution_of_every_law_matches_exact_relation() -> None:
+    """Simulated impacts restitute e(D(c_r)) of the family's exact relation within 1e-4."""
+    c = np.array([0.02, 0.1, 0.3, 5 / 9, 0.8, 1.0])
+    table = restitution_table(nominal=c)
+    assert set(table.laws) == set(contact.law_names())
+    assert table.max_deviation <= 1e-4
+    # the exact relation itself: 1 - D e = (1 + D) exp(-D (1 + e))
+    D, e = table.damping, table.exact
+    np.testing.assert_allclose(1 - D * e, (1 + D) * np.exp(-D * (1 + e)), atol=1e-12)
+    i = table.laws.index("carvalho_martins")
+    np.testing.assert_allclose(table.simulated[i], c, atol=1e-4)  # built to restitute c_r
+    i = table.laws.index("hertz")
+    np.testing.assert_allclose(table.simulated[i], 1.0, atol=1e-6)  # elastic
+
+
+@pytest.mark.parametrize(
+    ("name", "overrides"),
+    [
+        ("paper-3.3", {}),
+        ("paper-3.2", {}),
+        ("paper-3.1", {"simulation.dof": "xy", "initial.vy": "0.8168 m/s"}),
+    ],
+)
+def test_energy_balance_closes(name: str, overrides: dict) -> None:
+    res = braidsim.simulate(name, duration=0.2, overrides=overrides, sample_interval=1e-4)
+    eb = energy_balance(res)
+    assert eb.closure <= 1e-6
+    assert eb.exchanged > 0.0
+    tot = eb.totals()
+    assert tot["contact_dissipated"] > 0 and tot["friction_dissipated"] > 0
+    # the per-impact dissipation of the episodes adds up to the quadrature
+    q = res.impacts["dissipated_energy"].sum()
+    assert q == pytest.approx(
+        res.series["track_dissipated"][-1] + res.series["slot_dissipated"][-1], rel=1e-9
+    )
+    if overrides:
+        assert abs(tot["slot_work"]) > 0  # the horn-gear slot pushes the carrier
+
+
+def test_impact_statistics_of_a_run() -> None:
+    res = braidsim.simulate("paper-3.2", duration=0.25, sample_interval=0)
+    st = impact_statistics(res)
+    d = st.to_dict()
+    assert d["count"] == len(st.impacts) == sum(st.counts.values()) > 3
+    assert int(st.speed_counts.sum()) == d["count"]  # all are track impacts here
+    # 3.2 starts on the outer wall moving into it at 2 mm/s (an impact at 2 mm/s), then
+    # crosses the 3 mm gap under the load less the saturated friction: the inner-wall impact
+    # at v^2 = v0^2 + 2 (a_p - mu1 |m g - T2| / m) eps_g is the fastest
+    sc = res.model.scenario
+    b = contact_loss_bound(sc)
+    v = math.sqrt(0.002**2 + 2 * b["pressing_acceleration_with_friction"] * 3e-3)
+    assert st.impacts["velocity"].iloc[0] == pytest.approx(0.002)
+    assert d["approach_speed"]["max"] == pytest.approx(v, rel=1e-3)
+    assert st.impacts["velocity"].iloc[1] == d["approach_speed"]["max"]
+    frac = st.contact_fraction["track"]
+    assert 0.5 < frac <= 1.0  # comes to rest on the inner wall early in the run
+    assert st.impacts["t"].is_monotonic_increasing
+
+
+def test_regimes_of_the_paper_runs() -> None:
+    rest = steady_state("paper-3.4b")
+    assert rest.regime.label == "resting_contact"
+    assert rest.contact_fraction == pytest.approx(1.0)
+    imp = steady_state("paper-3.3")
+    assert imp.regime.label == "periodic_one_sided"
+    assert imp.regime.period == 6 and imp.regime.walls == "inner"
+    assert imp.inner_impacts >= 50
+    two = steady_state("paper-3.4a")
+    assert (two.regime.label, two.regime.period) == ("periodic_two_sided", 1)
+
+
+def test_contact_loss_bound_numbers() -> None:
+    """MODEL_NOTES section 7: a_p = 13.9 and 44.7 m/s^2 against h_a omega_h^2 = 17.1 m/s^2."""
+    b3 = contact_loss_bound("paper-3.3")
+    b4 = contact_loss_bound("paper-3.4b")
+    assert b3["pressing_acceleration"] == pytest.approx(13.87, abs=0.01)
+    assert b4["pressing_acceleration"] == pytest.approx(44.67, abs=0.01)
+    assert b3["wall_acceleration"] == pytest.approx(1.2e-4 * (2 * math.pi * 60) ** 2, rel=1e-12)
+    assert b3["wall_acceleration"] == pytest.approx(17.05, abs=0.01)
+    assert not b3["stays_on_wall"] and b4["stays_on_wall"]
+    assert b3["critical_amplitude"] == pytest.approx(13.8728 / (2 * math.pi * 60) ** 2, rel=1e-4)
+
+
+@pytest.mark.parametrize("friction", ["none", "arctan"])
+def test_carrier_leaves_the_wall_at_the_bound(friction: str) -> None:
+    """Bisection on h_a for the change resting contact -> impacts of the simulated carrier
+    lands within 2 % of the analytic bound (frictionless: MODEL_NOTES section 7; with
+    friction: the bound with the saturated friction force)."""
+    sc = braidsim.load_scenario("paper-3.3", overrides={"friction.law": friction})
+    b = contact_loss_bound(sc)
+    expect = b["critical_amplitude_with_friction"]
+    if friction == "none":
+        assert expect == b["critical_amplitude"]
+    lo, hi = locate_transition(
+        sc,
+        "track.vibration_amplitude",
+        0.8 * expect,
+        1.2 * expect,
+        0.2e-6,
+        transient_cycles=60,
+        cycles=20,
+    )
+    assert hi - lo <= 0.2e-6
+    assert steady_state(sc, {"track.vibration_amplitude": lo}).regime.label == "resting_contact"
+    assert 0.5 * (lo + hi) == pytest.approx(expect, rel=0.02)
+
+
+def test_lyapunov_exponent_of_resting_contact() -> None:
+    """On the wall (paper-3.4b) perturbations decay with the damping of the linearised
+    contact: c = D <F_k> / v0 with <F_k> = m a_p, plus the friction slope averaged over
+    the wall's motion, lambda = -(c + <df/dv>) / (2 m)."""
+    res = carrier_lyapunov("paper-3.4b", transient_cycles=30, cycles=20)
+    assert res.start.track_mode == -1
+    sc = braidsim.load_scenario("paper-3.4b")
+    m = sc["carrier.mass"]
+    D = contact.get_law("hunt_crossley").damping_factor(sc["contact.track.restitution"])
+    a_p = contact_loss_bound(sc)["pressing_acceleration"]
+    c = D * m * a_p / res.start.track_v0
+    # arctan friction: f = mu N (2/pi) atan(v / v_hat); with v = V sin(theta) following the
+    # wall, <df/dv> = mu N (2/pi) / v_hat / sqrt(1 + (V / v_hat)^2)
+    mu_n = sc["friction.carrier_horn_gear"] * abs(m * sc["gravity"] - sc["yarn.tension_vertical"])
+    V = sc["track.vibration_amplitude"] * sc["track.vibration_frequency"]
+    v_hat = sc["friction.regularization_velocity"]
+    fric = mu_n * 2 / math.pi / v_hat / math.sqrt(1 + (V / v_hat) ** 2)
+    expected = -(c + fric) / (2 * m)
+    assert res.exponent < 0
+    assert res.exponent == pytest.approx(expected, rel=0.03)
+
+
+@pytest.mark.slow
+def test_lyapunov_exponent_of_irregular_motion_is_positive_and_robust() -> None:
+    """h_a = 0.18 mm (irregular impacts): positive exponent, the same with renormalisation
+    every T_h/16 or every T_h and with d0 = 1e-8 m or 1e-10 m (a method artefact would not
+    be)."""
+    over = {"track.vibration_amplitude": "0.18 mm"}
+    T = 1 / 60
+    a = carrier_lyapunov("paper-3.3", over, cycles=1000, interval=T / 16).exponent
+    b = carrier_lyapunov("paper-3.3", over, cycles=1000, interval=T).exponent
+    c = carrier_lyapunov("paper-3.3", over, cycles=1000, interval=T, d0=1e-10).exponent
+    assert a > 20 and b > 20
+    assert a == pytest.approx(b, rel=0.1)
+    assert c == pytest.approx(b, rel=0.1)
+
+
+def test_basins_at_the_paper_3_3_conditions() -> None:
+    """MODEL_NOTES section 8: the 3.3 parameters have several steady states."""
+    bm = basins("paper-3.3", "initial.x", [0.0, "1.5 mm"], "initial.vx", ["0 m/s", "0.3 m/s"])
+    assert bm.ids.shape == (2, 2)
+    assert (bm.ids >= 0).all()
+    kinds = {(a.label, a.period) for a in bm.attractors}
+    # the paper's own start ends in period 6; the others in period-1 bouncing or chattering
+    assert bm.attractors[bm.ids[0, 0]].period == 6
+    assert kinds == {
+        ("periodic_one_sided", 6),
+        ("periodic_one_sided", 1),
+        ("chattering", 1),
+    }
+    assert bm.ids[0, 1] == bm.ids[1, 1]  # two starts, one attractor
+    assert sum(a.count for a in bm.attractors) == 4
+
+
+def test_spectrum_of_a_carrier_on_the_wall() -> None:
+    """Resting on the wall (paper-3.4b) the carrier follows h(t) = h_a cos(omega_h t): the
+    displacement spectrum peaks at 60 Hz with amplitude h_a (less the small contact-depth
+    oscillation)."""
+    a = analyze("paper-3.4b", duration=1.0)
+    sx = a.spectra[0]
+    assert sx.quantity == "x"
+    assert sx.peaks[0]["frequency"] == pytest.approx(60.0, abs=1e-6)
+    assert sx.peaks[0]["amplitude"] == pytest.approx(1.2e-4, rel=0.01)
+    assert sx.harmonics[0]["amplitude"] == sx.peaks[0]["amplitude"]
+    assert a.steady is not None and a.steady.regime.label == "resting_contact"
+    assert a.energy.closure <= 1e-6
+    # the contact force oscillates at the excitation too: m h_a omega_h^2 = 20.5 N
+    sf = a.spectra[1]
+    assert sf.peaks[0]["frequency"] == pytest.approx(60.0, abs=1e-6)
+    assert sf.peaks[0]["amplitude"] == pytest.approx(1.2 * 1.2e-4 * (120 * math.pi) ** 2, rel=0.02)
+
+
+def test_run_spectra_rejects_unsampled_runs() -> None:
+    res = braidsim.simulate("paper-3.2", duration=0.02, sample_interval=0)
+    with pytest.raises(braidsim.InputError, match="spectrum"):
+        run_spectra(res)
+
+
+# ----------------------------------------------------------------------------------------
+# command line
+# ----------------------------------------------------------------------------------------
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as exc:
+        main(list(argv))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+def test_cli_restitution(capsys, tmp_path) -> None:
+    code, out, err = run_cli(
+        capsys,
+        "restitution",
+        "--law",
+        "flores",
+        "--law",
+        "lee_wang",
+        "--points",
+        "3",
+        "--json",
+        "--out",
+        str(tmp_path / "r"),
+    )
+    assert code == 0, err
+    d = json.loads(out)
+    assert set(d["laws"]) == {"flores", "lee_wang"}
+    assert d["max_deviation"] <= 1e-4
+    assert (tmp_path / "r" / "restitution.png").stat().st_size > 1000
+    assert json.loads((tmp_path / "r" / "restitution.json").read_text())["nominal"] == d["nominal"]
+
+
+def test_cli_analyze_scenario_and_run_folder(capsys, tmp_path) -> None:
+    code, out, err = run_cli(capsys, "analyze", "paper-3.4b", "--duration", "0.3", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["regime"]["regime"]["label"] == "resting_contact"
+    assert d["energy_balance"]["closure"] <= 1e-6
+    assert d["contact_loss_bound"]["stays_on_wall"] is True
+    # a folder written by `braidsim run --out` is analysed from its parameters
+    code, _, err = run_cli(
+        capsys, "run", "paper-3.2", "--duration", "0.1", "--out", str(tmp_path / "run")
+    )
+    assert code == 0, err
+    code, out, err = run_cli(
+        capsys, "analyze", str(tmp_path / "run"), "--json", "--out", str(tmp_path / "a")
+    )
+    assert code == 0, err
+    d2 = json.loads(out)
+    assert d2["duration"] == pytest.approx(0.1)
+    ref = braidsim.simulate("paper-3.2", duration=0.1, sample_interval=0)
+    assert d2["impacts"]["count"] == int((~ref.impacts["initial"]).sum())
+    for name in ("impacts.png", "energy.png", "spectra.png", "analyze.json"):
+        assert (tmp_path / "a" / name).is_file()
+
+
+def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
+    code, out, err = run_cli(
+        capsys,
+        "bifurcation",
+        "paper-3.3",
+        "--param",
+        "track.vibration_amplitude",
+        "--from",
+        "0.05 mm",
+        "--to",
+        "0.4 mm",
+        "--points",
+        "2",
+        "--transient-cycles",
+        "30",
+        "--cycles",
+        "10",
+        "--json",
+        "--out",
+        str(tmp_path / "b"),
+    )
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["labels"] == ["resting_contact", "periodic_two_sided"]
+    assert d["values"] == pytest.approx([5e-5, 4e-4])
+    assert (tmp_path / "b" / "bifurcation.png").is_file()
+    code, out, err = run_cli(
+        capsys,
+        "basins",
+        "paper-3.4b",
+        "--nx",
+        "2",
+        "--ny",
+        "1",
+        "--transient-cycles",
+        "20",
+        "--cycles",
+        "6",
+        "--json",
+    )
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["ids"] == [[0, 0]] and d["attractors"][0]["label"] == "resting_contact"
+    code, out, err = run_cli(
+        capsys,
+        "lyapunov",
+        "paper-3.4b",
+        "--transient-cycles",
+        "20",
+        "--cycles",
+        "4",
+        "--json",
+        "--out",
+        str(tmp_path / "l"),
+    )
+    assert code == 0, err
+    assert json.loads(out)["exponent"] < 0
+    assert (tmp_path / "l" / "lyapunov.png").is_file()
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (("restitution", "--c-min", "0"), "--c-min"),
+        (
+            ("bifurcation", "paper-3.3", "--param", "track.clearence", "--from", "1", "--to", "2"),
+            "track.clearance",
+        ),
+        (
+            (
+                "bifurcation",
+                "paper-3.3",
+                "--param",
+                "contact.track.model",
+                "--from",
+                "1",
+                "--to",
+                "2",
+            ),
+            "not a scalar",
+        ),
+        (
+            (
+                "bifurcation",
+                "paper-3.3",
+                "--param",
+                "track.clearance",
+                "--from",
+                "-1 mm",
+                "--to",
+                "2 mm",
+            ),
+            "track.clearance",
+        ),
+        (("basins", "paper-3.3", "--x", "initial.vx"), "two different"),
+        (("lyapunov", "paper-3.3", "--d0", "0"), "d0"),
+        (("analyze", "no-such-scenario"), "scenario"),
+    ],
+)
+def test_cli_bad_input_is_one_line_exit_2(capsys, argv, needle) -> None:
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2
+    assert out == ""
+    assert len(err.strip().splitlines()) == 1 and needle in err
