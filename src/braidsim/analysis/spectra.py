@@ -160,6 +160,8 @@ def run_spectra(
     s = result.series
     samp = s["kind"] == K.KIND_SAMPLE
     t = s["t"][samp]
+    if t.size < 4:
+        raise InputError("spectrum: fewer than 4 samples; sample the run (sample_interval > 0)")
     # a half-open window [t0, t1): over whole cycles the sample at t1 repeats the phase of t0
     t0, t1 = (float(t[0]), float(t[-1])) if window is None else (window[0], window[1])
     sel = (t >= t0 - 1e-12) & (t < t1 - 1e-9 * max(abs(t1), 1e-3))

@@ -7,6 +7,7 @@ stdout) and ``--out DIR`` (figures and ``*.json`` written as a whole directory, 
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
@@ -301,7 +302,12 @@ def _run_source(run: str) -> tuple[Any, float | None]:
                 "`braidsim run --out` or a scenario"
             )
         data = json.loads(summary.read_text(encoding="utf-8"))
-        params = {k: v for k, v in data["parameters"].items() if v is not None}
+        # Scenario.to_dict writes an infinite value (a flat body's radius) as "inf"
+        params = {
+            k: (math.inf if v == "inf" else v)
+            for k, v in data["parameters"].items()
+            if v is not None
+        }
         sc = braidsim.load_scenario(params).with_overrides(None, name=data.get("scenario", "run"))
         return sc, float(data["final"]["t"])
     return braidsim.load_scenario(run), None
