@@ -88,12 +88,15 @@ def run_kernel(
     windows: np.ndarray,
     record_events: bool = True,
     start: State | None = None,
+    episode_capacity: int = 256,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Run the compiled kernel, growing the output arrays until they fit.
 
     ``start`` continues from a :class:`State` (its time, state vector, contact modes and
     latched speeds) instead of t = 0 and the scenario's initial conditions; the run then ends
-    at ``start.t + model.duration``.
+    at ``start.t + model.duration``. ``episode_capacity`` is the first size of the episode
+    table: a run with more contact episodes is repeated with a larger one, so a caller that
+    expects many (a long run with many transfers) saves that repetition by asking for enough.
 
     Returns (rows, episodes, ranges, stats, final state vector, status). Raises
     :class:`SimulationError` on a numerical failure.
@@ -113,7 +116,7 @@ def run_kernel(
         P[K.P_INIT_V0_T] = start.track_v0
         P[K.P_INIT_V0_S] = start.slot_v0
     row_cap = sample_times.size + 256
-    ep_cap = 256
+    ep_cap = max(16, int(episode_capacity))
     while True:
         rows = np.empty((row_cap, K.NCOL))
         EP = np.empty((ep_cap, K.NEP))

@@ -207,6 +207,32 @@ def test_dask_local_cluster_equals_local_run(tmp_path, local_store):
     assert files(tmp_path / "dask.zarr") == files(local_store)
 
 
+def _fail_once(marker: str, base, task):
+    """compute_chunk, except that chunk 1 raises the first time."""
+    if task.chunk == 1 and not Path(marker).exists():
+        Path(marker).write_text("x")
+        raise OSError("worker lost its scratch disk")
+    return compute_chunk(base, task)
+
+
+def test_dask_retries_a_failing_chunk(tmp_path, local_store):
+    distributed = pytest.importorskip("distributed")
+    from braidsim.sweep import DaskExecutor
+
+    marker = tmp_path / "failed-once"
+    spec = load_spec(write(tmp_path, SPEC))
+    with (
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):
+        ex = DaskExecutor(client=client, retries=1, task=functools.partial(_fail_once, str(marker)))
+        run_sweep(spec, tmp_path / "d.zarr", executor=ex, progress=False)
+    assert marker.exists()
+    assert files(tmp_path / "d.zarr") == files(local_store)
+
+
 @pytest.mark.slow
 def test_cli_workers_starts_a_local_dask_cluster(tmp_path, capsys, local_store):
     """--workers 2: a local cluster of two worker processes; the same store."""

@@ -86,9 +86,13 @@ def plot_restitution(table: RestitutionTable) -> Figure:
     return fig
 
 
-def plot_bifurcation(diagram: BifurcationDiagram, title: str | None = None) -> Figure:
+def plot_bifurcation(
+    diagram: BifurcationDiagram,
+    title: str | None = None,
+    marks: Sequence[tuple[float, str]] = (),
+) -> Figure:
     """Stroboscopic position relative to the inner wall, u = x - h, against the parameter,
-    coloured by regime."""
+    coloured by regime; ``marks`` are (value [SI], label) drawn as vertical lines."""
     fig = new_figure(6.8, 4.4)
     ax = fig.add_subplot(1, 1, 1)
     f, label = parameter_axis(diagram.key)
@@ -107,10 +111,12 @@ def plot_bifurcation(diagram: BifurcationDiagram, title: str | None = None) -> F
             label=None if lab in seen else lab.replace("_", " "),
         )
         seen.add(lab)
+    for k, (v, text) in enumerate(marks):
+        ax.axvline(v * f, color="0.2", lw=0.8, ls=("--", ":", "-.")[k % 3], label=text)
     ax.set_xlabel(label)
     ax.set_ylabel("stroboscopic $x - h$ / mm")
     ax.grid(True, lw=0.3, alpha=0.6)
-    if seen:
+    if seen or marks:
         ax.legend(fontsize=7, frameon=False, markerscale=3, loc="best")
     ax.set_title(title or f"{diagram.scenario}: bifurcation diagram", fontsize=10)
     return fig

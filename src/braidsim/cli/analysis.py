@@ -204,6 +204,8 @@ def basins(
     from braidsim.analysis.bifurcation import parameter_values
     from braidsim.params import parse_set_value
 
+    if x == y:
+        raise InputError(f"--x, --y: both are {x!r}; allowed two different parameters")
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
     xs = parameter_values(x, parse_set_value(x, x_from), parse_set_value(x, x_to), nx)
     ys = parameter_values(y, parse_set_value(y, y_from), parse_set_value(y, y_to), ny)

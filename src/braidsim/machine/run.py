@@ -16,8 +16,10 @@ Engine
 ------
 The batch engine (:mod:`braidsim.batch`) reduces every run to whole-window metrics; the
 machine needs the impacts of each run grouped by transfer interval, so it runs its own small
-process pool (:func:`run_carriers`) over :func:`braidsim.simulate` with only the samples it
-needs (the transfer times for the energy integrals, the animation frames) and no event rows.
+process pool (:func:`run_carriers`) over the compiled kernel
+(:func:`braidsim.simulate.run_kernel`, the path :func:`braidsim.simulate` takes) with only
+the samples it needs (the transfer times for the energy integrals, the animation frames) and
+no event rows.
 Runs are independent and deterministic: the result does not depend on the number of workers.
 
 Reduction
@@ -132,16 +134,22 @@ def plan_transfers(
 def _run_one(
     sc: Any, times: np.ndarray, duration: float, samples: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, int, int]:
-    from braidsim.simulate import simulate
+    """One carrier: the kernel with its transfer times, samples only (no event rows)."""
+    from braidsim.simulate import run_kernel
 
-    scn = sc.with_overrides({"transfer.times": [float(t) for t in times]})
-    res = simulate(scn, duration, sample_times=samples, record_events=False)
-    t = res.series["t"]
-    if t.size != samples.size or not np.array_equal(t, samples):
+    model = build_model(sc.with_overrides({"transfer.times": [float(t) for t in times]}), duration)
+    # about ten impacts follow a transfer: size the episode table so that the kernel need
+    # not repeat the run with a larger one
+    cap = 256 + 32 * times.size + int(100.0 * duration)
+    W = np.array([[0.0, duration]])
+    rows, EP, _, stats, _, _ = run_kernel(
+        model, samples, W, record_events=False, episode_capacity=cap
+    )
+    if rows.shape[0] != samples.size or not np.array_equal(rows[:, 0], samples):
         # without event rows the kernel writes exactly the samples asked for, in order
         raise AssertionError("kernel returned a series that does not match the sample times")
-    cols = np.stack([res.series[c] for c in SAMPLED])
-    return np.asarray(res.episodes), cols, int(res.stats["steps"]), int(res.stats["transfers"])
+    cols = np.ascontiguousarray(rows[:, [K.COLUMNS.index(c) for c in SAMPLED]].T)
+    return EP, cols, int(stats[0]), int(stats[4])
 
 
 def _run_chunk(

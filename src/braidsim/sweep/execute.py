@@ -279,6 +279,8 @@ class DaskExecutor:
         Retries of a task that raised (a task whose worker died is re-run by the scheduler).
     client : distributed.Client, optional
         Use this client (tests; the caller closes it).
+    task : callable
+        The function run per chunk (as for :class:`LocalProcesses`).
     """
 
     def __init__(
@@ -287,11 +289,13 @@ class DaskExecutor:
         workers: int | None = None,
         retries: int = 2,
         client: Any = None,
+        task: Callable[[tuple[Any, ...], ChunkTask], ChunkOutput] | None = None,
     ) -> None:
         self.scheduler = scheduler
         self.workers = workers
         self.retries = retries
         self.client = client
+        self.task = compute_chunk if task is None else task
         if client is not None:
             self.description = "dask (given client)"
         elif scheduler is not None:
@@ -337,7 +341,7 @@ class DaskExecutor:
         try:
             (base_f,) = client.scatter([base], broadcast=True)  # one object, on every worker
             futs = {
-                client.submit(compute_chunk, base_f, t, retries=self.retries, pure=False): t
+                client.submit(self.task, base_f, t, retries=self.retries, pure=False): t
                 for t in tasks
             }
             for fut in as_completed(list(futs)):
