@@ -68,6 +68,16 @@ def test_one_carrier_at_constant_speed_reproduces_paper_3_2() -> None:
     np.testing.assert_allclose(done["peak_force"], done["peak_force"].iloc[0], rtol=1e-6)
 
 
+def test_start_from_the_scenario() -> None:
+    """start = "scenario" keeps the scenario's initial state: paper-3.2 starts as a transfer."""
+    spec = parse_machine_spec(one_carrier(0.3, start="scenario"))
+    run = run_machine(spec, workers=1)
+    ref = braidsim.simulate("paper-3.2", duration=0.25, sample_interval=0.0)
+    before = run.impacts[run.impacts["interval"] == 0]
+    np.testing.assert_allclose(before["t"], ref.impacts["t"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(before["peak_force"], ref.impacts["peak_force"], rtol=1e-9)
+
+
 def test_every_transfer_against_closed_forms() -> None:
     """Outside references for each complete transfer of one carrier (no track vibration):
 
@@ -243,8 +253,11 @@ def test_bad_specs_exit_2(
     assert code == 2 and match in err and err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_results_do_not_depend_on_the_workers() -> None:
-    """The pool path gives the same bits as the in-process path."""
+    """The pool path gives the same bits as the in-process path. (Slow: each worker process
+    starts an interpreter and loads the compiled kernel, several seconds on 2 shared cores,
+    much more while the kernel's compile cache is cold.)"""
     spec = parse_machine_spec(
         {
             "scenario": "paper-3.3",
@@ -257,3 +270,22 @@ def test_results_do_not_depend_on_the_workers() -> None:
     b = run_machine(spec, workers=2)
     assert b.workers == 2 and len(a.plans) == 4
     assert a.transfers.equals(b.transfers) and a.carriers.equals(b.carriers)
+
+
+@pytest.mark.slow
+def test_example_full_length_with_animation(tmp_path: Path) -> None:
+    """The example as written: one revolution (2 s), every carrier makes its 8 transfers
+    (7 for the four that start on a crossing), the GIF has the spec's 48 frames."""
+    spec = load_machine_spec(EXAMPLE)
+    run = run_machine(spec)
+    assert run.duration == pytest.approx(2.0)
+    counts = run.carriers.set_index("carrier")["transfers"]
+    assert sorted(set(counts)) == [7, 8] and (counts == 7).sum() == 4
+    from braidsim.machine import write_report
+
+    data = write_report(run, tmp_path / "m16")
+    from PIL import Image
+
+    with Image.open(tmp_path / "m16" / "machine.gif") as im:
+        assert im.n_frames == 48
+    assert data["totals"]["transfers"] == 124

@@ -218,11 +218,12 @@ def test_colliding_patterns_are_rejected_naming_the_pattern() -> None:
         custom_loading(g, [16], [])
     with pytest.raises(InputError, match=r"did you mean 'diamond'"):
         loading_pattern(g, "diamnd")
-    # more than N S / 4 per group cannot be placed
+    # at most N S / 2 carriers fit (one per slot meeting at every crossing)
     lanes = list(range(0, 16, 2))
     ok = custom_loading(g, lanes, [k + 1 for k in lanes])
     assert len(ok.carriers) == 16
-    with pytest.raises(InputError, match="at most N S/4 = 8 per group"):
+    assert len(custom_loading(g, list(range(16)), []).carriers) == 16  # one group alone
+    with pytest.raises(InputError, match="at most N S/2 = 16 carriers in all"):
         custom_loading(g, [*lanes, 1], [k + 1 for k in lanes])
 
 

@@ -5,12 +5,16 @@ other scalar parameter) is run past the transient (:mod:`braidsim.analysis.regim
 the settled motions are grouped into attractors:
 
 * two periodic (or resting, or chattering) steady states are the same attractor when they
-  have the same regime label and period and their stroboscopic orbits coincide as point
-  sets: the Hausdorff distance between the last ``q`` samples of each, in the coordinates
-  (u, dx/dt / omega_h) [m], is at most ``match_tol`` * L (L the larger of the two length
-  scales of rule 4, so the default 2e-2 is twice the period tolerance);
-* steady states without a period (``irregular``) are grouped by the walls they hit: telling
-  two coexisting strange attractors apart is beyond a stroboscopic point comparison;
+  have the same regime label, one period divides the other, and their stroboscopic orbits
+  coincide as point sets: the Hausdorff distance between the last ``q`` samples of each, in
+  the coordinates (u, dx/dt / omega_h) [m], is at most ``match_tol`` * L (L the larger of
+  the two length scales of rule 4, so the default 2e-2 is twice the period tolerance). A
+  slowly settling orbit whose samples are not yet within ``period_tol`` is detected at a
+  multiple of its period, and its points lie on the settled orbit's; the attractor is then
+  represented by its member of smallest period;
+* steady states without a period (``irregular``, or chattering without a period) are grouped
+  by label and by the walls they hit: telling two coexisting strange attractors apart is
+  beyond a stroboscopic point comparison;
 * runs that failed numerically get the attractor id -1.
 
 The samples are taken at a fixed excitation phase (``omega_h t + phase = 2 pi k``), so orbits
@@ -56,11 +60,12 @@ class Attractor:
     walls : str
         Walls hit.
     points : np.ndarray
-        (q, 2) stroboscopic orbit (u [m], dx/dt / omega_h [m]) of its first member.
+        (q, 2) stroboscopic orbit (u [m], dx/dt / omega_h [m]) of its representative (the
+        first member of smallest period).
     impacts_per_cycle : float
-        Of its first member.
+        Of its representative.
     max_approach_speed : float
-        Of its first member [m/s].
+        Of its representative [m/s].
     count : int
         Number of starts that end in it.
     """
@@ -154,9 +159,9 @@ def same_attractor(a: SteadyState, b: SteadyState, match_tol: float = DEFAULT_MA
     ra, rb = a.regime, b.regime
     if ra.label == "failed" or rb.label == "failed" or ra.label != rb.label:
         return False
-    if ra.label == "irregular":
-        return ra.walls == rb.walls
-    if ra.period != rb.period:
+    if ra.period is None or rb.period is None:
+        return ra.period is None and rb.period is None and ra.walls == rb.walls
+    if max(ra.period, rb.period) % min(ra.period, rb.period) != 0:
         return False
     L = max(a.length_scale, b.length_scale)
     return hausdorff(_orbit(a), _orbit(b)) <= match_tol * L
@@ -176,6 +181,8 @@ def group_attractors(
             if same_attractor(s, r, match_tol):
                 ids[i] = j
                 counts[j] += 1
+                if (s.regime.period or 0) < (r.regime.period or 0):
+                    reps[j] = s  # represented by the member of smallest period
                 break
         else:
             ids[i] = len(reps)

@@ -334,6 +334,12 @@ def carrier_lyapunov(
         that the two runs' truncation errors stay far below d0.
     """
     sc = as_scenario(scenario, overrides)
+    if sc["transfer.times"] or sc["transfer.period"] > 0:
+        # a transfer resets x and dx/dt to fixed values: it erases any perturbation
+        raise InputError(
+            "lyapunov: transfers reset the carrier's state and erase the perturbation; "
+            "allowed a scenario without transfer.times and with transfer.period = 0"
+        )
     if rtol is not None:
         sc = sc.with_overrides({"simulation.rtol": rtol})
     if not (math.isfinite(transient_cycles) and transient_cycles >= 0):

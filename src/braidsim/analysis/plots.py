@@ -174,7 +174,9 @@ def plot_basins(bmap: BasinMap, title: str | None = None) -> Figure:
     return fig
 
 
-def plot_lyapunov(est: LyapunovEstimate, title: str | None = None, unit: str = "1/s") -> Figure:
+def plot_lyapunov(
+    est: LyapunovEstimate, title: str | None = None, unit: str = "1/s", time_unit: str = "s"
+) -> Figure:
     """Convergence of the running Lyapunov estimate against the measuring time."""
     fig = new_figure(6.0, 3.8)
     ax = fig.add_subplot(1, 1, 1)
@@ -186,7 +188,7 @@ def plot_lyapunov(est: LyapunovEstimate, title: str | None = None, unit: str = "
     lo, hi = float(tail.min()), float(tail.max())
     pad = 0.5 * max(hi - lo, 0.1 * abs(est.exponent), 1e-12)
     ax.set_ylim(min(lo, 0.0) - pad, max(hi, 0.0) + pad)
-    ax.set_xlabel("measuring time")
+    ax.set_xlabel(f"measuring time / {time_unit}" if time_unit else "measuring time")
     ax.set_ylabel(f"running estimate of $\\lambda_1$ / ({unit})")
     ax.grid(True, lw=0.3, alpha=0.6)
     ax.legend(fontsize=8, frameon=False)

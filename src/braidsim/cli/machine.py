@@ -17,10 +17,14 @@ def machine(
     out: Annotated[Path, typer.Option("--out", help="Report directory to write.")],
     duration: Annotated[
         float | None,
-        typer.Option(help="Simulated time [s] (default: the spec's duration or revolutions)."),
+        typer.Option(help="Simulated time in s (default: the spec's duration or revolutions)."),
     ] = None,
     workers: Annotated[
-        int | None, typer.Option(help="Local worker processes (default: all cores).")
+        int | None,
+        typer.Option(
+            help="Local processes: 1 runs here, 0 all cores (default: a pool of all cores when "
+            "the first carrier's cost says the rest would take over 5 s here)."
+        ),
     ] = None,
     frames: Annotated[
         int | None, typer.Option(help="Animation frames (default: the spec's; 0: no animation).")

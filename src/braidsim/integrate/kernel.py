@@ -147,12 +147,17 @@ ST_CAPACITY_ROWS = 4
 ST_CAPACITY_EPISODES = 5
 ST_ZENO = 6
 ST_STIFF = 7
+ST_BAD_ARRAYS = 8  # an array of the wrong size was passed (a caller bug, never user input)
 STIFF_LIMIT = 100_000  # accepted steps held by stability (few breaks) before giving up
 
 N_SUB = 8  # interior samples of the interpolant per step for events and extremes
 # steps, rejected, events, rhs evaluations, transfers, min h, max h, final t, then the final
 # contact modes and latched speeds (track, slot) for a restart
 N_STATS = 12
+
+# The smallest, hottest helpers are inlined into their callers (numba IR inlining): passing
+# arrays to a separate compiled function costs reference counting on every call, which was
+# a third of the run time; inlining more than these costs compile time for little gain.
 
 # ---- Dormand-Prince 5(4) coefficients (Hairer's DOPRI5) ------------------------------
 C2, C3, C4, C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
@@ -214,7 +219,7 @@ def pack_excitation(TH, WH, PT, PW, PI):
     ).astype(np.float64)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def track_h(t, EX):
     """Track wall displacement h(t) = sum a cos(w t + phi) [m] and its rate [m/s]."""
     h = 0.0
@@ -227,6 +232,45 @@ def track_h(t, EX):
         h += a * math.cos(arg)
         hd -= a * w * math.sin(arg)
     return h, hd
+
+
+@njit(cache=True, error_model="numpy")
+def track_accel_bound(EX):
+    """Largest possible |h''(t)| = sum |a| w^2 [m/s^2] (for the contact screens)."""
+    acc = 0.0
+    for i in range(int(EX[0])):
+        acc += abs(EX[EX_HEAD + 3 * i]) * EX[EX_HEAD + 3 * i + 1] ** 2
+    return acc
+
+
+@njit(cache=True, error_model="numpy")
+def track_hdd(t, EX):
+    """Track wall acceleration h''(t) [m/s^2]."""
+    hdd = 0.0
+    for i in range(int(EX[0])):
+        w = EX[EX_HEAD + 3 * i + 1]
+        hdd -= EX[EX_HEAD + 3 * i] * w * w * math.cos(w * t + EX[EX_HEAD + 3 * i + 2])
+    return hdd
+
+
+@njit(cache=True, error_model="numpy")
+def horn_gear_accel(t, P, EX):
+    """Horn-gear angular acceleration omega'(t) [rad/s^2] (by a central difference on the
+    profile, analytic for the harmonics)."""
+    nth = int(EX[0])
+    nwh = int(EX[1])
+    npf = int(EX[2])
+    if npf >= 2:
+        dt = 1e-7
+        wp, _ = horn_gear(t + dt, P, EX)
+        wm, _ = horn_gear(t - dt, P, EX)
+        return (wp - wm) / (2.0 * dt)
+    acc = 0.0
+    o = EX_HEAD + 3 * nth
+    for i in range(nwh):
+        w = EX[o + 3 * i + 1]
+        acc -= EX[o + 3 * i] * w * math.sin(w * t + EX[o + 3 * i + 2])
+    return acc
 
 
 @njit(cache=True, error_model="numpy")
@@ -277,7 +321,7 @@ def horn_gear(t, P, EX):
 # =======================================================================================
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def friction(v, normal, mu, P):
     """Regularised friction force [N] opposing the sliding speed v (Eq. 14 and variants)."""
     law = int(P[P_FRIC_LAW])
@@ -293,7 +337,7 @@ def friction(v, normal, mu, P):
     return 0.0
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def contact(mode, gap_rel, rate_rel, k, n, d, v0, allow_tension):
     """Penetration, stiffness force, damping force and normal force of one contact pair.
 
@@ -318,7 +362,7 @@ def contact(mode, gap_rel, rate_rel, k, n, d, v0, allow_tension):
     return p, pd, fk, fc, nn
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def pair_state(t, Y, pair, P, EX):
     """Coordinate and rate of the carrier relative to the inner/rear wall of a pair."""
     if pair == 0:
@@ -338,6 +382,46 @@ def pair_forces(t, Y, pair, mode, v0, P, EX):
         u = u - eps
     base = P_K_T if pair == 0 else P_K_S
     return contact(mode, u, ud, P[base], P[base + 1], P[base + 2], v0, P[P_ALLOW_TENSION])
+
+
+@njit(cache=True, error_model="numpy")
+def penetration_rates(t, Y, F, pair, mode, P, EX):
+    """(p, pdot, pddot) of a pair in contact mode ``mode`` from the state Y and its time
+    derivative F (the RK stage at that point): penetration, its rate and acceleration."""
+    if pair == 0:
+        h, hd = track_h(t, EX)
+        u = Y[0] - h
+        ud = Y[1] - hd
+        udd = F[1] - track_hdd(t, EX)
+        eps = P[P_EPS_G]
+    else:
+        om, s = horn_gear(t, P, EX)
+        u = Y[2] - s
+        ud = Y[3] - P[P_RC] * om
+        udd = F[3] - P[P_RC] * horn_gear_accel(t, P, EX)
+        eps = P[P_EPS_H]
+    if mode < 0:
+        return -u, -ud, -udd
+    return u - eps, ud, udd
+
+
+@njit(cache=True, error_model="numpy")
+def force_slopes(p, pd, pdd, k, n, d, v0):
+    """Time derivatives of N = K p^n (1 + D pd / v0) and of F_c = K p^n D pd / v0.
+
+    dN/dt = K n p^(n-1) pd (1 + D pd / v0) + K p^n D pdd / v0,
+    dF_c/dt = D / v0 (K n p^(n-1) pd^2 + K p^n pdd). Only their signs are used; at p = 0
+    the factor K n p^(n-1) is replaced by 1 (its sign is what matters).
+    """
+    if p > 0.0:
+        fk = k * p**n
+        dfk = n * fk / p * pd
+    else:
+        fk = 0.0
+        dfk = pd
+    dn = dfk * (1.0 + d * pd / v0) + fk * d * pdd / v0
+    dfc = d / v0 * (dfk * pd + fk * pdd)
+    return dn, dfc
 
 
 @njit(cache=True, error_model="numpy")
@@ -383,7 +467,7 @@ def rhs(t, Y, mt, ms, v0t, v0s, P, EX, out):
 # =======================================================================================
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def dense_eval(theta, RC, out):
     """State at fraction theta of the step from the continuous extension coefficients."""
     th1 = 1.0 - theta
@@ -542,24 +626,54 @@ def _golden_dip(j, t0, h, a, b, RC, mt, ms, P, EX, Ys):
 
 
 @njit(cache=True, error_model="numpy")
-def _sample_events(t0, h, RC, mt, ms, P, EX, Ys, GS):
+def _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX):
+    """Screen: can a track event (onset in free flight, exit in contact) happen in the step?
+
+    For a function g with |g''| <= A on a step of length h, g >= min(g(0), g(h)) - A h^2 / 8.
+    In free flight g is a gap to a wall and A bounds |x''| + |h''| (the load and friction,
+    plus 10 % and the full friction swing, and sum |a| w^2 of the vibration); in contact g is
+    the penetration and A is twice the larger |p''| at the ends (the contact force varies
+    smoothly over the tens of steps a contact takes). Only when the bound does not clear zero
+    are the event functions sampled.
+    """
+    h0, _ = track_h(t0, EX)
+    h1, _ = track_h(t0 + h, EX)
+    u0 = Y0[0] - h0
+    u1 = Y1[0] - h1
+    eps = P[P_EPS_G]
+    if mt == 0:
+        acc = (
+            1.1 * max(abs(F0[1]), abs(F1[1]))
+            + 2.0 * P[P_MU1] * P[P_NX] / P[P_MASS]
+            + track_accel_bound(EX)
+        )
+        margin = acc * h * h / 8.0
+        return min(u0, u1) <= margin or min(eps - u0, eps - u1) <= margin
+    p0, _, pdd0 = penetration_rates(t0, Y0, F0, 0, mt, P, EX)
+    p1, _, pdd1 = penetration_rates(t0 + h, Y1, F1, 0, mt, P, EX)
+    margin = 2.0 * max(abs(pdd0), abs(pdd1)) * h * h / 8.0
+    return min(p0, p1) <= margin
+
+
+@njit(cache=True, error_model="numpy")
+def _sample_events(t0, h, RC, mt, ms, P, EX, Ys, GS, Y0, Y1, F0, F1):
     """Event functions at the N_SUB + 1 equally spaced points of the step (GS[j, k]).
 
-    Returns False when no event function is active.
+    A pair whose events the screen :func:`_track_events_possible` rules out is not sampled
+    (its rows are +1). Returns False when nothing needs sampling.
     """
-    any_active = False
-    for j in range(4):
-        if event_active(j, mt, ms, P):
-            any_active = True
-    if not any_active:
+    track_on = _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX)
+    slot_on = P[P_DOF] > 1.5
+    if not (track_on or slot_on):
         return False
     for k in range(N_SUB + 1):
         dense_eval(k / N_SUB, RC, Ys)
         tk = t0 + k / N_SUB * h
         for pair in range(2):
             j0 = 2 * pair
-            a0 = event_active(j0, mt, ms, P)
-            a1 = event_active(j0 + 1, mt, ms, P)
+            on = track_on if pair == 0 else slot_on
+            a0 = on and event_active(j0, mt, ms, P)
+            a1 = on and event_active(j0 + 1, mt, ms, P)
             if not (a0 or a1):
                 GS[j0, k] = 1.0
                 GS[j0 + 1, k] = 1.0
@@ -747,32 +861,6 @@ def _episode_update(EP, ie, q, val, t):
 
 
 @njit(cache=True, error_model="numpy")
-def _record(q, mode, ie, t0, t1, EP, WIN, RANGES):
-    """Smallest extreme of quantity q recorded so far by the open episode and by the windows
-    overlapping [t0, t1] (in the quantity's own sign); a larger value must be refined."""
-    pair = q // 4
-    kind = q % 4
-    best = math.inf
-    if ie >= 0:
-        if kind == 0:
-            best = EP[ie, 7]
-        elif kind == 1:
-            best = EP[ie, 12]
-        elif kind == 2:
-            best = -EP[ie, 11]
-        else:
-            best = EP[ie, 9]
-    qi = 0 if kind == 0 else (3 if kind == 3 else 2)
-    sgn = mode if kind != 2 else -mode
-    for w in range(WIN.shape[0]):
-        if WIN[w, 0] <= t1 and WIN[w, 1] >= t0:
-            rec = RANGES[w, pair, qi, 1] if sgn > 0 else -RANGES[w, pair, qi, 0]
-            if rec < best:
-                best = rec
-    return best
-
-
-@njit(cache=True, error_model="numpy")
 def _scan_step(
     t0,
     h,
@@ -794,11 +882,12 @@ def _scan_step(
     ST,
     isamp,
     Ys,
-    QV,
+    F0,
+    F1,
 ):
     """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks.
 
-    ``QV`` is a (4, N_SUB + 1) scratch array.
+    ``F0`` and ``F1`` are the state derivatives at the two ends of the step.
     """
     t1 = t0 + h
     # sampled series
@@ -818,51 +907,42 @@ def _scan_step(
                 _update_ranges(tb, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
     if mt == 0 and ms == 0:
         return nrow, isamp
-    # extremes inside the step for each pair in contact: sample the interpolant once per point,
-    # then refine any interior maximum by golden section
+    # Extremes inside the step for each pair in contact. The sign of each quantity's time
+    # derivative at the two ends of the step (from the state and its RK derivative) tells
+    # whether a maximum (or a minimum of F_c) lies inside; only then is it refined, by golden
+    # section on the interpolant. Steps resolve a contact in tens of steps, so a quantity
+    # does not turn twice within one step.
     for pair in range(2):
         mode = mt if pair == 0 else ms
         if mode == 0:
             continue
         ie = open_ep[pair]
         v0 = v0t if pair == 0 else v0s
-        for k in range(N_SUB + 1):
-            theta = k / N_SUB
-            dense_eval(theta, RC, Ys)
-            p, _, _, fc, nn = pair_forces(t0 + theta * h, Ys, pair, mode, v0, P, EX)
-            QV[0, k] = p
-            QV[1, k] = fc
-            QV[2, k] = -fc
-            QV[3, k] = nn
+        base = P_K_T if pair == 0 else P_K_S
+        k = P[base]
+        n = P[base + 1]
+        d = P[base + 2]
+        p0, pd0, pdd0 = penetration_rates(t0, Y0, F0, pair, mode, P, EX)
+        p1, pd1, pdd1 = penetration_rates(t1, Y1, F1, pair, mode, P, EX)
+        dn0, dfc0 = force_slopes(max(p0, 0.0), pd0, pdd0, k, n, d, v0)
+        dn1, dfc1 = force_slopes(max(p1, 0.0), pd1, pdd1, k, n, d, v0)
+        if ie >= 0:
+            for kind in range(4):
+                q = 4 * pair + kind
+                _episode_update(EP, ie, q, quantity(q, t1, Y1, mt, ms, v0t, v0s, P, EX), t1)
         for kind in range(4):
-            q = 4 * pair + kind
-            kb = 0
-            for k in range(1, N_SUB + 1):
-                if QV[kind, k] > QV[kind, kb]:
-                    kb = k
-            if ie >= 0:
-                _episode_update(EP, ie, q, QV[kind, kb], t0 + kb / N_SUB * h)
-                _episode_update(EP, ie, q, QV[kind, 0], t0)
-            if kb < N_SUB:
-                margin = max(
-                    abs(QV[kind, kb] - QV[kind, kb - 1]), abs(QV[kind, kb + 1] - QV[kind, kb])
-                )
+            if kind == 0:
+                inside = pd0 > 0.0 and pd1 <= 0.0
+            elif kind == 1:
+                inside = dfc0 > 0.0 and dfc1 <= 0.0
+            elif kind == 2:
+                inside = dfc0 < 0.0 and dfc1 >= 0.0
             else:
-                margin = abs(QV[kind, kb] - QV[kind, kb - 1])
-            if QV[kind, kb] + margin < _record(q, mode, ie, t0, t1, EP, WIN, RANGES):
-                # cannot beat any extreme recorded so far (the function moves by at most about
-                # the neighbouring sample differences between samples): no refinement needed
+                inside = dn0 > 0.0 and dn1 <= 0.0
+            if not inside:
                 continue
-            if kb == 0 or kb == N_SUB:
-                # sampled maximum at an end of the step: refine only if the function comes
-                # back down just inside the step (else the neighbouring step has the peak)
-                thin = 0.01 / N_SUB if kb == 0 else 1.0 - 0.01 / N_SUB
-                dense_eval(thin, RC, Ys)
-                if quantity(q, t0 + thin * h, Ys, mt, ms, v0t, v0s, P, EX) <= QV[kind, kb]:
-                    continue
-            a = max(kb - 1, 0) / N_SUB
-            b = min(kb + 1, N_SUB) / N_SUB
-            theta = _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, EX, Ys)
+            q = 4 * pair + kind
+            theta = _golden_max(q, t0, h, 0.0, 1.0, RC, mt, ms, v0t, v0s, P, EX, Ys)
             dense_eval(theta, RC, Ys)
             tq = t0 + theta * h
             val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, EX)
@@ -896,6 +976,16 @@ def _open_episode(EP, nep, t, pair, wall, vel, v0, initial):
     e[14] = 1.0
     e[15] = initial
     return nep + 1
+
+
+@njit(cache=True, error_model="numpy")
+def _episode_start_values(EP, ie, t, Y, pair, mode, v0, P, EX):
+    """Fold the depth and forces at the first instant of an episode into its extremes (a
+    contact present at the start may have its largest force right there)."""
+    p, _, _, fc, nn = pair_forces(t, Y, pair, mode, v0, P, EX)
+    _episode_update(EP, ie, 4 * pair, p, t)
+    _episode_update(EP, ie, 4 * pair + 1, fc, t)
+    _episode_update(EP, ie, 4 * pair + 3, nn, t)
 
 
 @njit(cache=True, error_model="numpy")
@@ -937,7 +1027,7 @@ def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, EX):
         if nep < EP.shape[0]:
             open_ep[pair] = nep
             EP[nep, 13] = ED[pair]
-            EP[nep, 7] = p
+            _episode_start_values(EP, nep, t, Y, pair, mode, v0, P, EX)
         nep = nep_new
     return nep
 
@@ -950,6 +1040,15 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     ``RANGES`` (window extremes, initialised by the caller to +inf/-inf) and ``STATS``.
     A status of ST_CAPACITY_* asks the caller to retry with larger arrays.
     """
+    if (
+        Y0.shape[0] != NY
+        or P.shape[0] < P_SIZE
+        or STATS.shape[0] < N_STATS
+        or rows.shape[1] != NCOL
+        or EP.shape[1] != NEP
+        or RANGES.shape[0] != WIN.shape[0]
+    ):
+        return ST_BAD_ARRAYS, 0, 0
     t_end = P[P_T_END]
     hmax = P[P_HMAX]
     max_steps = int(P[P_MAXSTEPS])
@@ -961,7 +1060,6 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     K = np.empty((7, NY))
     Ke = np.empty((7, NY))
     RC = np.empty((5, NY))
-    QV = np.empty((4, N_SUB + 1))
     GS = np.empty((4, N_SUB + 1))
     modes = np.zeros(2, dtype=np.int64)
     v0 = np.ones(2)
@@ -992,6 +1090,9 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
                 nep = _open_episode(EP, nep, t, pair, modes[pair], math.nan, v0[pair], 1.0)
                 if open_ep[pair] >= 0:
                     EP[open_ep[pair], 13] = Y[4 + pair]
+                    _episode_start_values(
+                        EP, open_ep[pair], t, Y, pair, modes[pair], v0[pair], P, EX
+                    )
     else:
         nep = _start_contacts(
             t, Y, modes, v0, open_ep, EP, nep, ED, 2 if P[P_DOF] > 1.5 else 1, P, EX
@@ -1110,7 +1211,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
-        if _sample_events(t, h, RC, modes[0], modes[1], P, EX, Ys, GS):
+        if _sample_events(t, h, RC, modes[0], modes[1], P, EX, Ys, GS, Y, Y1, K[0], K[6]):
             for j in range(4):
                 th = _locate_event(j, t, h, RC, modes[0], modes[1], P, EX, Ys, GS)
                 if th < theta_ev:
@@ -1147,7 +1248,8 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
                 ST,
                 isamp,
                 Ys,
-                QV,
+                Ke[0],
+                Ke[6],
             )
             t_ev = t + he
             for i in range(NY):
@@ -1229,7 +1331,8 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             ST,
             isamp,
             Ys,
-            QV,
+            K[0],
+            K[6],
         )
         STATS[0] += 1
         STATS[5] = min(STATS[5], h)

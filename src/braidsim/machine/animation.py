@@ -1,7 +1,7 @@
 """Drawings of the machine: the layout and a GIF of the carriers coloured by contact force.
 
 The machine is drawn from above: horn-gear pitch circles (grey) with their slots (short
-ticks, turning with the gears), the two serpentine paths (group A blue, group B orange), the
+ticks, turning with the gears), the two serpentine paths (group A blue, group B green), the
 crossings (small dots) and the carriers (discs edged in their group's colour). A carrier's
 fill is the largest track contact force it felt since the previous frame (the peaks of the
 impacts in that interval, or the resting force at the frame), on a logarithmic scale; grey
@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from braidsim.machine.geometry import MachineGeometry
     from braidsim.machine.run import MachineRun
 
-GROUP_COLOURS = {"A": "C0", "B": "C1"}
+GROUP_COLOURS = {"A": "C0", "B": "C2"}
 FORCE_FLOOR = 1.0  # [N] bottom of the colour scale; 0 N (no contact) is drawn grey
 
 
@@ -91,7 +91,7 @@ def _force_norm(vmax: float) -> tuple[Any, Any]:
 
 
 def layout_figure(run: MachineRun) -> Figure:
-    """The machine at t = 0 with every carrier labelled (group A blue, B orange)."""
+    """The machine at t = 0 with every carrier labelled (group A blue, B green)."""
     from braidsim.plotting import new_figure
 
     spec = run.spec

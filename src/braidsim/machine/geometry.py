@@ -50,7 +50,8 @@ outer on even gears and inner on odd ones, so it goes over all the B carriers it
 even gear, then under all it meets on the next gear: with ``k`` meetings per gear visit the
 braid is ``k/k``: 1/1 diamond, 2/2 regular, 3/3 Hercules (Kyosev 2015, sect. 3.2). Each carrier
 passes every crossing once per revolution and each crossing serves one carrier per slot
-meeting (``N S / 2`` per revolution), so at most ``N S / 4`` carriers per group fit: full
+meeting (``N S / 2`` per revolution), so at most ``N S / 2`` carriers fit, ``N S / 4`` per
+group when the groups are equal: full
 loading of 4-slot gears is 2/2, a 1/1 braid uses half the carriers, and 3/3 needs 6-slot gears.
 :func:`interlacing` counts the meetings of every visit exactly; :func:`loading_pattern` builds
 a named pattern and checks both the collisions and the k/k interlacing.
@@ -247,7 +248,9 @@ class MachineGeometry:
 
     @property
     def max_per_group(self) -> int:
-        """Most carriers per group without a collision: N S / 4 (one per slot meeting)."""
+        """Most carriers per group when both groups are equal: N S / 4 (every crossing serves
+        one carrier per slot meeting, N S / 2 per revolution, and every carrier passes every
+        crossing once per revolution)."""
         return self.N * self.S // 4
 
     @property
@@ -537,7 +540,8 @@ def check_collisions(geom: MachineGeometry, loading: Loading) -> None:
     raise InputError(
         f"machine.loading: pattern {loading.name!r} is not collision-free: carriers {a} and {b} "
         f"{where}; allowed: a loading where no two carriers reach a crossing together "
-        f"(at most N S/4 = {geom.max_per_group} per group on {geom.N} gears with {geom.S} slots)"
+        f"(on {geom.N} gears with {geom.S} slots at most N S/2 = {2 * geom.max_per_group} "
+        f"carriers in all, N S/4 = {geom.max_per_group} per group when the groups are equal)"
     )
 
 

@@ -228,7 +228,7 @@ def distribution_figure(run: MachineRun) -> Figure:
     ax2.set_xlim(-0.6, len(names) - 0.4)
     for ax in (ax1, ax2):
         ax.grid(True, axis="y", lw=0.3, alpha=0.6)
-    ax1.set_title("distribution over carriers (group A blue, group B orange)", fontsize=9)
+    ax1.set_title("distribution over carriers (group A blue, group B green)", fontsize=9)
     return fig
 
 

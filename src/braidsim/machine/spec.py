@@ -19,7 +19,9 @@ Format (every quantity a number in SI or a string with units)::
                                             # radius r_c; or ring_radius (gear centres);
                                             # default: the scenario's carrier.turning_radius
     loading = "full"                        # full | diamond | regular | hercules,
-                                            # or a table {A = [lanes], B = [lanes]}
+                                            # or a table {A = [lanes], B = [lanes]}:
+                                            # lane k of a path lies k slot pitches behind
+                                            # lane 0 (summary.json lists the lanes used)
     speed = "120 rpm"                       # mean horn-gear speed; default: the scenario's
     start = "rest"                          # rest: every carrier starts at rest on the inner
                                             # wall (static equilibrium); scenario: its initial.*
@@ -39,7 +41,8 @@ Format (every quantity a number in SI or a string with units)::
     fps = 12
     dpi = 80
 
-The machine sets the carrier model's ``carrier.turning_radius`` (the pitch radius),
+The machine sets the carrier model's ``carrier.turning_radius`` (the pitch radius; the contact
+stiffness keeps the scenario's ``materials.track.radius``),
 ``horn_gear.angular_velocity`` / ``horn_gear.speed_profile`` and, per carrier,
 ``transfer.times``; a scenario that sets those keys itself to other values is rejected with a
 one-line :class:`~braidsim.errors.InputError`, as is any unknown key (naming the closest).
