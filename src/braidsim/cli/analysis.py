@@ -394,7 +394,7 @@ def _print_analysis(d: dict[str, Any], out: Path | None) -> None:
         + ("stays on the wall" if b["stays_on_wall"] else "leaves the wall")
     )
     for sp in d["spectra"]:
-        pk = ", ".join(f"{p['frequency']:.4g} Hz" for p in sp["peaks"][:4])
+        pk = ", ".join(f"{p['frequency']:.4g} Hz" for p in sp["peaks"][:4]) or "none"
         con.print(f"spectrum of {sp['quantity']}: dominant {pk}")
     if out is not None:
         con.print(f"written to {out}")
