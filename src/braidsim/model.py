@@ -126,7 +126,7 @@ def default_max_step(sc: Scenario) -> float:
     return hmax
 
 
-def build_model(sc: Scenario, duration: float | None = None) -> Model:
+def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.0) -> Model:
     """Derive the kernel's arrays from a validated scenario.
 
     Parameters
@@ -135,6 +135,9 @@ def build_model(sc: Scenario, duration: float | None = None) -> Model:
         Validated parameters (SI).
     duration : float, optional
         Overrides ``simulation.duration`` [s].
+    t_start : float
+        Start time of a continued run [s]: the transfers kept are those in
+        (t_start, t_start + duration).
     """
     m = sc["carrier.mass"]
     phi = sc["yarn.angle"]
@@ -193,10 +196,10 @@ def build_model(sc: Scenario, duration: float | None = None) -> Model:
     period = sc["transfer.period"]
     if period > 0.0:
         k = 0
-        while sc["transfer.first"] + k * period < dur:
+        while sc["transfer.first"] + k * period < t_start + dur:
             transfers.add(sc["transfer.first"] + k * period)
             k += 1
-    tr = np.array(sorted(t for t in transfers if 0.0 < t < dur), dtype=float)
+    tr = np.array(sorted(t for t in transfers if t_start < t < t_start + dur), dtype=float)
 
     y0 = np.zeros(K.NY)
     y0[0] = sc["initial.x"]

@@ -194,8 +194,8 @@ def simulate(
         sc = sc.with_overrides(overrides)
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
-    model = build_model(sc, duration)
     t_start = 0.0 if start is None else float(start.t)
+    model = build_model(sc, duration, t_start=t_start)
     T = t_start + model.duration
     if sample_times is not None:
         st = np.sort(np.asarray(sample_times, dtype=float))

@@ -237,3 +237,16 @@ def test_run_ends_exactly_at_its_duration(divisor: int) -> None:
     )
     assert res.final["t"] == pytest.approx(1.5 * T, rel=1e-15)
     assert res.impacts["duration"].iloc[0] == pytest.approx(T, rel=1e-6)
+
+
+def test_restart_keeps_later_transfers() -> None:
+    """A transfer after the first half is applied in the continued run."""
+    over = {"transfer.times": [0.3]}
+    whole = braidsim.simulate("paper-3.1", duration=0.4, overrides=over, sample_interval=0)
+    first = braidsim.simulate("paper-3.1", duration=0.2, overrides=over, sample_interval=0)
+    second = braidsim.simulate(
+        "paper-3.1", duration=0.2, overrides=over, sample_interval=0, start=first.final_state
+    )
+    assert whole.stats["transfers"] == 1
+    assert first.stats["transfers"] + second.stats["transfers"] == 1
+    assert second.final["x"] == pytest.approx(whole.final["x"], abs=1e-10)
