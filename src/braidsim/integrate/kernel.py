@@ -927,9 +927,10 @@ def _scan_step(
         dn0, dfc0 = force_slopes(max(p0, 0.0), pd0, pdd0, k, n, d, v0)
         dn1, dfc1 = force_slopes(max(p1, 0.0), pd1, pdd1, k, n, d, v0)
         if ie >= 0:
-            for kind in range(4):
-                q = 4 * pair + kind
-                _episode_update(EP, ie, q, quantity(q, t1, Y1, mt, ms, v0t, v0s, P, EX), t1)
+            pe, _, _, fce, nne = pair_forces(t1, Y1, pair, mode, v0, P, EX)
+            _episode_update(EP, ie, 4 * pair, pe, t1)
+            _episode_update(EP, ie, 4 * pair + 1, fce, t1)
+            _episode_update(EP, ie, 4 * pair + 3, nne, t1)
         for kind in range(4):
             if kind == 0:
                 inside = pd0 > 0.0 and pd1 <= 0.0
