@@ -115,7 +115,13 @@ COLUMNS = (
     "kind",
 )
 NCOL = len(COLUMNS)
-KIND_SAMPLE, KIND_ONSET, KIND_EXIT, KIND_PEAK, KIND_TRANSFER, KIND_START, KIND_END = range(7)
+# Numba compiles a separate copy of a function for each integer constant it is called with
+# (a Literal[int] type). Row kinds are therefore floats, and the pair indices and counters
+# passed to the bigger helpers are computed (``TRACK``/``SLOT`` below are run-time values
+# derived from an argument), which keeps the cold compile time of the kernel down.
+KIND_SAMPLE, KIND_ONSET, KIND_EXIT, KIND_PEAK, KIND_TRANSFER, KIND_START, KIND_END = (
+    float(k) for k in range(7)
+)
 
 # ---- episode (impact) table columns ------------------------------------------------------
 EPISODE_COLUMNS = (
@@ -429,7 +435,8 @@ def rhs(t, Y, mt, ms, v0t, v0s, P, EX, out):
     """Time derivative of the state ``Y`` in the contact modes (mt, ms)."""
     m = P[P_MASS]
     om, _ = horn_gear(t, P, EX)
-    _, pdt, fkt, _, nt = pair_forces(t, Y, 0, mt, v0t, P, EX)
+    track = mt - mt  # 0, typed as a run-time integer (see the note on literals)
+    _, pdt, fkt, _, nt = pair_forces(t, Y, track, mt, v0t, P, EX)
     fx = friction(Y[1], P[P_NX], P[P_MU1], P)
     load_x = P[P_LOAD_X] + P[P_MRC] * om * om
     out[0] = Y[1]
@@ -445,7 +452,7 @@ def rhs(t, Y, mt, ms, v0t, v0s, P, EX, out):
     else:
         out[9] = 0.0
     if P[P_DOF] > 1.5:
-        _, pds, fks, _, ns = pair_forces(t, Y, 1, ms, v0s, P, EX)
+        _, pds, fks, _, ns = pair_forces(t, Y, track + 1, ms, v0s, P, EX)
         fy = friction(Y[3], abs(nt), P[P_MU2], P)
         out[2] = Y[3]
         out[3] = (-ms * ns - fy + P[P_T_Y]) / m
@@ -649,8 +656,9 @@ def _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX):
         )
         margin = acc * h * h / 8.0
         return min(u0, u1) <= margin or min(eps - u0, eps - u1) <= margin
-    p0, _, pdd0 = penetration_rates(t0, Y0, F0, 0, mt, P, EX)
-    p1, _, pdd1 = penetration_rates(t0 + h, Y1, F1, 0, mt, P, EX)
+    track = mt - mt  # 0 as a run-time integer
+    p0, _, pdd0 = penetration_rates(t0, Y0, F0, track, mt, P, EX)
+    p1, _, pdd1 = penetration_rates(t0 + h, Y1, F1, track, mt, P, EX)
     margin = 2.0 * max(abs(pdd0), abs(pdd1)) * h * h / 8.0
     return min(p0, p1) <= margin
 
@@ -771,7 +779,7 @@ def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, EX):
         r[6 + 4 * pair] = sgn * fk
         r[7 + 4 * pair] = sgn * fc
         r[8 + 4 * pair] = sgn * nn
-    _, _, _, _, nt = pair_forces(t, Y, 0, mt, v0t, P, EX)
+    _, _, _, _, nt = pair_forces(t, Y, mt - mt, mt, v0t, P, EX)
     r[13] = friction(Y[1], P[P_NX], P[P_MU1], P)
     r[14] = friction(Y[3], abs(nt), P[P_MU2], P) if P[P_DOF] > 1.5 else 0.0
     for i in range(8):
@@ -1066,8 +1074,8 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     v0 = np.ones(2)
     open_ep = -np.ones(2, dtype=np.int64)
     ED = np.zeros(2)
-    nrow = 0
-    nep = 0
+    nrow = rows.shape[0] - rows.shape[0]  # 0 as a run-time integer
+    nep = nrow
     isamp = 0
     itr = 0
     t = P[P_T_START]
@@ -1146,7 +1154,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             nrow = _write_row(
                 rows, nrow, t, Y, modes[0], modes[1], v0[0], v0[1], KIND_TRANSFER, P, EX
             )
-            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, 1, P, EX)
+            nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, nrow - nrow + 1, P, EX)
             rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
             STATS[3] += 1
         t_stop = t_end
