@@ -378,7 +378,7 @@ def pair_state(t, Y, pair, P, EX):
     return Y[2] - s, Y[3] - P[P_RC] * om, P[P_EPS_H]
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", inline="always")
 def pair_forces(t, Y, pair, mode, v0, P, EX):
     """(p, pdot, F_k, F_c, N) of a pair in contact mode ``mode`` (zeros when free)."""
     if mode == 0:

@@ -1,0 +1,391 @@
+"""The speed-profile optimiser: a seeded global search over a profile family, with the
+motion limits as constraints and the mean speed held by construction.
+
+Method
+------
+:func:`scipy.optimize.differential_evolution` (Storn & Price 1997), because the objective is
+multimodal: whether a bounce lands while the gears speed up decides between a peak force of
+2 kN and one of 4 kN for neighbouring ramp timings, so local methods stall on the first ridge.
+Settings that matter:
+
+* constraints (:class:`scipy.optimize.NonlinearConstraint`) are the limit margins of
+  :func:`braidsim.design.profiles.limit_margins`, normalised (fractions of the mean speed,
+  1 - value/limit for acceleration and jerk); they cost no simulation, and SciPy evaluates
+  the objective only for candidates that satisfy them (Lampinen's feasibility rule), so every
+  simulated candidate respects the limits;
+* the constant profile is put into the first population (``x0``): the result is never worse
+  than constant speed on the proxy;
+* ``updating="deferred"`` evaluates a whole generation at once, so the candidates, hence the
+  result, do not depend on the number of worker processes; ``rng`` = the seed;
+* no gradient polish (the objective is piecewise smooth with jumps).
+
+The objective of a candidate is the proxy run (:func:`braidsim.design.evaluate.evaluate`
+with ``cycles``), one carrier per class, weighted.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from braidsim.design.evaluate import (
+    METRIC_KEYS,
+    Evaluation,
+    check_objective,
+    evaluate,
+    objective_value,
+)
+from braidsim.design.profiles import (
+    Limits,
+    ProfileFamily,
+    SpeedProfile,
+    feasible,
+    limit_margins,
+)
+from braidsim.errors import InputError
+
+CONSTRAINTS = ("fit", "min_speed", "max_speed", "acceleration", "jerk")
+
+
+@dataclass(frozen=True)
+class OptimizerOptions:
+    """Budget and settings of the differential evolution.
+
+    Attributes
+    ----------
+    maxiter : int
+        Generations after the first population.
+    popsize : int
+        Population = popsize x number of parameters.
+    seed : int
+        Random seed (initial Latin hypercube, mutation, crossover).
+    tol : float
+        SciPy's relative convergence tolerance on the population's spread.
+    mutation : tuple of float
+        Dithered differential weight F.
+    recombination : float
+        Crossover probability CR.
+    cycles : float
+        Proxy length in transfer cycles.
+    workers : int
+        Processes evaluating a generation (1: this one).
+    """
+
+    maxiter: int = 20
+    popsize: int = 8
+    seed: int = 1
+    tol: float = 0.0
+    mutation: tuple[float, float] = (0.5, 1.0)
+    recombination: float = 0.7
+    cycles: float = 16.0
+    workers: int = 1
+
+    def __post_init__(self) -> None:
+        checks = (
+            ("maxiter", self.maxiter, 0, 10000),
+            ("popsize", self.popsize, 2, 1000),
+            ("workers", self.workers, 1, 256),
+        )
+        for name, v, lo, hi in checks:
+            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+                raise InputError(
+                    f"design.optimizer.{name}: {v!r} is out of range; allowed an integer from "
+                    f"{lo} to {hi}"
+                )
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise InputError(f"design.optimizer.seed: {self.seed!r}; allowed an integer >= 0")
+        if not (math.isfinite(self.tol) and self.tol >= 0.0):
+            raise InputError(f"design.optimizer.tol: {self.tol!r}; allowed >= 0")
+        lo, hi = self.mutation
+        if not 0.0 <= lo <= hi < 2.0:
+            raise InputError(
+                f"design.optimizer.mutation: {list(self.mutation)}; allowed [lo, hi] with "
+                "0 <= lo <= hi < 2"
+            )
+        if not 0.0 <= self.recombination <= 1.0:
+            raise InputError(
+                f"design.optimizer.recombination: {self.recombination!r}; allowed 0 to 1"
+            )
+        if not (math.isfinite(self.cycles) and 1.0 <= self.cycles <= 10000.0):
+            raise InputError(
+                f"design.optimizer.cycles: {self.cycles!r} is out of range; allowed 1 to 10000 "
+                "transfer cycles"
+            )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "method": "scipy.optimize.differential_evolution",
+            "maxiter": self.maxiter,
+            "popsize": self.popsize,
+            "seed": self.seed,
+            "tol": self.tol,
+            "mutation": list(self.mutation),
+            "recombination": self.recombination,
+            "cycles": self.cycles,
+            "workers": self.workers,
+            "updating": "deferred",
+            "polish": False,
+        }
+
+
+class ProfileObjective:
+    """x -> proxy objective (picklable, so that a process pool can evaluate it)."""
+
+    def __init__(
+        self,
+        base: Mapping[str, Any],
+        path: Path | None,
+        family: ProfileFamily,
+        objective: str,
+        cycles: float,
+    ) -> None:
+        self.base = dict(base)
+        self.path = path
+        self.family = family
+        self.objective = check_objective(objective)
+        self.cycles = cycles
+
+    def evaluation(self, x: np.ndarray) -> Evaluation:
+        return evaluate(
+            self.base, self.path, self.family.profile(x), cycles=self.cycles, workers=1
+        )
+
+    def __call__(self, x: np.ndarray) -> float:
+        return objective_value(self.evaluation(x), self.objective)
+
+
+class ProfileConstraints:
+    """x -> normalised limit margins (>= 0 satisfied), in the order of :data:`CONSTRAINTS`."""
+
+    def __init__(
+        self, family: ProfileFamily, limits: Limits, mean_speed: float, cycle_time: float
+    ) -> None:
+        self.family = family
+        self.limits = limits
+        self.mean_speed = mean_speed
+        self.cycle_time = cycle_time
+
+    def margins(self, x: np.ndarray) -> dict[str, float]:
+        return limit_margins(self.family.profile(x), self.limits, self.mean_speed, self.cycle_time)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        m = self.margins(x)
+        if m["fit"] < 0.0:
+            return np.array([m["fit"], -1.0, -1.0, -1.0, -1.0])
+        L = self.limits
+        return np.array(
+            [
+                m["fit"],
+                m["min_speed"],
+                m["max_speed"],
+                m["acceleration"] / L.max_acceleration,
+                m["jerk"] / L.max_jerk,
+            ]
+        )
+
+
+@dataclass
+class OptimizationResult:
+    """What :func:`optimise_profile` returns.
+
+    Attributes
+    ----------
+    family : ProfileFamily
+    limits : Limits
+    options : OptimizerOptions
+    objective : str
+    x : np.ndarray
+        Best parameters.
+    profile : SpeedProfile
+        Best profile.
+    value : float
+        Its proxy objective.
+    baseline_value : float
+        The constant profile's proxy objective.
+    margins : dict
+        Limit margins of the best profile (:func:`limit_margins`).
+    history : list of dict
+        Per generation: best value, evaluations so far, population's feasible fraction.
+    evaluations : int
+        Simulated candidates (feasible ones; infeasible ones cost no run).
+    elapsed : float
+        Wall time [s].
+    message : str
+        SciPy's termination message.
+    """
+
+    family: ProfileFamily
+    limits: Limits
+    options: OptimizerOptions
+    objective: str
+    x: np.ndarray
+    profile: SpeedProfile
+    value: float
+    baseline_value: float
+    margins: dict[str, float]
+    history: list[dict[str, float]] = field(default_factory=list)
+    evaluations: int = 0
+    elapsed: float = 0.0
+    message: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "objective": self.objective,
+            "family": self.family.to_dict(),
+            "limits": self.limits.to_dict(),
+            "options": self.options.to_dict(),
+            "parameters": dict(zip(self.family.names, self.x.tolist(), strict=True)),
+            "proxy_value": self.value,
+            "proxy_baseline_value": self.baseline_value,
+            "proxy_reduction": 1.0 - self.value / self.baseline_value
+            if self.baseline_value
+            else math.nan,
+            "margins": self.margins,
+            "history": self.history,
+            "evaluations": self.evaluations,
+            "elapsed_s": self.elapsed,
+            "message": self.message,
+        }
+
+
+def optimise_profile(
+    base: Mapping[str, Any],
+    path: Path | None,
+    family: ProfileFamily,
+    limits: Limits,
+    objective: str = "peak_force",
+    options: OptimizerOptions | None = None,
+    progress: Callable[[dict[str, float]], None] | None = None,
+) -> OptimizationResult:
+    """Find the profile of ``family`` that minimises ``objective`` within ``limits``.
+
+    Parameters
+    ----------
+    base, path
+        The design's machine table and file (see :func:`braidsim.design.evaluate.evaluate`).
+    family : ProfileFamily
+        Parametrisation.
+    limits : Limits
+        Motion limits (constraints).
+    objective : str
+        One of :data:`braidsim.design.evaluate.OBJECTIVES`.
+    options : OptimizerOptions
+        Budget, seed, proxy length, workers.
+    progress : callable, optional
+        Called after each generation with the history row.
+
+    Raises
+    ------
+    InputError
+        A bad objective.
+    """
+    from scipy.optimize import NonlinearConstraint, differential_evolution
+
+    from braidsim.design.evaluate import machine_for
+
+    opt = options or OptimizerOptions()
+    check_objective(objective)
+    spec = machine_for(base, path)
+    func = ProfileObjective(base, path, family, objective, opt.cycles)
+    cons = ProfileConstraints(family, limits, spec.mean_speed, spec.cycle_time)
+    x0 = family.constant()
+    baseline = func(x0)
+    bounds = family.bounds(limits)
+    history: list[dict[str, float]] = []
+    t0 = time.perf_counter()
+
+    def callback(intermediate_result: Any) -> None:
+        row = {
+            "generation": float(len(history)),
+            "best": float(intermediate_result.fun),
+            "evaluations": float(intermediate_result.nfev),
+            "elapsed_s": time.perf_counter() - t0,
+        }
+        history.append(row)
+        if progress is not None:
+            progress(row)
+
+    pool = None
+    mapper: Any = 1
+    if opt.workers > 1:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool = ProcessPoolExecutor(
+            max_workers=opt.workers, mp_context=multiprocessing.get_context("forkserver")
+        )
+        mapper = pool.map
+    try:
+        res = differential_evolution(
+            func,
+            bounds,
+            maxiter=opt.maxiter,
+            popsize=opt.popsize,
+            tol=opt.tol,
+            mutation=opt.mutation,
+            recombination=opt.recombination,
+            rng=opt.seed,
+            callback=callback,
+            polish=False,
+            init="latinhypercube",
+            updating="deferred",
+            workers=mapper,
+            constraints=NonlinearConstraint(cons, 0.0, np.inf),
+            x0=x0,
+        )
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    x = np.asarray(res.x, dtype=float)
+    value = float(res.fun)
+    if not (value < baseline):
+        # nothing beat constant speed: keep it exactly (its parameters may differ from x0 only
+        # in the dip geometry, which has no effect at level 1)
+        x, value = x0, baseline
+    best = family.profile(x)
+    margins = limit_margins(best, limits, spec.mean_speed, spec.cycle_time)
+    if not feasible(margins):  # pragma: no cover - SciPy keeps feasible solutions first
+        raise AssertionError(f"optimiser returned an infeasible profile: {margins}")
+    return OptimizationResult(
+        family,
+        limits,
+        opt,
+        objective,
+        x,
+        best,
+        value,
+        baseline,
+        margins,
+        history,
+        int(res.nfev) + 1,
+        time.perf_counter() - t0,
+        str(res.message),
+    )
+
+
+def compare(
+    base: Mapping[str, Any],
+    path: Path | None,
+    profile: SpeedProfile,
+    workers: int | None = None,
+) -> tuple[Evaluation, Evaluation]:
+    """The full machine run (every carrier, the spec's duration) at constant speed and with
+    ``profile``: the before/after numbers of the report."""
+    before = evaluate(base, path, None, full=True, workers=workers)
+    after = evaluate(base, path, profile, full=True, workers=workers)
+    return before, after
+
+
+def reductions(before: Mapping[str, float], after: Mapping[str, float]) -> dict[str, float]:
+    """1 - after/before for every objective."""
+    out = {}
+    for k in METRIC_KEYS:
+        b, a = before.get(k, math.nan), after.get(k, math.nan)
+        out[k] = 1.0 - a / b if b and math.isfinite(a) and math.isfinite(b) else math.nan
+    return out
