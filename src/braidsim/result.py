@@ -73,6 +73,50 @@ IMPACT_UNITS = {
 }
 
 
+def impacts_frame(episodes: np.ndarray) -> pd.DataFrame:
+    """The impact table of a raw episode array (columns of ``kernel.EPISODE_COLUMNS``)."""
+    import pandas as pd
+
+    c = {name: episodes[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
+    pairs = [PAIRS[int(p)] for p in c["pair"]]
+    walls = [WALLS[(pr, int(w))] for pr, w in zip(pairs, c["wall"], strict=True)]
+    return pd.DataFrame(
+        {
+            "t": c["t"],
+            "t_end": c["t_end"],
+            "duration": c["t_end"] - c["t"],
+            "pair": np.array(pairs, dtype=object),
+            "wall": np.array(walls, dtype=object),
+            "velocity": c["velocity"],
+            "latched_velocity": c["latched_velocity"],
+            "rebound_velocity": c["rebound_velocity"],
+            "max_depth": c["max_depth"],
+            "t_max_depth": c["t_max_depth"],
+            "peak_force": c["peak_force"],
+            "t_peak_force": c["t_peak_force"],
+            "min_damping_force": c["min_damping_force"],
+            "max_damping_force": c["max_damping_force"],
+            "dissipated_energy": c["dissipated_energy"],
+            "ongoing": c["end_reason"] == 1.0,
+            "cut_by_transfer": c["end_reason"] == 2.0,
+            "initial": c["initial"] == 1.0,
+        }
+    )
+
+
+def ranges_dict(ranges: np.ndarray, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
+    """``{"depth": [min, max], ...}`` of one pair and window of a (window, pair, quantity,
+    min/max) range array; a window that saw no point reads [0, 0]."""
+    ip = PAIRS.index(pair)
+    out = {}
+    for q, name in enumerate(RANGE_QUANTITIES):
+        lo, hi = ranges[window, ip, q]
+        if not math.isfinite(lo):
+            lo = hi = 0.0
+        out[name] = [float(lo), float(hi)]
+    return out
+
+
 @dataclass(frozen=True)
 class State:
     """A full state of the hybrid system: where a run can be continued from.
@@ -148,42 +192,8 @@ class Result:
         latched_velocity (v0 used by the law), rebound_velocity (NaN while still in contact),
         max_depth, peak_force, min/max_damping_force, dissipated_energy, ongoing, initial.
         """
-        import pandas as pd
-
         if "impacts" not in self._cache:
-            E = self.episodes
-            cols = {name: E[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
-            pair = np.array([PAIRS[int(p)] for p in cols["pair"]], dtype=object)
-            wall = np.array(
-                [
-                    WALLS[(PAIRS[int(p)], int(w))]
-                    for p, w in zip(cols["pair"], cols["wall"], strict=True)
-                ],
-                dtype=object,
-            )
-            df = pd.DataFrame(
-                {
-                    "t": cols["t"],
-                    "t_end": cols["t_end"],
-                    "duration": cols["t_end"] - cols["t"],
-                    "pair": pair,
-                    "wall": wall,
-                    "velocity": cols["velocity"],
-                    "latched_velocity": cols["latched_velocity"],
-                    "rebound_velocity": cols["rebound_velocity"],
-                    "max_depth": cols["max_depth"],
-                    "t_max_depth": cols["t_max_depth"],
-                    "peak_force": cols["peak_force"],
-                    "t_peak_force": cols["t_peak_force"],
-                    "min_damping_force": cols["min_damping_force"],
-                    "max_damping_force": cols["max_damping_force"],
-                    "dissipated_energy": cols["dissipated_energy"],
-                    "ongoing": cols["end_reason"] == 1.0,
-                    "cut_by_transfer": cols["end_reason"] == 2.0,
-                    "initial": cols["initial"] == 1.0,
-                }
-            )
-            self._cache["impacts"] = df
+            self._cache["impacts"] = impacts_frame(self.episodes)
         return self._cache["impacts"]
 
     # ------------------------------------------------------------------ ranges
@@ -192,14 +202,7 @@ class Result:
 
         ``{"depth": [min, max], "stiffness_force": .., "damping_force": .., "contact_force": ..}``
         """
-        ip = PAIRS.index(pair)
-        out = {}
-        for q, name in enumerate(RANGE_QUANTITIES):
-            lo, hi = self.ranges[window, ip, q]
-            if not math.isfinite(lo):  # window with no point (should not happen)
-                lo = hi = 0.0
-            out[name] = [float(lo), float(hi)]
-        return out
+        return ranges_dict(self.ranges, pair, window)
 
     def window_index(self, t0: float, t1: float) -> int:
         """Index of the window [t0, t1] (it must have been asked for in ``simulate``)."""

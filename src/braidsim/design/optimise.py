@@ -102,8 +102,8 @@ class OptimizerOptions:
             raise InputError(f"design.optimizer.seed: {self.seed!r}; allowed an integer >= 0")
         if not (math.isfinite(self.tol) and self.tol >= 0.0):
             raise InputError(f"design.optimizer.tol: {self.tol!r}; allowed >= 0")
-        lo, hi = self.mutation
-        if not 0.0 <= lo <= hi < 2.0:
+        f_lo, f_hi = self.mutation
+        if not 0.0 <= f_lo <= f_hi < 2.0:
             raise InputError(
                 f"design.optimizer.mutation: {list(self.mutation)}; allowed [lo, hi] with "
                 "0 <= lo <= hi < 2"
@@ -152,9 +152,7 @@ class ProfileObjective:
         self.cycles = cycles
 
     def evaluation(self, x: np.ndarray) -> Evaluation:
-        return evaluate(
-            self.base, self.path, self.family.profile(x), cycles=self.cycles, workers=1
-        )
+        return evaluate(self.base, self.path, self.family.profile(x), cycles=self.cycles, workers=1)
 
     def __call__(self, x: np.ndarray) -> float:
         return objective_value(self.evaluation(x), self.objective)

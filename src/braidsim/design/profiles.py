@@ -401,7 +401,9 @@ class ProfileFamily:
         """The profile of parameter vector ``x`` (in the order of :attr:`names`)."""
         v = [float(t) for t in np.asarray(x, dtype=float).reshape(-1)]
         if len(v) != len(self.names):
-            raise ValueError(f"{len(v)} parameters for the {self.name} family, need {len(self.names)}")
+            raise ValueError(
+                f"{len(v)} parameters for the {self.name} family, need {len(self.names)}"
+            )
         return SpeedProfile(self.name, dict(zip(self.names, v, strict=True)), self.ramp_nodes)
 
     def to_dict(self) -> dict[str, Any]:

@@ -57,6 +57,7 @@ from braidsim.errors import InputError, SimulationError
 from braidsim.integrate import kernel as K
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
+from braidsim.result import impacts_frame, ranges_dict
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -65,9 +66,6 @@ __all__ = ["ScipyResult", "simulate_scipy"]
 
 N_SUB = 8  # interior samples of the dense output per step for the extremes
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
-PAIRS = ("track", "slot")
-WALLS = {("track", -1): "inner", ("track", 1): "outer", ("slot", -1): "rear", ("slot", 1): "front"}
-RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")
 _MAX_SAME_TIME_EVENTS = 50
 
 
@@ -401,54 +399,13 @@ class ScipyResult:
     @property
     def impacts(self) -> pd.DataFrame:
         """Impact table with the columns and meaning of :attr:`braidsim.Result.impacts`."""
-        import pandas as pd
-
         if "impacts" not in self._cache:
-            E = self.episodes
-            c = {name: E[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
-            self._cache["impacts"] = pd.DataFrame(
-                {
-                    "t": c["t"],
-                    "t_end": c["t_end"],
-                    "duration": c["t_end"] - c["t"],
-                    "pair": np.array([PAIRS[int(p)] for p in c["pair"]], dtype=object),
-                    "wall": np.array(
-                        [
-                            WALLS[(PAIRS[int(p)], int(w))]
-                            for p, w in zip(c["pair"], c["wall"], strict=True)
-                        ],
-                        dtype=object,
-                    ),
-                    "velocity": c["velocity"],
-                    "latched_velocity": c["latched_velocity"],
-                    "rebound_velocity": c["rebound_velocity"],
-                    "max_depth": c["max_depth"],
-                    "t_max_depth": c["t_max_depth"],
-                    "peak_force": c["peak_force"],
-                    "t_peak_force": c["t_peak_force"],
-                    "min_damping_force": c["min_damping_force"],
-                    "max_damping_force": c["max_damping_force"],
-                    "dissipated_energy": c["dissipated_energy"],
-                    "ongoing": c["end_reason"] == 1.0,
-                    "cut_by_transfer": c["end_reason"] == 2.0,
-                    "initial": c["initial"] == 1.0,
-                }
-            )
+            self._cache["impacts"] = impacts_frame(self.episodes)
         return self._cache["impacts"]
 
     def ranges_dict(self, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
-        """Extremes of one pair in one window, paper signs, SI units.
-
-        ``{"depth": [min, max], "stiffness_force": .., "damping_force": .., "contact_force": ..}``
-        """
-        ip = PAIRS.index(pair)
-        out = {}
-        for q, name in enumerate(RANGE_QUANTITIES):
-            lo, hi = self.ranges[window, ip, q]
-            if not math.isfinite(lo):
-                lo = hi = 0.0
-            out[name] = [float(lo), float(hi)]
-        return out
+        """Extremes of one pair in one window, paper signs, SI units (as ``Result``)."""
+        return ranges_dict(self.ranges, pair, window)
 
 
 # =======================================================================================

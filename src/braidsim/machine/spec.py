@@ -50,10 +50,9 @@ one-line :class:`~braidsim.errors.InputError`, as is any unknown key (naming the
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -69,6 +68,7 @@ from braidsim.machine.geometry import (
 from braidsim.machine.kinematics import SpeedLaw, cycle_profile, revolution_time
 from braidsim.model import build_model
 from braidsim.params import Scenario, builtin_names, flatten, load_scenario
+from braidsim.specfile import check_keys, closest_hint, expect_table
 from braidsim.units import to_si
 
 TOP_KEYS = (
@@ -97,25 +97,6 @@ BRAID_KEYS = ("mandrel_radius", "take_up_speed", "braid_angle")
 ANIMATION_KEYS = ("enabled", "duration", "frames", "fps", "dpi")
 STARTS = ("rest", "scenario")
 MACHINE_SET_KEYS = ("transfer.times", "transfer.period", "transfer.first")
-
-
-def _closest(word: str, choices: Sequence[str]) -> str:
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.5)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-def _check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
-    for k in table:
-        if k not in allowed:
-            raise InputError(
-                f"{where}{k}: unknown key{_closest(k, allowed)}; allowed {', '.join(allowed)}"
-            )
-
-
-def _table(where: str, value: Any) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        raise InputError(f"{where}: expected a table, got {value!r}")
-    return value
 
 
 def _int(where: str, value: Any, low: int, high: int) -> int:
@@ -283,7 +264,7 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     InputError
         The first problem found, naming the entry and what is allowed.
     """
-    _check_keys("", data, TOP_KEYS)
+    check_keys("", data, TOP_KEYS)
     name = str(data.get("name", path.stem if path else "machine"))
     description = str(data.get("description", ""))
     ref = data.get("scenario", "paper-3.2")
@@ -292,7 +273,7 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     scen: str | Path = ref
     if ref not in builtin_names() and path is not None and (path.parent / ref).is_file():
         scen = path.parent / ref
-    overrides = flatten(_table("overrides", data.get("overrides", {})))
+    overrides = flatten(expect_table("overrides", data.get("overrides", {})))
     base = load_scenario(scen, overrides=overrides or None)
     for key in MACHINE_SET_KEYS:
         if key in base.explicit and base[key] not in ((), 0.0):
@@ -301,8 +282,8 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
                 "scenario and its overrides"
             )
 
-    m = _table("machine", data.get("machine", {}))
-    _check_keys("machine.", m, MACHINE_KEYS)
+    m = expect_table("machine", data.get("machine", {}))
+    check_keys("machine.", m, MACHINE_KEYS)
     if "horn_gears" not in m:
         raise InputError("machine.horn_gears: missing; allowed an even number from 4 to 1000")
     n_gears = _int("machine.horn_gears", m["horn_gears"], 4, 1000)
@@ -327,7 +308,7 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     if isinstance(raw_loading, str):
         loading = loading_pattern(geom, raw_loading)
     elif isinstance(raw_loading, Mapping):
-        _check_keys("machine.loading.", raw_loading, ("A", "B"))
+        check_keys("machine.loading.", raw_loading, ("A", "B"))
         lanes = {}
         for g in ("A", "B"):
             v = raw_loading.get(g, [])
@@ -344,7 +325,7 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     start = m.get("start", "rest")
     if start not in STARTS:
         raise InputError(
-            f"machine.start: {start!r} is not allowed{_closest(str(start), STARTS)}; "
+            f"machine.start: {start!r} is not allowed{closest_hint(str(start), STARTS)}; "
             f"allowed {', '.join(STARTS)}"
         )
 
@@ -371,8 +352,8 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     profile_in = None
     scale = 1.0
     if "speed_profile" in m:
-        prof = _table("machine.speed_profile", m["speed_profile"])
-        _check_keys("machine.speed_profile.", prof, PROFILE_KEYS)
+        prof = expect_table("machine.speed_profile", m["speed_profile"])
+        check_keys("machine.speed_profile.", prof, PROFILE_KEYS)
         for k in PROFILE_KEYS:
             if k not in prof:
                 raise InputError(f"machine.speed_profile.{k}: missing; allowed a list of numbers")
@@ -409,8 +390,8 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
 
     braid = None
     if "braid" in data:
-        b = _table("braid", data["braid"])
-        _check_keys("braid.", b, BRAID_KEYS)
+        b = expect_table("braid", data["braid"])
+        check_keys("braid.", b, BRAID_KEYS)
         if "mandrel_radius" not in b:
             raise InputError("braid.mandrel_radius: missing; allowed a radius > 0 m")
         rm = _positive("braid.mandrel_radius", b["mandrel_radius"], "m")
@@ -433,8 +414,8 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
                 )
         braid = BraidOptions(rm, v, alpha)
 
-    anim = _table("animation", data.get("animation", {}))
-    _check_keys("animation.", anim, ANIMATION_KEYS)
+    anim = expect_table("animation", data.get("animation", {}))
+    check_keys("animation.", anim, ANIMATION_KEYS)
     enabled = anim.get("enabled", True)
     if not isinstance(enabled, bool):
         raise InputError(f"animation.enabled: {enabled!r} is not allowed; allowed true or false")

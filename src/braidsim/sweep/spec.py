@@ -72,6 +72,7 @@ import numpy as np
 from braidsim.batch import METRIC_NAMES, SERIES_VARIABLES, RunOptions, check_options
 from braidsim.errors import InputError
 from braidsim.params import SCHEMA, Scenario, builtin_names, convert, flatten, load_scenario
+from braidsim.specfile import check_keys, closest_hint, expect_table
 from braidsim.units import to_si
 
 TOP_KEYS = (
@@ -99,25 +100,6 @@ RUN_DIM = "run"
 TIME_DIM = "t"
 MIN_AUTO_CHUNK = 16
 MAX_AUTO_CHUNK = 256
-
-
-def _closest(word: str, choices: Sequence[str]) -> str:
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.5)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
-def _check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
-    for k in table:
-        if k not in allowed:
-            raise InputError(
-                f"{where}{k}: unknown key{_closest(k, allowed)}; allowed {', '.join(allowed)}"
-            )
-
-
-def _table(where: str, value: Any) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        raise InputError(f"{where}: expected a table, got {value!r}")
-    return value
 
 
 def _int(where: str, value: Any, low: int) -> int:
@@ -362,8 +344,8 @@ class SweepSpec:
 
 def _axis(i: int, table: Any, base: Scenario) -> Axis:
     where = f"axes[{i}]."
-    t = _table(f"axes[{i}]", table)
-    _check_keys(where, t, AXIS_KEYS)
+    t = expect_table(f"axes[{i}]", table)
+    check_keys(where, t, AXIS_KEYS)
     if "key" not in t:
         raise InputError(f"{where}key: missing; allowed any scenario key (CONTRACT.md)")
     key = _param_key(f"{where}key", t["key"])
@@ -408,7 +390,8 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         spacing = t.get("spacing", "linear")
         if spacing not in SPACINGS:
             raise InputError(
-                f"{where}spacing: {spacing!r} is not allowed{_closest(str(spacing), SPACINGS)}; "
+                f"{where}spacing: {spacing!r} is not allowed"
+                f"{closest_hint(str(spacing), SPACINGS)}; "
                 f"allowed {', '.join(SPACINGS)}"
             )
         if num > 1 and start == stop:
@@ -448,19 +431,20 @@ def _flatten_ranges(table: Mapping[str, Any], prefix: str = "") -> dict[str, Any
 
 
 def _samples(table: Any, base: Scenario) -> Samples:
-    t = _table("samples", table)
-    _check_keys("samples.", t, SAMPLES_KEYS)
+    t = expect_table("samples", table)
+    check_keys("samples.", t, SAMPLES_KEYS)
     method = t.get("method", "latin_hypercube")
     if method not in SAMPLE_METHODS:
         raise InputError(
-            f"samples.method: {method!r} is not allowed{_closest(str(method), SAMPLE_METHODS)}; "
+            f"samples.method: {method!r} is not allowed"
+            f"{closest_hint(str(method), SAMPLE_METHODS)}; "
             f"allowed {', '.join(SAMPLE_METHODS)}"
         )
     if "n" not in t:
         raise InputError("samples.n: missing; allowed an integer >= 1")
     n = _int("samples.n", t["n"], 1)
     seed = _int("samples.seed", t.get("seed", 0), 0)
-    ranges = _flatten_ranges(_table("samples.ranges", t.get("ranges", {})))
+    ranges = _flatten_ranges(expect_table("samples.ranges", t.get("ranges", {})))
     if not ranges:
         raise InputError(
             "samples.ranges: empty; allowed a table {KEY = {low = ..., high = ...}, ...}"
@@ -474,8 +458,8 @@ def _samples(table: Any, base: Scenario) -> Samples:
             raise InputError(
                 f"{where}: {key} takes {spec.range_text()}; only keys with a number can be sampled"
             )
-        r = _table(where, rng)
-        _check_keys(f"{where}.", r, RANGE_KEYS)
+        r = expect_table(where, rng)
+        check_keys(f"{where}.", r, RANGE_KEYS)
         for k in ("low", "high"):
             if k not in r:
                 raise InputError(f"{where}.{k}: missing; a sampled range needs low and high")
@@ -544,8 +528,8 @@ def chunk_shape_for(shape: Sequence[int], size: int) -> tuple[int, ...]:
 
 
 def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np.ndarray]:
-    t = _table("series", table)
-    _check_keys("series.", t, SERIES_KEYS)
+    t = expect_table("series", table)
+    check_keys("series.", t, SERIES_KEYS)
     names = t.get("variables", [])
     if not isinstance(names, list) or not names:
         raise InputError(
@@ -554,7 +538,8 @@ def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np
     for v in names:
         if v not in SERIES_VARIABLES:
             raise InputError(
-                f"series.variables: unknown variable {v!r}{_closest(str(v), SERIES_VARIABLES)}; "
+                f"series.variables: unknown variable {v!r}"
+                f"{closest_hint(str(v), SERIES_VARIABLES)}; "
                 f"allowed {', '.join(SERIES_VARIABLES)}"
             )
     if "times" in t:
@@ -594,7 +579,7 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     InputError
         The first problem found, naming the entry and what is allowed.
     """
-    _check_keys("", data, TOP_KEYS)
+    check_keys("", data, TOP_KEYS)
     if "scenario" not in data:
         raise InputError("scenario: missing; allowed a built-in scenario name or a TOML path")
     ref = data["scenario"]
@@ -603,7 +588,7 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     scen: str | Path = ref
     if ref not in builtin_names() and path is not None and (path.parent / ref).is_file():
         scen = path.parent / ref  # a scenario file next to the spec
-    overrides = flatten(_table("overrides", data.get("overrides", {})))
+    overrides = flatten(expect_table("overrides", data.get("overrides", {})))
     base = load_scenario(scen, overrides=overrides or None)
     duration = None
     if "duration" in data:
@@ -636,8 +621,8 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
             "samples.ranges.simulation.duration: the duration cannot be sampled; make it an axis"
         )
 
-    met = _table("metrics", data.get("metrics", {}))
-    _check_keys("metrics.", met, METRICS_KEYS)
+    met = expect_table("metrics", data.get("metrics", {}))
+    check_keys("metrics.", met, METRICS_KEYS)
     keep = met.get("keep", list(METRIC_NAMES))
     if not isinstance(keep, list) or not keep:
         raise InputError(
@@ -646,7 +631,7 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     for m in keep:
         if m not in METRIC_NAMES:
             raise InputError(
-                f"metrics.keep: unknown metric {m!r}{_closest(str(m), METRIC_NAMES)}; "
+                f"metrics.keep: unknown metric {m!r}{closest_hint(str(m), METRIC_NAMES)}; "
                 f"allowed {', '.join(METRIC_NAMES)}"
             )
     if len(set(keep)) != len(keep):
@@ -676,8 +661,8 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
             f"metrics.{msg}" if msg.startswith(("window", "rms_interval")) else msg
         ) from None
 
-    ex = _table("execution", data.get("execution", {}))
-    _check_keys("execution.", ex, EXECUTION_KEYS)
+    ex = expect_table("execution", data.get("execution", {}))
+    check_keys("execution.", ex, EXECUTION_KEYS)
     shape = partial.shape
     n_runs = int(np.prod(shape, dtype=np.int64))
     size = (

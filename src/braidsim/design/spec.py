@@ -1,0 +1,458 @@
+"""The design specification: a TOML file read and validated whole before any run.
+
+A design spec names a machine (a machine spec file, or the machine spec's own tables inline)
+and says what to study. Every quantity is a number in SI or a string with units::
+
+    name = "16-carrier braider: slow down for the transfers"   # optional
+    description = "..."                                          # optional
+    machine_spec = "machine16.toml"    # a machine spec (relative to this file); or put the
+                                       # machine spec's keys here (scenario, overrides,
+                                       # [machine], duration/revolutions, [braid])
+
+    [design]
+    objective = "peak_force"           # peak_force | impact_energy | impacts | mean_peak_force
+    workers = 1                        # processes (the results do not depend on it)
+
+    [design.profile]                   # the speed-profile family (braidsim.design.profiles)
+    family = "dip"                     # dip | fourier | dip+fourier
+    harmonics = 2                      # K, for fourier and dip+fourier
+    ramp_nodes = 16                    # table segments per ramp
+    amplitude = 0.5                    # |a_k|, |b_k| <= amplitude / k
+
+    [design.limits]                    # motion limits of the horn-gear drive
+    min_speed = 0.25                   # fraction of the mean speed
+    max_speed = 2.5                    # fraction of the mean speed
+    max_acceleration = "3000 rad/s^2"
+    max_jerk = "3e6 rad/s^3"
+
+    [design.optimizer]                 # scipy.optimize.differential_evolution
+    maxiter = 20
+    popsize = 8
+    seed = 1
+    cycles = 16                        # proxy length in transfer cycles
+
+    [design.proxy_check]               # compare proxy and full run on random profiles
+    profiles = 4                       # 0: skip
+    seed = 1
+
+    [design.sensitivity]
+    enabled = true
+    levers = ["track.clearance", "contact.track.restitution", "track.vibration_amplitude",
+              "track.vibration_frequency", "carrier.mass", "yarn.tension_horizontal"]
+    span = 0.5                         # default range nominal * (1 -+ span)
+    levels = 3                         # one-at-a-time values per lever (plus the nominal)
+    trajectories = 4                   # Morris trajectories
+    morris_levels = 4                  # Morris grid levels p
+    seed = 1
+    optimised = true                   # one-at-a-time also with the optimised profile
+    [design.sensitivity.ranges]
+    "track.clearance" = ["2 mm", "4 mm"]
+
+    [design.speed_limit]
+    enabled = true
+    metric = "peak_force"              # default: the objective
+    threshold = "3.7 kN"               # default: the metric at the nominal setting and speed
+    speeds = [0.25, 2.0]               # scanned range, fractions of the mean speed
+    points = 8
+    refine = 5
+
+Unknown keys and bad values stop with one line naming the entry and what is allowed.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from braidsim.design.evaluate import OBJECTIVES, check_objective, machine_for
+from braidsim.design.optimise import OptimizerOptions
+from braidsim.design.profiles import Limits, ProfileFamily
+from braidsim.design.sensitivity import DEFAULT_LEVERS, Lever, make_levers
+from braidsim.design.speed_limits import SpeedLimitOptions
+from braidsim.errors import InputError
+from braidsim.machine.spec import TOP_KEYS as MACHINE_TOP_KEYS
+from braidsim.machine.spec import MachineSpec
+from braidsim.units import to_si
+
+TOP_KEYS = ("name", "description", "machine_spec", "design", *MACHINE_TOP_KEYS)
+DESIGN_KEYS = (
+    "objective",
+    "workers",
+    "profile",
+    "limits",
+    "optimizer",
+    "proxy_check",
+    "sensitivity",
+    "speed_limit",
+)
+PROFILE_KEYS = ("family", "harmonics", "ramp_nodes", "amplitude")
+LIMIT_KEYS = ("min_speed", "max_speed", "max_acceleration", "max_jerk")
+OPTIMIZER_KEYS = ("maxiter", "popsize", "seed", "tol", "mutation", "recombination", "cycles")
+PROXY_KEYS = ("profiles", "seed")
+SENSITIVITY_KEYS = (
+    "enabled",
+    "levers",
+    "span",
+    "levels",
+    "trajectories",
+    "morris_levels",
+    "seed",
+    "optimised",
+    "ranges",
+)
+SPEED_KEYS = ("enabled", "metric", "threshold", "speeds", "points", "refine")
+METRIC_UNITS = {"peak_force": "N", "mean_peak_force": "N", "impact_energy": "W", "impacts": "1/s"}
+
+
+def _check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
+    for k in table:
+        if k not in allowed:
+            close = difflib.get_close_matches(k, list(allowed), n=1, cutoff=0.5)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise InputError(f"{where}{k}: unknown key{hint}; allowed {', '.join(allowed)}")
+
+
+def _table(where: str, value: Any) -> Mapping[str, Any]:
+    if not isinstance(value, Mapping):
+        raise InputError(f"{where}: expected a table, got {value!r}")
+    return value
+
+
+def _int(where: str, value: Any, low: int, high: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise InputError(
+            f"{where}: {value!r} is not allowed; allowed an integer from {low} to {high}"
+        )
+    return int(value)
+
+
+def _float(where: str, value: Any, unit: str = "") -> float:
+    v = to_si(where, value, unit)
+    if not math.isfinite(v):
+        raise InputError(f"{where}: {v!r} is not finite")
+    return v
+
+
+def _bool(where: str, value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise InputError(f"{where}: {value!r} is not allowed; allowed true or false")
+    return value
+
+
+@dataclass(frozen=True)
+class SensitivityOptions:
+    """What the sensitivity study runs (see :mod:`braidsim.design.sensitivity`)."""
+
+    enabled: bool = True
+    levers: tuple[Lever, ...] = ()
+    levels: int = 3
+    trajectories: int = 4
+    morris_levels: int = 4
+    seed: int = 1
+    optimised: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "enabled": self.enabled,
+            "levers": [lv.to_dict() for lv in self.levers],
+            "levels": self.levels,
+            "trajectories": self.trajectories,
+            "morris_levels": self.morris_levels,
+            "seed": self.seed,
+            "optimised": self.optimised,
+        }
+
+
+@dataclass(frozen=True)
+class SpeedLimitSettings:
+    """The speed-limit study (see :mod:`braidsim.design.speed_limits`)."""
+
+    enabled: bool = True
+    metric: str = "peak_force"
+    threshold: float | None = None
+    options: SpeedLimitOptions = field(default_factory=SpeedLimitOptions)
+
+    def to_dict(self) -> dict[str, Any]:
+        o = self.options
+        return {
+            "enabled": self.enabled,
+            "metric": self.metric,
+            "threshold": self.threshold,
+            "speeds": [o.low, o.high],
+            "points": o.points,
+            "refine": o.refine,
+        }
+
+
+@dataclass(frozen=True)
+class DesignSpec:
+    """A validated design spec.
+
+    Attributes
+    ----------
+    name, description : str
+    path : Path or None
+        The design spec file.
+    machine_table : dict
+        The machine spec table (validated by :func:`braidsim.machine.parse_machine_spec`).
+    machine_path : Path or None
+        The file the machine table comes from (relative scenario paths).
+    machine : MachineSpec
+        The nominal machine at constant speed.
+    objective : str
+    workers : int
+    family : ProfileFamily
+    limits : Limits
+    optimizer : OptimizerOptions
+    proxy_profiles, proxy_seed : int
+        Random profiles for the proxy check and their seed.
+    sensitivity : SensitivityOptions
+    speed_limit : SpeedLimitSettings
+    """
+
+    name: str
+    description: str
+    path: Path | None
+    machine_table: dict[str, Any]
+    machine_path: Path | None
+    machine: MachineSpec
+    objective: str
+    workers: int
+    family: ProfileFamily
+    limits: Limits
+    optimizer: OptimizerOptions
+    proxy_profiles: int
+    proxy_seed: int
+    sensitivity: SensitivityOptions
+    speed_limit: SpeedLimitSettings
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "name": self.name,
+            "description": self.description,
+            "spec": str(self.path) if self.path else None,
+            "machine_spec": str(self.machine_path) if self.machine_path else None,
+            "objective": self.objective,
+            "workers": self.workers,
+            "profile_family": self.family.to_dict(),
+            "limits": self.limits.to_dict(),
+            "optimizer": self.optimizer.to_dict(),
+            "proxy_check": {"profiles": self.proxy_profiles, "seed": self.proxy_seed},
+            "sensitivity": self.sensitivity.to_dict(),
+            "speed_limit": self.speed_limit.to_dict(),
+        }
+
+
+def _machine_table(
+    data: Mapping[str, Any], path: Path | None
+) -> tuple[dict[str, Any], Path | None]:
+    inline = {k: v for k, v in data.items() if k in MACHINE_TOP_KEYS}
+    ref = data.get("machine_spec")
+    if ref is None:
+        if "machine" not in inline:
+            raise InputError(
+                "machine_spec: missing; allowed a machine spec file, or the machine spec's "
+                "tables ([machine], scenario, ...) in this file"
+            )
+        return dict(inline), path
+    if not isinstance(ref, str):
+        raise InputError(f"machine_spec: {ref!r} is not a path")
+    if inline:
+        key = next(iter(inline))
+        raise InputError(
+            f"{key}: given together with machine_spec; allowed one of them (edit the machine "
+            "spec, or put all of its keys here)"
+        )
+    mp = Path(ref)
+    if not mp.is_absolute() and path is not None:
+        mp = path.parent / mp
+    if not mp.is_file():
+        raise InputError(f"machine_spec: {str(mp)!r} is not a file; allowed a machine spec TOML")
+    try:
+        table = tomllib.loads(mp.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"machine_spec: {mp}: malformed TOML ({exc})") from None
+    return table, mp
+
+
+def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> DesignSpec:
+    """Validate a design spec table (already read from TOML); see the module docstring.
+
+    Raises
+    ------
+    InputError
+        The first problem found, naming the entry and what is allowed.
+    """
+    _check_keys("", data, TOP_KEYS)
+    name = str(data.get("name", path.stem if path else "design"))
+    description = str(data.get("description", ""))
+    table, mpath = _machine_table(data, path)
+    mt = table.get("machine", {})
+    if isinstance(mt, Mapping) and "speed_profile" in mt:
+        raise InputError(
+            "machine.speed_profile: set by the design study (the baseline is constant speed); "
+            "allowed: leave it out of the machine spec"
+        )
+    machine = machine_for(table, mpath)
+    if machine.scenario["horn_gear.speed_harmonics"]:
+        raise InputError(
+            "horn_gear.speed_harmonics: the design's baseline is constant speed; allowed: "
+            "leave it out of the scenario and its overrides"
+        )
+
+    d = _table("design", data.get("design", {}))
+    _check_keys("design.", d, DESIGN_KEYS)
+    objective = check_objective(str(d.get("objective", "peak_force")))
+    workers = _int("design.workers", d.get("workers", 1), 1, 256)
+
+    p = _table("design.profile", d.get("profile", {}))
+    _check_keys("design.profile.", p, PROFILE_KEYS)
+    fam_name = p.get("family", "dip")
+    if not isinstance(fam_name, str):
+        raise InputError(f"design.profile.family: {fam_name!r}; allowed dip, fourier, dip+fourier")
+    harmonics = _int(
+        "design.profile.harmonics", p.get("harmonics", 0 if fam_name == "dip" else 2), 0, 12
+    )
+    family = ProfileFamily(
+        fam_name,
+        harmonics,
+        _int("design.profile.ramp_nodes", p.get("ramp_nodes", 16), 2, 256),
+        _float("design.profile.amplitude", p.get("amplitude", 0.5)),
+    )
+
+    lt = _table("design.limits", d.get("limits", {}))
+    _check_keys("design.limits.", lt, LIMIT_KEYS)
+    dflt = Limits()
+    limits = Limits(
+        _float("design.limits.min_speed", lt.get("min_speed", dflt.min_speed)),
+        _float("design.limits.max_speed", lt.get("max_speed", dflt.max_speed)),
+        _float(
+            "design.limits.max_acceleration",
+            lt.get("max_acceleration", dflt.max_acceleration),
+            "rad/s**2",
+        ),
+        _float("design.limits.max_jerk", lt.get("max_jerk", dflt.max_jerk), "rad/s**3"),
+    )
+
+    o = _table("design.optimizer", d.get("optimizer", {}))
+    _check_keys("design.optimizer.", o, OPTIMIZER_KEYS)
+    od = OptimizerOptions()
+    mut = o.get("mutation", list(od.mutation))
+    if isinstance(mut, int | float) and not isinstance(mut, bool):
+        mut = [mut, mut]
+    if not isinstance(mut, list) or len(mut) != 2:
+        raise InputError(f"design.optimizer.mutation: {mut!r}; allowed [low, high] or a number")
+    optimizer = OptimizerOptions(
+        maxiter=o.get("maxiter", od.maxiter),
+        popsize=o.get("popsize", od.popsize),
+        seed=o.get("seed", od.seed),
+        tol=_float("design.optimizer.tol", o.get("tol", od.tol)),
+        mutation=(
+            _float("design.optimizer.mutation", mut[0]),
+            _float("design.optimizer.mutation", mut[1]),
+        ),
+        recombination=_float(
+            "design.optimizer.recombination", o.get("recombination", od.recombination)
+        ),
+        cycles=_float("design.optimizer.cycles", o.get("cycles", od.cycles)),
+        workers=workers,
+    )
+
+    pc = _table("design.proxy_check", d.get("proxy_check", {}))
+    _check_keys("design.proxy_check.", pc, PROXY_KEYS)
+    proxy_profiles = _int("design.proxy_check.profiles", pc.get("profiles", 4), 0, 1000)
+    proxy_seed = _int("design.proxy_check.seed", pc.get("seed", 1), 0, 2**31 - 1)
+
+    s = _table("design.sensitivity", d.get("sensitivity", {}))
+    _check_keys("design.sensitivity.", s, SENSITIVITY_KEYS)
+    keys = s.get("levers", list(DEFAULT_LEVERS))
+    if not isinstance(keys, list) or not all(isinstance(k, str) for k in keys) or not keys:
+        raise InputError(
+            f"design.sensitivity.levers: {keys!r}; allowed a non-empty list of scenario keys"
+        )
+    if len(set(keys)) != len(keys):
+        raise InputError(f"design.sensitivity.levers: {keys!r} repeats a key; allowed each once")
+    ranges = _table("design.sensitivity.ranges", s.get("ranges", {}))
+    levers = make_levers(
+        machine.scenario, keys, _float("design.sensitivity.span", s.get("span", 0.5)), ranges
+    )
+    sensitivity = SensitivityOptions(
+        _bool("design.sensitivity.enabled", s.get("enabled", True)),
+        tuple(levers),
+        _int("design.sensitivity.levels", s.get("levels", 3), 2, 50),
+        _int("design.sensitivity.trajectories", s.get("trajectories", 4), 1, 1000),
+        _int("design.sensitivity.morris_levels", s.get("morris_levels", 4), 2, 20),
+        _int("design.sensitivity.seed", s.get("seed", 1), 0, 2**31 - 1),
+        _bool("design.sensitivity.optimised", s.get("optimised", True)),
+    )
+
+    sl = _table("design.speed_limit", d.get("speed_limit", {}))
+    _check_keys("design.speed_limit.", sl, SPEED_KEYS)
+    metric = check_objective(str(sl.get("metric", objective)))
+    threshold = None
+    if "threshold" in sl:
+        threshold = _float("design.speed_limit.threshold", sl["threshold"], METRIC_UNITS[metric])
+        if not threshold > 0.0:
+            raise InputError(
+                f"design.speed_limit.threshold: {threshold:g} is out of range; allowed > 0 "
+                f"{METRIC_UNITS[metric]}"
+            )
+    speeds = sl.get("speeds", [0.25, 2.0])
+    if not isinstance(speeds, list) or len(speeds) != 2:
+        raise InputError(
+            f"design.speed_limit.speeds: {speeds!r}; allowed [low, high] (fractions of the mean)"
+        )
+    speed_limit = SpeedLimitSettings(
+        _bool("design.speed_limit.enabled", sl.get("enabled", True)),
+        metric,
+        threshold,
+        SpeedLimitOptions(
+            _float("design.speed_limit.speeds", speeds[0]),
+            _float("design.speed_limit.speeds", speeds[1]),
+            _int("design.speed_limit.points", sl.get("points", 8), 2, 200),
+            _int("design.speed_limit.refine", sl.get("refine", 5), 0, 30),
+        ),
+    )
+    return DesignSpec(
+        name,
+        description,
+        path,
+        table,
+        mpath,
+        machine,
+        objective,
+        workers,
+        family,
+        limits,
+        optimizer,
+        proxy_profiles,
+        proxy_seed,
+        sensitivity,
+        speed_limit,
+    )
+
+
+def load_design_spec(path: str | Path) -> DesignSpec:
+    """Read and validate a design spec TOML file.
+
+    Raises
+    ------
+    InputError
+        Missing or malformed file, or any problem listed in the module docstring.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"SPEC: {str(p)!r} is not a file; allowed a design spec TOML file")
+    try:
+        data = tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{p}: malformed TOML ({exc})") from None
+    return parse_design_spec(data, p)
+
+
+__all__ = ["OBJECTIVES", "DesignSpec", "load_design_spec", "parse_design_spec"]

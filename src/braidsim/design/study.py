@@ -1,0 +1,317 @@
+"""The whole design study of a spec: baseline, proxy check, optimised profile, before/after on
+the full machine, sensitivity of the other levers, speed limits.
+
+:func:`run_design` does the computing and returns a :class:`DesignResult`;
+:func:`braidsim.design.report.write_report` turns it into files.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from braidsim.design.evaluate import Evaluation, Fidelity, evaluate, proxy_fidelity
+from braidsim.design.optimise import OptimizationResult, optimise_profile, reductions
+from braidsim.design.profiles import SpeedProfile, feasible, limit_margins
+from braidsim.design.sensitivity import (
+    Lever,
+    MorrisResult,
+    OneAtATime,
+    morris,
+    one_at_a_time,
+    run_tasks,
+)
+from braidsim.design.spec import DesignSpec
+from braidsim.design.speed_limits import (
+    SpeedLimit,
+    SpeedLimitOptions,
+    chatter_speed,
+    transfer_speed_estimate,
+    transfer_speed_limit,
+)
+
+
+def random_profiles(spec: DesignSpec, n: int, seed: int, tries: int = 20000) -> list[SpeedProfile]:
+    """``n`` profiles drawn uniformly in the family's bounds that satisfy the limits (by
+    rejection, seeded), for the proxy check."""
+    fam = spec.family
+    b = np.array(fam.bounds(spec.limits))
+    rng = np.random.default_rng(seed)
+    out: list[SpeedProfile] = []
+    m = spec.machine
+    for _ in range(tries):
+        if len(out) >= n:
+            break
+        x = b[:, 0] + rng.random(b.shape[0]) * (b[:, 1] - b[:, 0])
+        pr = fam.profile(x)
+        if feasible(limit_margins(pr, spec.limits, m.mean_speed, m.cycle_time)):
+            out.append(pr)
+    return out
+
+
+@dataclass(frozen=True)
+class SpeedLimitTask:
+    """One lever setting's transfer speed limit (plain data, picklable for a pool)."""
+
+    base: dict[str, Any]
+    path: Path | None
+    overrides: dict[str, float]
+    threshold: float
+    metric: str
+    options: SpeedLimitOptions
+    nominal_speed: float
+    cycles: float
+
+    def __call__(self) -> SpeedLimit:
+        return transfer_speed_limit(
+            self.base,
+            self.path,
+            self.threshold,
+            self.metric,
+            self.overrides,
+            None,
+            self.options,
+            nominal_speed=self.nominal_speed,
+            cycles=self.cycles,
+        )
+
+
+@dataclass
+class LeverLimits:
+    """Speed limits of one lever at each of its values.
+
+    Attributes
+    ----------
+    lever : Lever
+    values : list of float
+        SI values of the lever.
+    limits : list of SpeedLimit
+        Simulated transfer limits.
+    estimates : list of float
+        Closed-form first-impact limits [rad/s] (NaN unless the metric is the peak force).
+    chatter : list of float
+        Chatter speeds [rad/s].
+    """
+
+    lever: Lever
+    values: list[float]
+    limits: list[SpeedLimit]
+    estimates: list[float]
+    chatter: list[float]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            **self.lever.to_dict(),
+            "values": self.values,
+            "transfer_limit": [lim.to_dict() for lim in self.limits],
+            "closed_form_estimate": self.estimates,
+            "chatter_speed": self.chatter,
+        }
+
+
+@dataclass
+class DesignResult:
+    """Everything the report shows.
+
+    Attributes
+    ----------
+    spec : DesignSpec
+    baseline_proxy : dict
+        Proxy metrics at constant speed.
+    fidelity : Fidelity or None
+        Proxy against full run on random feasible profiles.
+    optimisation : OptimizationResult
+    before, after : Evaluation
+        Full machine runs (every carrier, the machine spec's duration) at constant speed and
+        with the optimised profile.
+    reductions : dict
+        1 - after/before per objective.
+    production : dict
+        Mean speed and transfer rate measured before and after.
+    oat : list of OneAtATime
+        One-at-a-time studies (constant, optimised).
+    morris : MorrisResult or None
+    speed_limits : list of LeverLimits
+    nominal_speed_limit : SpeedLimit or None
+        The transfer limit at the nominal setting.
+    threshold : float
+        The speed-limit threshold used.
+    timings : dict
+        Wall time of each stage [s].
+    """
+
+    spec: DesignSpec
+    baseline_proxy: dict[str, float]
+    fidelity: Fidelity | None
+    optimisation: OptimizationResult
+    before: Evaluation
+    after: Evaluation
+    reductions: dict[str, float]
+    production: dict[str, float]
+    oat: list[OneAtATime] = field(default_factory=list)
+    morris: MorrisResult | None = None
+    speed_limits: list[LeverLimits] = field(default_factory=list)
+    nominal_speed_limit: SpeedLimit | None = None
+    threshold: float = math.nan
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _production(ev: Evaluation) -> dict[str, float]:
+    run = ev.run
+    if run is None:
+        return {"mean_speed": math.nan, "transfers_per_second": math.nan}
+    _, ang = run.speed.rotation([run.duration])
+    return {
+        "mean_speed": float(ang[0] / run.duration),
+        "mean_speed_rpm": float(ang[0] / run.duration * 30.0 / math.pi),
+        "transfers_per_second": float(run.totals["transfers_per_second"]),
+    }
+
+
+def run_design(
+    spec: DesignSpec,
+    progress: Callable[[str], None] | None = None,
+    full_workers: int | None = None,
+) -> DesignResult:
+    """Run the whole study (module docstring).
+
+    Parameters
+    ----------
+    spec : DesignSpec
+    progress : callable, optional
+        Receives one line per stage.
+    full_workers : int, optional
+        Processes for the two full machine runs (default: the spec's workers).
+    """
+    say = progress or (lambda _s: None)
+    base, mpath = spec.machine_table, spec.machine_path
+    cycles = spec.optimizer.cycles
+    W = spec.workers
+    timings: dict[str, float] = {}
+
+    t = time.perf_counter()
+    baseline = evaluate(base, mpath, None, cycles=cycles).metrics
+    fid = None
+    if spec.proxy_profiles > 0:
+        profs = random_profiles(spec, spec.proxy_profiles, spec.proxy_seed)
+        say(f"proxy check: {len(profs)} random profiles, proxy and full runs")
+        fid = proxy_fidelity(base, mpath, profs, cycles, workers=1)
+    timings["proxy_check"] = time.perf_counter() - t
+
+    say(
+        f"optimising ({spec.family.name}, {spec.objective}, maxiter {spec.optimizer.maxiter}, "
+        f"popsize {spec.optimizer.popsize}, seed {spec.optimizer.seed})"
+    )
+    t = time.perf_counter()
+    opt = optimise_profile(
+        base,
+        mpath,
+        spec.family,
+        spec.limits,
+        spec.objective,
+        spec.optimizer,
+        progress=lambda row: say(
+            f"  generation {int(row['generation'])}: best {row['best']:.6g} "
+            f"({int(row['evaluations'])} runs, {row['elapsed_s']:.0f} s)"
+        ),
+    )
+    timings["optimisation"] = time.perf_counter() - t
+
+    say("full machine runs: constant speed and optimised profile")
+    t = time.perf_counter()
+    fw = W if full_workers is None else full_workers
+    before = evaluate(base, mpath, None, full=True, workers=fw)
+    after = evaluate(base, mpath, opt.profile, full=True, workers=fw)
+    timings["full_runs"] = time.perf_counter() - t
+    red = reductions(before.metrics, after.metrics)
+    prod = {f"before_{k}": v for k, v in _production(before).items()}
+    prod.update({f"after_{k}": v for k, v in _production(after).items()})
+
+    result = DesignResult(spec, baseline, fid, opt, before, after, red, prod, timings=timings)
+
+    sens = spec.sensitivity
+    if sens.enabled:
+        t = time.perf_counter()
+        levers = list(sens.levers)
+        say(f"sensitivity: one at a time, {len(levers)} levers")
+        result.oat.append(
+            one_at_a_time(base, mpath, levers, sens.levels, cycles, None, "constant", W)
+        )
+        if sens.optimised and not opt.profile.is_constant:
+            result.oat.append(
+                one_at_a_time(base, mpath, levers, sens.levels, cycles, opt.profile, "optimised", W)
+            )
+        say(f"sensitivity: Morris, {sens.trajectories} trajectories (seed {sens.seed})")
+        result.morris = morris(
+            base,
+            mpath,
+            levers,
+            spec.objective,
+            sens.trajectories,
+            sens.morris_levels,
+            sens.seed,
+            cycles,
+            None,
+            W,
+        )
+        timings["sensitivity"] = time.perf_counter() - t
+
+    sl = spec.speed_limit
+    if sl.enabled:
+        t = time.perf_counter()
+        thr = sl.threshold if sl.threshold is not None else baseline[sl.metric]
+        result.threshold = thr
+        levers = list(sens.levers)
+        values = {lv.key: _oat_values(result.oat, lv) for lv in levers}
+
+        def task(over: dict[str, float]) -> SpeedLimitTask:
+            return SpeedLimitTask(
+                dict(base), mpath, over, thr, sl.metric, sl.options, spec.machine.mean_speed, cycles
+            )
+
+        tasks = [task({})]
+        for lv in levers:
+            tasks += [task({lv.key: v}) for v in values[lv.key]]
+        say(f"speed limits: {len(tasks)} settings")
+        lims = run_tasks(tasks, W)
+        result.nominal_speed_limit = lims[0]
+        i = 1
+        for lv in levers:
+            n = len(values[lv.key])
+            chat, est = [], []
+            for v in values[lv.key]:
+                sc = spec.machine.scenario.with_overrides({lv.key: v})
+                chat.append(chatter_speed(sc))
+                est.append(
+                    transfer_speed_estimate(sc, thr) if sl.metric == "peak_force" else math.nan
+                )
+            result.speed_limits.append(
+                LeverLimits(lv, values[lv.key], list(lims[i : i + n]), est, chat)
+            )
+            i += n
+        timings["speed_limits"] = time.perf_counter() - t
+    return result
+
+
+def _oat_values(oat: list[OneAtATime], lever: Lever) -> list[float]:
+    from braidsim.design.sensitivity import lever_values
+
+    for o in oat:
+        if lever.key in o.values:
+            return list(o.values[lever.key])
+    return lever_values(lever, 3)
+
+
+__all__ = [
+    "DesignResult",
+    "LeverLimits",
+    "SpeedLimitOptions",
+    "random_profiles",
+    "run_design",
+]
