@@ -15,6 +15,17 @@ from braidsim.errors import InputError
 from braidsim.params import load_scenario
 from braidsim.simulate import simulate
 
+#: Overrides that turn a scenario's carrier into a free mass: no yarn tension, no centrifugal
+#: load, no gravity (so no friction), no track vibration, and a far wall 1 m away.
+FREE_MASS: dict[str, Any] = {
+    "yarn.tension_horizontal": 0.0,
+    "yarn.tension_vertical": 0.0,
+    "horn_gear.angular_velocity": 0.0,
+    "gravity": 0.0,
+    "track.vibration_amplitude": 0.0,
+    "track.clearance": 1.0,
+}
+
 
 def single_impact(
     model: str = "hunt_crossley",
@@ -53,15 +64,10 @@ def single_impact(
         closed-form depth, force and duration.
     """
     overrides: dict[str, Any] = {
+        **FREE_MASS,
         "contact.track.model": model,
         "contact.track.restitution": restitution,
         "carrier.mass": mass,
-        "yarn.tension_horizontal": 0.0,
-        "yarn.tension_vertical": 0.0,
-        "horn_gear.angular_velocity": 0.0,
-        "gravity": 0.0,
-        "track.vibration_amplitude": 0.0,
-        "track.clearance": 1.0,
         "initial.x": 0.0,
         "simulation.rtol": rtol,
         "simulation.atol_position": 1e-16,

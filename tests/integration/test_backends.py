@@ -17,6 +17,7 @@ import pytest
 
 from braidsim import contact
 from braidsim.errors import InputError
+from braidsim.impact import FREE_MASS
 from braidsim.integrate.scipy_backend import simulate_scipy
 from braidsim.params import load_scenario
 from braidsim.simulate import simulate
@@ -132,13 +133,8 @@ def test_final_state_agrees(both: tuple[Any, Any, dict[str, Any]]) -> None:
 def _free_impact(model: str, velocity: float) -> dict[str, Any]:
     """A free mass hitting the inner wall (no loads), as in :mod:`braidsim.impact`."""
     return {
+        **FREE_MASS,
         "contact.track.model": model,
-        "yarn.tension_horizontal": 0.0,
-        "yarn.tension_vertical": 0.0,
-        "horn_gear.angular_velocity": 0.0,
-        "gravity": 0.0,
-        "track.vibration_amplitude": 0.0,
-        "track.clearance": 1.0,
         "initial.x": 0.0,
         "initial.vx": -velocity,
         "simulation.atol_position": 1e-16,

@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 
 from braidsim import contact
+from braidsim.impact import FREE_MASS
 from braidsim.params import load_scenario
 from braidsim.simulate import simulate
 
@@ -47,12 +48,7 @@ def _fixed_step_errors(exponent: float, stiffness: float) -> tuple[np.ndarray, n
             "contact.track.exponent": exponent,
             "contact.track.stiffness": stiffness,
             "carrier.mass": MASS,
-            "yarn.tension_horizontal": 0.0,
-            "yarn.tension_vertical": 0.0,
-            "horn_gear.angular_velocity": 0.0,
-            "gravity": 0.0,
-            "track.vibration_amplitude": 0.0,
-            "track.clearance": 1.0,
+            **FREE_MASS,
             "initial.vx": -SPEED,
             # every step accepted: the error norm stays far below 1 at these tolerances
             "simulation.rtol": 1e-2,

@@ -1,0 +1,778 @@
+"""The design report: summary (JSON), Markdown, tables (CSV), figures, and the optimised
+machine as a spec that ``braidsim machine`` runs.
+
+:func:`write_report` builds the whole directory under a temporary name and renames it into
+place (:func:`braidsim.io.atomic_directory`): the report is complete or absent.
+
+================================  ===========================================================
+``summary.json``                  everything below as numbers (SI units)
+``report.md``                     the report
+``design_summary.png``            main figure: speed over the cycle, a carrier through a
+                                  transfer, peak force of every transfer, before and after
+``profile.png``                   speed, acceleration and jerk over the cycle with the limits
+``peak_force_per_transfer.png``   peak force and impacts of every transfer, before and after
+``sensitivity.png``               one-at-a-time swings and Morris mu* of the levers
+``speed_limits.png``              transfer speed limit and chatter speed against each lever
+``convergence.png``               the optimiser's best value per generation
+``optimised_profile.csv``         the kernel's table: phase, relative speed, omega, omega'
+``optimised_machine.toml``        the machine spec with the optimised [machine.speed_profile]
+``transfers_before.csv``,         one row per transfer of the full machine runs
+``transfers_after.csv``
+``sensitivity.csv``               every one-at-a-time run
+``speed_limits.csv``              every lever setting's speed limits
+================================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from braidsim.design.evaluate import METRIC_KEYS, OBJECTIVES
+from braidsim.io import atomic_directory, atomic_write_text
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from braidsim.design.study import DesignResult
+    from braidsim.result import Result
+
+REPORT_KIND = "design report"
+
+
+# ----------------------------------------------------------------------------------------
+# summary
+# ----------------------------------------------------------------------------------------
+
+
+def _kinematics(res: DesignResult) -> dict[str, Any]:
+    from braidsim.machine.report import kinematics_summary
+
+    return kinematics_summary(res.spec.machine)
+
+
+def summary(res: DesignResult, files: list[str] | None = None) -> dict[str, Any]:
+    """The JSON object of ``braidsim design --json`` (SI units)."""
+    spec = res.spec
+    opt = res.optimisation
+    m = spec.machine
+    prof = opt.profile
+    ph, fa = prof.table()
+    out: dict[str, Any] = {
+        "name": spec.name,
+        "description": spec.description,
+        "spec": spec.to_dict(),
+        "machine": {
+            "name": m.name,
+            "horn_gears": m.geometry.N,
+            "slots": m.geometry.S,
+            "carriers": len(m.loading.carriers),
+            "scenario": m.scenario.name,
+            "duration": m.duration,
+            "cycle_time": m.cycle_time,
+        },
+        "objective": spec.objective,
+        "objective_title": OBJECTIVES[spec.objective][0],
+        "objective_unit": OBJECTIVES[spec.objective][1],
+        "baseline": _finite(res.before.metrics),
+        "optimised": _finite(res.after.metrics),
+        "reduction": res.reductions,
+        "production": {
+            **res.production,
+            "kinematics": _kinematics(res),
+            "note": "the mean speed sets the production rate; measured from the rotation of "
+            "each full run",
+        },
+        "profile": {
+            **prof.to_dict(),
+            "table": {"phase": ph, "factor": fa},
+            "table_error": prof.table_error(),
+            "margins": opt.margins,
+            "limits": spec.limits.to_dict(),
+        },
+        "optimisation": opt.to_dict(),
+        "proxy": {
+            "cycles": spec.optimizer.cycles,
+            "baseline": res.baseline_proxy,
+            "fidelity": res.fidelity.to_dict() if res.fidelity else None,
+        },
+        "timings_s": res.timings,
+        "files": files or [],
+    }
+    if res.morris is not None:
+        out["sensitivity"] = {
+            "morris": res.morris.to_dict(),
+            "one_at_a_time": [o.to_dict() for o in res.oat],
+        }
+    if res.speed_limits:
+        out["speed_limits"] = {
+            "metric": spec.speed_limit.metric,
+            "threshold": res.threshold,
+            "nominal": res.nominal_speed_limit.to_dict() if res.nominal_speed_limit else None,
+            "levers": [ll.to_dict() for ll in res.speed_limits],
+        }
+    return out
+
+
+def _finite(d: dict[str, float]) -> dict[str, float]:
+    return {k: float(v) for k, v in d.items()}
+
+
+# ----------------------------------------------------------------------------------------
+# figures
+# ----------------------------------------------------------------------------------------
+
+
+def carrier_trace(res: DesignResult, optimised: bool) -> tuple[Result, float, float]:
+    """The run of the worst carrier of the optimised machine (constant or optimised speed),
+    with a dense series over its hardest complete transfer interval: (result, t0, t1)."""
+    import braidsim
+    from braidsim.design.evaluate import machine_for
+    from braidsim.machine.run import plan_transfers
+
+    spec = res.spec
+    run_after = res.after.run
+    assert run_after is not None
+    tr = run_after.transfers
+    done = tr[tr["complete"]]
+    row = done.loc[done["peak_force"].idxmax()] if len(done) else tr.iloc[0]
+    carrier, k = str(row["carrier"]), int(row["transfer"])
+    ms = machine_for(
+        spec.machine_table, spec.machine_path, res.optimisation.profile if optimised else None
+    )
+    _, plans = plan_transfers(ms, ms.duration)
+    plan = next(p for p in plans if p.carrier == carrier)
+    t0 = float(plan.times[k - 1])
+    t1 = float(plan.times[k]) if k < plan.times.size else ms.duration
+    sc = ms.scenario.with_overrides({"transfer.times": [float(t) for t in plan.times]})
+    samples = np.linspace(t0 - 0.002, t1, 4000)
+    r = braidsim.simulate(sc, duration=t1, sample_times=samples)
+    return r, t0, t1
+
+
+def main_figure(res: DesignResult) -> Figure:
+    """Speed over two cycles, a carrier through its hardest transfer, and the peak force of
+    every transfer: constant speed against the optimised profile."""
+    from braidsim.plotting import new_figure
+
+    spec = res.spec
+    m = spec.machine
+    prof = res.optimisation.profile
+    Tc = m.cycle_time
+    w = m.mean_speed
+    rpm = 30.0 / math.pi
+    fig = new_figure(8.0, 8.2)
+    ax1, ax2, ax3 = fig.subplots(3, 1)
+    ph = np.linspace(-0.5, 1.5, 1601)
+    f, _, _ = prof.evaluate(ph)
+    ax1.plot(ph * Tc * 1e3, np.full_like(ph, w * rpm), color="0.45", lw=1.5, label="constant")
+    ax1.plot(ph * Tc * 1e3, f * w * rpm, color="C3", lw=1.5, label="optimised")
+    for c in (0.0, 1.0):
+        ax1.axvline(c * Tc * 1e3, color="k", lw=0.6, ls=":")
+    L = spec.limits
+    ax1.axhline(L.min_speed * w * rpm, color="C7", lw=0.6, ls="--")
+    ax1.axhline(L.max_speed * w * rpm, color="C7", lw=0.6, ls="--", label="speed limits")
+    ax1.set_xlabel("time from a slot meeting (transfers at the dotted lines) / ms")
+    ax1.set_ylabel("horn-gear speed / rpm")
+    ax1.legend(fontsize=7, frameon=False, ncol=3, loc="upper right")
+    ax1.set_title(
+        f"{spec.name}\nsame mean speed {w * rpm:.4g} rpm: "
+        + ", ".join(
+            f"{OBJECTIVES[k][0]} {res.before.metrics[k]:.4g} -> {res.after.metrics[k]:.4g} "
+            f"{OBJECTIVES[k][1]} ({-100 * res.reductions[k]:+.0f} %)"
+            for k in ("peak_force", "impact_energy")
+        ),
+        fontsize=8,
+    )
+    for optimised, colour, label in ((False, "0.45", "constant"), (True, "C3", "optimised")):
+        r, t0, _ = carrier_trace(res, optimised)
+        s = r.series
+        sel = s["t"] >= t0 - 0.002
+        ax2.plot((s["t"][sel] - t0) * 1e3, s["x"][sel] * 1e3, color=colour, lw=1.0, label=label)
+        imp = r.impacts
+        imp = imp[(imp["t"] >= t0) & (imp["pair"] == "track")]
+        if len(imp):
+            j = int(np.argmax(imp["peak_force"].to_numpy()))
+            tt = float(imp["t"].iloc[j])
+            ax2.annotate(
+                f"{float(imp['peak_force'].iloc[j]):.0f} N",
+                xy=((tt - t0) * 1e3, 0.0),
+                xytext=((tt - t0) * 1e3, -0.45 if optimised else -0.25),
+                fontsize=7,
+                color=colour,
+                ha="center",
+                arrowprops={"arrowstyle": "-", "color": colour, "lw": 0.6},
+            )
+    ax2.axhline(0.0, color="k", lw=0.5)
+    ax2.axhline(spec.machine.scenario["track.clearance"] * 1e3, color="k", lw=0.5)
+    ax2.set_xlabel("time after the hardest transfer of the worst carrier / ms")
+    ax2.set_ylabel("carrier x / mm")
+    ax2.set_ylim(-0.6, spec.machine.scenario["track.clearance"] * 1e3 + 0.3)
+    ax2.legend(fontsize=7, frameon=False, loc="upper right")
+    ax2.set_title(
+        "the carrier crosses the clearance and bounces on the inner wall (largest peak marked)",
+        fontsize=8,
+    )
+    _transfer_scatter(ax3, res, "peak_force")
+    ax3.set_ylabel("peak force per transfer / N")
+    ax3.set_xlabel("transfer time / s (every carrier of the machine)")
+    ax3.set_ylim(bottom=0.0)
+    ax3.legend(fontsize=7, frameon=False, loc="lower right", ncol=2)
+    for ax in (ax1, ax2, ax3):
+        ax.grid(True, lw=0.3, alpha=0.6)
+    return fig
+
+
+def _transfer_scatter(ax: Any, res: DesignResult, column: str) -> None:
+    for ev, colour, label in ((res.before, "0.45", "constant"), (res.after, "C3", "optimised")):
+        if ev.run is None or not len(ev.run.transfers):
+            continue
+        tr = ev.run.transfers
+        ax.plot(tr["t"], tr[column], "o", ms=3, color=colour, alpha=0.7, label=label)
+        ax.axhline(float(tr[column].max()), color=colour, lw=0.6, ls="--")
+
+
+def profile_figure(res: DesignResult) -> Figure:
+    """Speed, acceleration and jerk over one cycle with the limits and the kernel's table."""
+    from braidsim.plotting import new_figure
+
+    spec = res.spec
+    m = spec.machine
+    prof = res.optimisation.profile
+    Tc, w = m.cycle_time, m.mean_speed
+    L = spec.limits
+    ph = np.linspace(0.0, 1.0, 2001)
+    f, d1, d2 = prof.evaluate(ph)
+    tp, tf = (np.asarray(v) for v in prof.table())
+    mean = float(np.sum(0.5 * (tf[1:] + tf[:-1]) * np.diff(tp)))
+    fig = new_figure(7.0, 6.4)
+    ax1, ax2, ax3 = fig.subplots(3, 1, sharex=True)
+    ax1.plot(ph, f * w, color="C3", lw=1.4, label="optimised profile")
+    ax1.plot(tp, tf / mean * w, ".", color="k", ms=2.5, label="kernel table nodes")
+    ax1.axhline(w, color="0.45", lw=1.0, label="constant (the same mean)")
+    ax1.axhline(L.min_speed * w, color="C7", lw=0.6, ls="--")
+    ax1.axhline(L.max_speed * w, color="C7", lw=0.6, ls="--", label="limits")
+    ax1.set_ylabel("omega / (rad/s)")
+    ax1.legend(fontsize=7, frameon=False, ncol=2)
+    ax2.plot(ph, d1 * w / Tc, color="C3", lw=1.2)
+    for s in (-1, 1):
+        ax2.axhline(s * L.max_acceleration, color="C7", lw=0.6, ls="--")
+    ax2.set_ylabel("omega' / (rad/s$^2$)")
+    ax3.plot(ph, d2 * w / Tc**2, color="C3", lw=1.2)
+    for s in (-1, 1):
+        ax3.axhline(s * L.max_jerk, color="C7", lw=0.6, ls="--")
+    ax3.set_ylabel("omega'' / (rad/s$^3$)")
+    ax3.set_xlabel(f"phase of the transfer cycle (T_c = {Tc * 1e3:.4g} ms; 0: slot meeting)")
+    for ax in (ax1, ax2, ax3):
+        ax.grid(True, lw=0.3, alpha=0.6)
+    mg = res.optimisation.margins
+    ax1.set_title(
+        f"speed {mg['speed_min']:.3g}-{mg['speed_max']:.3g} x mean, "
+        f"|omega'| <= {mg['acceleration_max']:.4g} rad/s^2, "
+        f"|omega''| <= {mg['jerk_max']:.3g} rad/s^3",
+        fontsize=8,
+    )
+    return fig
+
+
+def transfers_figure(res: DesignResult) -> Figure:
+    """Peak force and impacts of every transfer, before and after."""
+    from braidsim.plotting import new_figure
+
+    fig = new_figure(7.0, 5.0)
+    ax1, ax2 = fig.subplots(2, 1, sharex=True)
+    _transfer_scatter(ax1, res, "peak_force")
+    _transfer_scatter(ax2, res, "impacts")
+    ax1.set_ylabel("peak force / N")
+    ax2.set_ylabel("impacts per transfer")
+    ax2.set_xlabel("transfer time / s")
+    ax1.set_ylim(bottom=0.0)
+    ax1.legend(fontsize=7, frameon=False, loc="lower right")
+    for ax in (ax1, ax2):
+        ax.grid(True, lw=0.3, alpha=0.6)
+    ax1.set_title("every transfer of every carrier (dashed: the largest)", fontsize=9)
+    return fig
+
+
+def sensitivity_figure(res: DesignResult) -> Figure:
+    """One-at-a-time swings (relative change of the objective at each end of each lever's
+    range) and Morris mu* with sigma."""
+    from braidsim.plotting import new_figure
+
+    obj = res.spec.objective
+    fig = new_figure(8.0, 4.6)
+    ax1, ax2 = fig.subplots(1, 2)
+    mor = res.morris
+    if mor is None or not res.oat:
+        ax1.text(0.5, 0.5, "no sensitivity study", ha="center", transform=ax1.transAxes)
+        return fig
+    order = list(reversed(mor.ranking))
+    levers = {lv.key: lv for lv in mor.levers}
+    y = np.arange(len(order))
+    h = 0.38 if len(res.oat) > 1 else 0.6
+    for j, (oat, colour) in enumerate(zip(res.oat, ("0.45", "C3"), strict=False)):
+        nom = oat.nominal[obj]
+        sw = oat.swing(obj)
+        off = (j - 0.5 * (len(res.oat) - 1)) * h
+        lo = np.array([100.0 * (sw[k][0] / nom - 1.0) for k in order])
+        hi = np.array([100.0 * (sw[k][1] / nom - 1.0) for k in order])
+        ax1.barh(y + off, lo, height=h, color=colour, alpha=0.45, label=f"{oat.profile}: low end")
+        ax1.barh(y + off, hi, height=h, color=colour, alpha=0.95, label=f"{oat.profile}: high end")
+    ax1.axvline(0.0, color="k", lw=0.6)
+    ax1.set_yticks(y, [levers[k].label for k in order], fontsize=7)
+    ax1.set_xlabel(f"change of the {OBJECTIVES[obj][0]} / %")
+    ax1.legend(fontsize=6, frameon=False)
+    ax1.set_title("one lever at a time, to each end of its range", fontsize=8)
+    idx = [mor.levers.index(levers[k]) for k in order]
+    ax2.barh(y, mor.mu_star[idx], color="C0", alpha=0.8, xerr=mor.sigma[idx], capsize=2)
+    ax2.set_yticks(y, [""] * len(y))
+    ax2.set_xlabel(f"Morris mu* / {OBJECTIVES[obj][1]} (bars: sigma)")
+    ax2.set_title(
+        f"elementary effects over each range ({mor.trajectories} trajectories, seed {mor.seed})",
+        fontsize=8,
+    )
+    for ax in (ax1, ax2):
+        ax.grid(True, axis="x", lw=0.3, alpha=0.6)
+    return fig
+
+
+def speed_limits_figure(res: DesignResult) -> Figure:
+    """For each lever: the transfer speed limit (simulated and closed form) and the chatter
+    speed against the lever's value; the nominal speed and setting marked."""
+    from braidsim.plotting import new_figure
+
+    n = len(res.speed_limits)
+    cols = 3
+    rows = max(1, math.ceil(n / cols))
+    fig = new_figure(9.0, 2.7 * rows + 0.4)
+    axes = np.atleast_1d(fig.subplots(rows, cols)).reshape(-1)
+    rpm = 30.0 / math.pi
+    w = res.spec.machine.mean_speed
+    for ax, ll in zip(axes, res.speed_limits, strict=False):
+        x = np.array([ll.lever.display(v) for v in ll.values])
+        lim = np.array([s.speed for s in ll.limits]) * rpm
+        ax.plot(x, lim, "o-", color="C3", ms=3, label="transfer limit (simulated)")
+        for xi, s in zip(x, ll.limits, strict=True):
+            if s.status == "above_range":
+                ax.plot([xi], [s.bracket[0] * rpm], "^", color="C3", ms=5)
+            elif s.status == "below_range":
+                ax.plot([xi], [s.bracket[1] * rpm], "v", color="C3", ms=5)
+        if np.any(np.isfinite(ll.estimates)):
+            ax.plot(x, np.array(ll.estimates) * rpm, "--", color="C1", lw=1.0, label="closed form")
+        ax.plot(x, np.array(ll.chatter) * rpm, "s-", color="C0", ms=3, label="chatter below")
+        ax.axhline(w * rpm, color="0.45", lw=0.6, ls=":")
+        ax.axvline(ll.lever.display(ll.lever.nominal), color="0.45", lw=0.6, ls=":")
+        ax.set_xlabel(ll.lever.label, fontsize=8)
+        ax.set_ylabel("horn-gear speed / rpm", fontsize=8)
+        ax.set_ylim(bottom=0.0)
+        ax.grid(True, lw=0.3, alpha=0.6)
+        ax.tick_params(labelsize=7)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    if n:
+        axes[0].legend(fontsize=6, frameon=False)
+    metric = res.spec.speed_limit.metric
+    fig.suptitle(
+        f"constant-speed limits: {OBJECTIVES[metric][0]} <= {res.threshold:.4g} "
+        f"{OBJECTIVES[metric][1]} (triangles: not reached in the scanned range)",
+        fontsize=9,
+    )
+    return fig
+
+
+def convergence_figure(res: DesignResult) -> Figure:
+    """Best proxy objective per generation."""
+    from braidsim.plotting import new_figure
+
+    opt = res.optimisation
+    fig = new_figure(6.0, 3.2)
+    ax = fig.subplots()
+    if opt.history:
+        ev = [h["evaluations"] for h in opt.history]
+        ax.plot(ev, [h["best"] for h in opt.history], "o-", ms=3, color="C3")
+    ax.axhline(opt.baseline_value, color="0.45", lw=0.8, ls="--", label="constant speed")
+    ax.set_xlabel("simulated candidates")
+    ax.set_ylabel(f"best {OBJECTIVES[opt.objective][0]} / {OBJECTIVES[opt.objective][1]}")
+    ax.legend(fontsize=7, frameon=False)
+    ax.grid(True, lw=0.3, alpha=0.6)
+    ax.set_title(f"differential evolution, seed {opt.options.seed} (proxy runs)", fontsize=9)
+    return fig
+
+
+# ----------------------------------------------------------------------------------------
+# tables and the optimised machine spec
+# ----------------------------------------------------------------------------------------
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int | float):
+        return repr(float(v)) if isinstance(v, float) else str(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {v!r} as TOML")
+
+
+def to_toml(table: dict[str, Any], prefix: str = "") -> str:
+    """A minimal TOML writer for spec tables (scalars, lists, nested tables)."""
+    lines = []
+    subs = []
+    for k, v in table.items():
+        key = k if k.replace("_", "").replace("-", "").isalnum() else json.dumps(k)
+        if isinstance(v, dict):
+            subs.append((key, v))
+        else:
+            lines.append(f"{key} = {_toml_value(v)}")
+    out = "\n".join(lines)
+    for key, v in subs:
+        name = f"{prefix}.{key}" if prefix else key
+        out += f"\n\n[{name}]\n" + to_toml(v, name)
+    return out.strip("\n") + "\n"
+
+
+def optimised_machine_toml(res: DesignResult) -> str:
+    """The machine spec with the optimised profile, runnable with ``braidsim machine``."""
+    import copy
+
+    from braidsim.params import builtin_names
+
+    spec = res.spec
+    t = copy.deepcopy(spec.machine_table)
+    ref = t.get("scenario")
+    if isinstance(ref, str) and ref not in builtin_names() and spec.machine_path is not None:
+        p = spec.machine_path.parent / ref
+        if p.is_file():
+            t["scenario"] = str(p.resolve())
+    ph, fa = res.optimisation.profile.table()
+    mt = dict(t.get("machine", {}))
+    if not res.optimisation.profile.is_constant:
+        mt["speed_profile"] = {"phase": ph, "factor": fa}
+    t["machine"] = mt
+    red = res.reductions
+    head = (
+        f"# {spec.name}: the machine with the optimised horn-gear speed profile\n"
+        f"# (braidsim design; objective {spec.objective}). Run: braidsim machine THIS.toml --out DIR\n"
+        f"# Full-machine result: peak force -{100 * red['peak_force']:.1f} %, impact energy "
+        f"-{100 * red['impact_energy']:.1f} % against constant speed at the same mean speed.\n"
+    )
+    return head + to_toml(t)
+
+
+def profile_csv(res: DesignResult) -> str:
+    m = res.spec.machine
+    prof = res.optimisation.profile
+    ph, fa = (np.asarray(v) for v in prof.table())
+    mean = float(np.sum(0.5 * (fa[1:] + fa[:-1]) * np.diff(ph)))
+    f, d1, d2 = prof.evaluate(ph)
+    lines = ["phase,time_s,factor,omega_rad_s,omega_dot_rad_s2,omega_ddot_rad_s3"]
+    for i in range(ph.size):
+        lines.append(
+            f"{ph[i]:.10g},{ph[i] * m.cycle_time:.10g},{fa[i] / mean:.10g},"
+            f"{fa[i] / mean * m.mean_speed:.10g},{d1[i] * m.mean_speed / m.cycle_time:.10g},"
+            f"{d2[i] * m.mean_speed / m.cycle_time**2:.10g}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def sensitivity_csv(res: DesignResult) -> str:
+    lines = ["profile,lever,value," + ",".join(METRIC_KEYS)]
+    for oat in res.oat:
+        lines.append(
+            f"{oat.profile},nominal,," + ",".join(f"{oat.nominal[k]:.10g}" for k in METRIC_KEYS)
+        )
+        for lv in oat.levers:
+            for v, row in zip(oat.values[lv.key], oat.metrics[lv.key], strict=True):
+                lines.append(
+                    f"{oat.profile},{lv.key},{v:.10g},"
+                    + ",".join(f"{row[k]:.10g}" for k in METRIC_KEYS)
+                )
+    return "\n".join(lines) + "\n"
+
+
+def speed_limits_csv(res: DesignResult) -> str:
+    lines = ["lever,value,transfer_limit_rad_s,status,closed_form_rad_s,chatter_speed_rad_s"]
+    for ll in res.speed_limits:
+        for v, s, e, c in zip(ll.values, ll.limits, ll.estimates, ll.chatter, strict=True):
+            lines.append(f"{ll.lever.key},{v:.10g},{s.speed:.10g},{s.status},{e:.10g},{c:.10g}")
+    return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------------------------------
+# Markdown
+# ----------------------------------------------------------------------------------------
+
+
+def _f(v: Any, digits: int = 4) -> str:
+    if isinstance(v, float | np.floating):
+        return f"{float(v):.{digits}g}" if math.isfinite(v) else "n/a"
+    return str(v)
+
+
+def _table(rows: list[list[Any]], head: list[str]) -> str:
+    out = ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    out += ["| " + " | ".join(_f(c) for c in r) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str:
+    """The report as Markdown."""
+    spec = res.spec
+    m = spec.machine
+    opt = res.optimisation
+    rpm = 30.0 / math.pi
+    b, a, red = res.before.metrics, res.after.metrics, res.reductions
+    lines = [f"# {spec.name}", ""]
+    if spec.description:
+        lines += [spec.description, ""]
+    lines += [
+        f"Machine: {m.name} ({m.geometry.N} horn gears, {m.geometry.S} slots, "
+        f"{len(m.loading.carriers)} carriers, scenario `{m.scenario.name}`), mean horn-gear "
+        f"speed {m.mean_speed * rpm:.4g} rpm, transfer cycle {m.cycle_time * 1e3:.4g} ms. "
+        f"Objective: **{OBJECTIVES[spec.objective][0]}**.",
+        "",
+        "## Result: constant speed against the optimised profile (full machine)",
+        "",
+        f"Every carrier simulated for {m.duration:.4g} s with each speed law; the mean speed, "
+        "hence the production rate, is the same.",
+        "",
+    ]
+    rows = []
+    for k in METRIC_KEYS:
+        rows.append(
+            [OBJECTIVES[k][0], OBJECTIVES[k][1], b[k], a[k], f"{-100 * red[k]:+.1f} %"]
+        )
+    rows.append(["power dissipated in the track contacts", "W", b["dissipated_power"],
+                 a["dissipated_power"],
+                 f"{-100 * (1 - a['dissipated_power'] / b['dissipated_power']):+.1f} %"])
+    lines += [_table(rows, ["quantity", "unit", "constant speed", "optimised", "change"]), ""]
+    p = res.production
+    lines += [
+        "Production rate: mean horn-gear speed measured from the gear rotation of each run "
+        f"{p['before_mean_speed_rpm']:.6g} rpm (constant) and {p['after_mean_speed_rpm']:.6g} "
+        f"rpm (optimised); transfers per second {p['before_transfers_per_second']:.6g} and "
+        f"{p['after_transfers_per_second']:.6g}.",
+        "",
+    ]
+    kin = data["production"]["kinematics"]
+    if "braid" in kin:
+        br = kin["braid"]
+        lines += [
+            f"With the spec's mandrel ({br['mandrel_radius'] * 1e3:.4g} mm) and braid angle "
+            f"({br['braid_angle_deg']:.4g} deg) the take-up speed is "
+            f"{br['take_up_speed'] * 1e3:.4g} mm/s ({br['production_rate_m_per_h']:.4g} m/h), "
+            "unchanged by the profile.",
+            "",
+        ]
+    prof = opt.profile
+    mg = opt.margins
+    L = spec.limits
+    lines += ["## The optimised profile", ""]
+    pr = prof.params
+    if prof.has_dip:
+        lines += [
+            f"Family `{prof.family}`. Slow plateau at {pr['level']:.4g} x the mean speed "
+            f"({pr['level'] * m.mean_speed * rpm:.4g} rpm) from phase {pr['start']:+.4g} of the "
+            f"cycle ({pr['start'] * m.cycle_time * 1e3:+.3g} ms from the slot meeting) for "
+            f"{pr['length']:.4g} of the cycle ({pr['length'] * m.cycle_time * 1e3:.3g} ms); ramp "
+            f"down over {pr['ramp_down'] * m.cycle_time * 1e3:.3g} ms, up over "
+            f"{pr['ramp_up'] * m.cycle_time * 1e3:.3g} ms; fast level {prof.fast_level():.4g} x "
+            f"the mean ({prof.fast_level() * m.mean_speed * rpm:.4g} rpm).",
+            "",
+        ]
+    harm = {k: v for k, v in pr.items() if k[0] in "ab" and k[1:].isdigit()}
+    if harm:
+        lines += ["Harmonics: " + ", ".join(f"{k} = {v:.4g}" for k, v in harm.items()), ""]
+    lines += [
+        _table(
+            [
+                ["lowest speed", "fraction of mean", mg["speed_min"], L.min_speed,
+                 mg["min_speed"]],
+                ["highest speed", "fraction of mean", mg["speed_max"], L.max_speed,
+                 mg["max_speed"]],
+                ["largest angular acceleration", "rad/s^2", mg["acceleration_max"],
+                 L.max_acceleration, mg["acceleration"]],
+                ["largest angular jerk", "rad/s^3", mg["jerk_max"], L.max_jerk, mg["jerk"]],
+                ["dip fits in the cycle", "cycles", 1.0 - mg["fit"], 1.0, mg["fit"]],
+            ],
+            ["constraint", "unit", "profile", "limit", "margin"],
+        ),
+        "",
+        f"The kernel follows a piecewise-linear table of {len(prof.table()[0])} nodes "
+        "(`optimised_profile.csv`, and `[machine.speed_profile]` in `optimised_machine.toml`, "
+        "which `braidsim machine` runs); it is rescaled to an exact mean of 1 and differs from "
+        f"the smooth profile by at most {100 * prof.table_error():.3g} % of the mean speed.",
+        "",
+        "## Optimisation",
+        "",
+        f"`scipy.optimize.differential_evolution`, {opt.evaluations} simulated candidates in "
+        f"{opt.elapsed:.4g} s (seed {opt.options.seed}, maxiter {opt.options.maxiter}, popsize "
+        f"{opt.options.popsize}; {opt.message}). Each candidate: the machine over "
+        f"{opt.options.cycles:g} transfer cycles, one carrier per class of identical carriers "
+        f"(exact: {len(res.before.run.plans) if res.before.run else 0} carriers run as "
+        f"{len(data['proxy']['baseline']) and int(res.baseline_proxy.get('carriers', 0))} "
+        "weighted). Proxy objective: constant "
+        f"{opt.baseline_value:.5g}, optimised {opt.value:.5g} "
+        f"({-100 * (1 - opt.value / opt.baseline_value):+.1f} %).",
+        "",
+    ]
+    if res.fidelity is not None:
+        fd = res.fidelity
+        lines += [
+            f"Proxy check ({fd.proxy.shape[0]} random profiles within the limits, proxy "
+            f"against the full run):",
+            "",
+            _table(
+                [
+                    [OBJECTIVES[k][0], fd.rank_correlation[k], fd.median_relative_error[k]]
+                    for k in METRIC_KEYS
+                ],
+                ["objective", "Spearman rank correlation", "median relative difference"],
+            ),
+            "",
+        ]
+    if res.morris is not None:
+        mor = res.morris
+        lines += ["## The other levers", ""]
+        nominal = {o.profile: o.nominal[spec.objective] for o in res.oat}
+        lines += [
+            f"Ranked by Morris mu* (mean |elementary effect| over each lever's range, "
+            f"{mor.trajectories} trajectories, {mor.levels} levels, seed {mor.seed}, "
+            f"{mor.values.size} runs at constant speed), with the one-at-a-time change of the "
+            f"{OBJECTIVES[spec.objective][0]} at each end of the range "
+            f"(nominal: {', '.join(f'{k} {v:.5g}' for k, v in nominal.items())} "
+            f"{OBJECTIVES[spec.objective][1]}).",
+            "",
+        ]
+        rows = []
+        levers = {lv.key: lv for lv in mor.levers}
+        for rank, key in enumerate(mor.ranking, 1):
+            i = mor.levers.index(levers[key])
+            lv = levers[key]
+            row: list[Any] = [
+                rank,
+                lv.label,
+                f"{lv.display(lv.low):.4g} .. {lv.display(lv.high):.4g}",
+                mor.mu_star[i],
+                mor.sigma[i],
+            ]
+            for o in res.oat:
+                lo, hi = o.swing(spec.objective)[key]
+                nom = o.nominal[spec.objective]
+                row.append(f"{100 * (lo / nom - 1):+.1f} % / {100 * (hi / nom - 1):+.1f} %")
+            rows.append(row)
+        lines += [
+            _table(
+                rows,
+                ["rank", "lever", "range", "mu*", "sigma"]
+                + [f"low / high end ({o.profile})" for o in res.oat],
+            ),
+            "",
+        ]
+    if res.speed_limits:
+        metric = spec.speed_limit.metric
+        nl = res.nominal_speed_limit
+        lines += [
+            "## Speed limits",
+            "",
+            f"Transfer limit: the largest constant horn-gear speed at which the "
+            f"{OBJECTIVES[metric][0]} stays <= {res.threshold:.5g} {OBJECTIVES[metric][1]} "
+            f"(scan of {spec.speed_limit.options.points} speeds from "
+            f"{spec.speed_limit.options.low:g} to {spec.speed_limit.options.high:g} x the mean, "
+            f"then {spec.speed_limit.options.refine} bisections). Chatter speed: below it the "
+            "track vibration lifts the resting carrier off the wall between transfers, "
+            "sqrt(max(0, h_a omega_h^2 - T1 cos(phi)/m) / r_c) (MODEL_NOTES section 7). "
+            + (
+                f"Nominal setting: {nl.speed * rpm:.4g} rpm ({nl.status})."
+                if nl is not None and nl.status == "found"
+                else ""
+            ),
+            "",
+        ]
+        rows = []
+        for ll in res.speed_limits:
+            for v, s, e, c in zip(ll.values, ll.limits, ll.estimates, ll.chatter, strict=True):
+                rows.append(
+                    [
+                        ll.lever.label,
+                        ll.lever.display(v),
+                        s.speed * rpm if s.status == "found" else s.status,
+                        e * rpm,
+                        c * rpm,
+                    ]
+                )
+        lines += [
+            _table(
+                rows,
+                ["lever", "value", "transfer limit / rpm", "closed form / rpm", "chatter / rpm"],
+            ),
+            "",
+        ]
+    lines += ["## Figures", ""]
+    lines += [f"![{f}]({f})" for f in figures]
+    lines += [
+        "",
+        "## What the study assumes",
+        "",
+        "- The horn-gear speed repeats every transfer cycle (all gears turn together and every "
+        "slot meeting is a transfer of some carrier); its mean is held exactly, so transfers "
+        "stay at the slot meetings and the production rate is unchanged.",
+        "- The limits on speed, angular acceleration and jerk stand for the drive; the "
+        "tangential inertia of the carriers (m r_c omega') and the slot contact are not part of "
+        "the objective (a single-DOF carrier model moves only radially in the track).",
+        "- Every carrier is the paper's carrier model with the section 3.2 transfer map; see the "
+        "machine report for its other assumptions.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_report(res: DesignResult, out: str | Path) -> dict[str, Any]:
+    """Write the report directory ``out`` (whole or not at all); return the summary."""
+    from braidsim.machine.report import _clean
+    from braidsim.plotting import save
+
+    figures: list[str] = []
+    files: list[str] = []
+    with atomic_directory(out, REPORT_KIND) as tmp:
+        for name, make in (
+            ("design_summary.png", main_figure),
+            ("profile.png", profile_figure),
+            ("peak_force_per_transfer.png", transfers_figure),
+            ("sensitivity.png", sensitivity_figure),
+            ("speed_limits.png", speed_limits_figure),
+            ("convergence.png", convergence_figure),
+        ):
+            if name == "sensitivity.png" and res.morris is None:
+                continue
+            if name == "speed_limits.png" and not res.speed_limits:
+                continue
+            save(make(res), tmp / name)
+            figures.append(name)
+        atomic_write_text(tmp / "optimised_profile.csv", profile_csv(res))
+        atomic_write_text(tmp / "optimised_machine.toml", optimised_machine_toml(res))
+        files += ["optimised_profile.csv", "optimised_machine.toml"]
+        for name, ev in (("transfers_before.csv", res.before), ("transfers_after.csv", res.after)):
+            if ev.run is not None:
+                atomic_write_text(tmp / name, ev.run.transfers.to_csv(index=False))
+                files.append(name)
+        if res.oat:
+            atomic_write_text(tmp / "sensitivity.csv", sensitivity_csv(res))
+            files.append("sensitivity.csv")
+        if res.speed_limits:
+            atomic_write_text(tmp / "speed_limits.csv", speed_limits_csv(res))
+            files.append("speed_limits.csv")
+        files = figures + files + ["report.md", "summary.json"]
+        data = summary(res, files)
+        atomic_write_text(tmp / "report.md", markdown(res, data, figures))
+        atomic_write_text(
+            tmp / "summary.json", json.dumps(_clean(data), indent=1, allow_nan=False) + "\n"
+        )
+    data["out"] = str(out)
+    return data
