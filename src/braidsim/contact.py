@@ -43,9 +43,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, special
 
 from braidsim.errors import InputError
+
+# scipy is imported inside the functions that need it: it is the largest part of the
+# package's import time, and a run of the command line never needs it.
 
 # ----------------------------------------------------------------------------------------
 # Damping factors D(c_r), one small function each (Eqs. 5-13 of the paper)
@@ -112,6 +114,8 @@ def effective_restitution(damping_factor: float) -> float:
         # W0 near its branch point -1/e loses digits; start from the series about D = 0
         e = 1.0 - 2.0 * d / 3.0 + 10.0 * d * d / 9.0
     else:
+        from scipy import special
+
         z = -(1.0 + d) * math.exp(-(1.0 + d))
         e = float((1.0 + special.lambertw(z, 0).real) / d)
     # Newton polish on F(e) = ln(1 - D e) - ln(1 + D) + D (1 + e) = 0 (the relation in logs)
@@ -136,6 +140,8 @@ def exact_damping_factor(c_r: float) -> float:
     """
     if c_r >= 1.0:
         return 0.0
+    from scipy import optimize
+
     # e(D) ~ 1/D for large D, so D = 2/c_r brackets from above.
     hi = 2.0 / c_r + 10.0
     return float(
@@ -326,6 +332,8 @@ def hertz_impact_closed_form(
     """
     n1 = exponent + 1.0
     p_m = (n1 * mass * velocity**2 / (2.0 * stiffness)) ** (1.0 / n1)
+    from scipy import special
+
     duration = 2.0 * p_m / velocity * special.beta(1.0 / n1, 0.5) / n1
     return {
         "max_depth": p_m,

@@ -150,12 +150,16 @@ class ProfileObjective:
         self.family = family
         self.objective = check_objective(objective)
         self.cycles = cycles
+        self.log: list[tuple[np.ndarray, float]] = []
 
     def evaluation(self, x: np.ndarray) -> Evaluation:
         return evaluate(self.base, self.path, self.family.profile(x), cycles=self.cycles, workers=1)
 
     def __call__(self, x: np.ndarray) -> float:
-        return objective_value(self.evaluation(x), self.objective)
+        v = objective_value(self.evaluation(x), self.objective)
+        # in this process only (a pool's workers keep their own copies)
+        self.log.append((np.array(x, dtype=float), v))
+        return v
 
 
 class ProfileConstraints:
@@ -216,6 +220,9 @@ class OptimizationResult:
         Wall time [s].
     message : str
         SciPy's termination message.
+    candidates : list of (x, value)
+        Every simulated candidate in evaluation order, the constant profile first (recorded
+        with ``workers == 1`` only; empty otherwise).
     """
 
     family: ProfileFamily
@@ -231,6 +238,7 @@ class OptimizationResult:
     evaluations: int = 0
     elapsed: float = 0.0
     message: str = ""
+    candidates: list[tuple[np.ndarray, float]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -364,6 +372,7 @@ def optimise_profile(
         int(res.nfev) + 1,
         time.perf_counter() - t0,
         str(res.message),
+        list(func.log) if opt.workers == 1 else [],
     )
 
 

@@ -98,6 +98,7 @@ def summary(res: DesignResult, files: list[str] | None = None) -> dict[str, Any]
         "proxy": {
             "cycles": spec.optimizer.cycles,
             "baseline": res.baseline_proxy,
+            "classes": [{"run": c.representative, "members": list(c.members)} for c in res.classes],
             "fidelity": res.fidelity.to_dict() if res.fidelity else None,
         },
         "timings_s": res.timings,
@@ -189,12 +190,14 @@ def main_figure(res: DesignResult) -> Figure:
         fontsize=8,
     )
     for optimised, colour, label in ((False, "0.45", "constant"), (True, "C3", "optimised")):
-        r, t0, _ = carrier_trace(res, optimised)
+        r, t0, t1 = carrier_trace(res, optimised)
         s = r.series
-        sel = s["t"] >= t0 - 0.002
+        # the crossing and the bounces: at most 2.5 transfer cycles after the transfer
+        t_end = min(t1, t0 + 2.5 * m.cycle_time)
+        sel = (s["t"] >= t0 - 0.002) & (s["t"] <= t_end)
         ax2.plot((s["t"][sel] - t0) * 1e3, s["x"][sel] * 1e3, color=colour, lw=1.0, label=label)
         imp = r.impacts
-        imp = imp[(imp["t"] >= t0) & (imp["pair"] == "track")]
+        imp = imp[(imp["t"] >= t0) & (imp["t"] <= t_end) & (imp["pair"] == "track")]
         if len(imp):
             j = int(np.argmax(imp["peak_force"].to_numpy()))
             tt = float(imp["t"].iloc[j])
@@ -320,8 +323,21 @@ def sensitivity_figure(res: DesignResult) -> Figure:
         off = (j - 0.5 * (len(res.oat) - 1)) * h
         lo = np.array([100.0 * (sw[k][0] / nom - 1.0) for k in order])
         hi = np.array([100.0 * (sw[k][1] / nom - 1.0) for k in order])
-        ax1.barh(y + off, lo, height=h, color=colour, alpha=0.45, label=f"{oat.profile}: low end")
-        ax1.barh(y + off, hi, height=h, color=colour, alpha=0.95, label=f"{oat.profile}: high end")
+        # the longer bar first, so that a shorter one on the same side stays visible on top
+        for i in range(len(order)):
+            pair = [(lo[i], 0.4, "low end"), (hi[i], 0.95, "high end")]
+            pair.sort(key=lambda b: -abs(b[0]))
+            for v, alpha, what in pair:
+                ax1.barh(
+                    y[i] + off,
+                    v,
+                    height=h,
+                    color=colour,
+                    alpha=alpha,
+                    edgecolor="k",
+                    lw=0.3,
+                    label=f"{oat.profile}: {what}" if i == 0 else None,
+                )
     ax1.axvline(0.0, color="k", lw=0.6)
     ax1.set_yticks(y, [levers[k].label for k in order], fontsize=7)
     ax1.set_xlabel(f"change of the {OBJECTIVES[obj][0]} / %")
@@ -433,7 +449,7 @@ def to_toml(table: dict[str, Any], prefix: str = "") -> str:
     out = "\n".join(lines)
     for key, v in subs:
         name = f"{prefix}.{key}" if prefix else key
-        out += f"\n\n[{name}]\n" + to_toml(v, name)
+        out = out.rstrip("\n") + f"\n\n[{name}]\n" + to_toml(v, name)
     return out.strip("\n") + "\n"
 
 
@@ -458,7 +474,8 @@ def optimised_machine_toml(res: DesignResult) -> str:
     red = res.reductions
     head = (
         f"# {spec.name}: the machine with the optimised horn-gear speed profile\n"
-        f"# (braidsim design; objective {spec.objective}). Run: braidsim machine THIS.toml --out DIR\n"
+        f"# (braidsim design; objective {spec.objective}).\n"
+        "# Run: braidsim machine THIS.toml --out DIR\n"
         f"# Full-machine result: peak force -{100 * red['peak_force']:.1f} %, impact energy "
         f"-{100 * red['impact_energy']:.1f} % against constant speed at the same mean speed.\n"
     )
@@ -470,7 +487,7 @@ def profile_csv(res: DesignResult) -> str:
     prof = res.optimisation.profile
     ph, fa = (np.asarray(v) for v in prof.table())
     mean = float(np.sum(0.5 * (fa[1:] + fa[:-1]) * np.diff(ph)))
-    f, d1, d2 = prof.evaluate(ph)
+    _, d1, d2 = prof.evaluate(ph)
     lines = ["phase,time_s,factor,omega_rad_s,omega_dot_rad_s2,omega_ddot_rad_s3"]
     for i in range(ph.size):
         lines.append(
@@ -532,8 +549,8 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
     if spec.description:
         lines += [spec.description, ""]
     lines += [
-        f"Machine: {m.name} ({m.geometry.N} horn gears, {m.geometry.S} slots, "
-        f"{len(m.loading.carriers)} carriers, scenario `{m.scenario.name}`), mean horn-gear "
+        f"Machine: {m.name}; {m.geometry.N} horn gears, {m.geometry.S} slots, "
+        f"{len(m.loading.carriers)} carriers, scenario `{m.scenario.name}`, mean horn-gear "
         f"speed {m.mean_speed * rpm:.4g} rpm, transfer cycle {m.cycle_time * 1e3:.4g} ms. "
         f"Objective: **{OBJECTIVES[spec.objective][0]}**.",
         "",
@@ -545,12 +562,16 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
     ]
     rows = []
     for k in METRIC_KEYS:
-        rows.append(
-            [OBJECTIVES[k][0], OBJECTIVES[k][1], b[k], a[k], f"{-100 * red[k]:+.1f} %"]
-        )
-    rows.append(["power dissipated in the track contacts", "W", b["dissipated_power"],
-                 a["dissipated_power"],
-                 f"{-100 * (1 - a['dissipated_power'] / b['dissipated_power']):+.1f} %"])
+        rows.append([OBJECTIVES[k][0], OBJECTIVES[k][1], b[k], a[k], f"{-100 * red[k]:+.1f} %"])
+    rows.append(
+        [
+            "power dissipated in the track contacts",
+            "W",
+            b["dissipated_power"],
+            a["dissipated_power"],
+            f"{-100 * (1 - a['dissipated_power'] / b['dissipated_power']):+.1f} %",
+        ]
+    )
     lines += [_table(rows, ["quantity", "unit", "constant speed", "optimised", "change"]), ""]
     p = res.production
     lines += [
@@ -592,12 +613,21 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
     lines += [
         _table(
             [
-                ["lowest speed", "fraction of mean", mg["speed_min"], L.min_speed,
-                 mg["min_speed"]],
-                ["highest speed", "fraction of mean", mg["speed_max"], L.max_speed,
-                 mg["max_speed"]],
-                ["largest angular acceleration", "rad/s^2", mg["acceleration_max"],
-                 L.max_acceleration, mg["acceleration"]],
+                ["lowest speed", "fraction of mean", mg["speed_min"], L.min_speed, mg["min_speed"]],
+                [
+                    "highest speed",
+                    "fraction of mean",
+                    mg["speed_max"],
+                    L.max_speed,
+                    mg["max_speed"],
+                ],
+                [
+                    "largest angular acceleration",
+                    "rad/s^2",
+                    mg["acceleration_max"],
+                    L.max_acceleration,
+                    mg["acceleration"],
+                ],
                 ["largest angular jerk", "rad/s^3", mg["jerk_max"], L.max_jerk, mg["jerk"]],
                 ["dip fits in the cycle", "cycles", 1.0 - mg["fit"], 1.0, mg["fit"]],
             ],
@@ -615,9 +645,8 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
         f"{opt.elapsed:.4g} s (seed {opt.options.seed}, maxiter {opt.options.maxiter}, popsize "
         f"{opt.options.popsize}; {opt.message}). Each candidate: the machine over "
         f"{opt.options.cycles:g} transfer cycles, one carrier per class of identical carriers "
-        f"(exact: {len(res.before.run.plans) if res.before.run else 0} carriers run as "
-        f"{len(data['proxy']['baseline']) and int(res.baseline_proxy.get('carriers', 0))} "
-        "weighted). Proxy objective: constant "
+        f"(exact: the {len(m.loading.carriers)} carriers run as {len(res.classes)}, "
+        "weighted by class size). Proxy objective: constant "
         f"{opt.baseline_value:.5g}, optimised {opt.value:.5g} "
         f"({-100 * (1 - opt.value / opt.baseline_value):+.1f} %).",
         "",

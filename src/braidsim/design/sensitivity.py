@@ -267,6 +267,34 @@ def morris_design(
     return pts, moved, steps
 
 
+def elementary_effects(
+    func: Callable[[np.ndarray], np.ndarray],
+    k: int,
+    trajectories: int,
+    levels: int,
+    seed: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Morris elementary effects of a function of ``k`` scaled inputs in [0, 1].
+
+    ``func`` maps the (n, k) design points to their n outputs (all at once, so that the
+    caller may evaluate them in parallel). Returns (points, values, effects (r, k), mu*, mu,
+    sigma) as in the module docstring.
+    """
+    pts, moved, steps = morris_design(k, trajectories, levels, seed)
+    y = np.asarray(func(pts), dtype=float).reshape(-1)
+    if y.size != pts.shape[0]:
+        raise ValueError(f"func returned {y.size} values for {pts.shape[0]} points")
+    ee = np.full((trajectories, k), np.nan)
+    for r in range(trajectories):
+        for j in range(k):
+            a, b = r * (k + 1) + j, r * (k + 1) + j + 1
+            ee[r, moved[r, j]] = (y[b] - y[a]) / steps[r, j]
+    mu_star = np.nanmean(np.abs(ee), axis=0)
+    mu = np.nanmean(ee, axis=0)
+    sigma = np.nanstd(ee, axis=0, ddof=1) if trajectories > 1 else np.zeros(k)
+    return pts, y, ee, mu_star, mu, sigma
+
+
 def morris(
     base: Mapping[str, Any],
     path: Path | None,
@@ -283,28 +311,22 @@ def morris(
     k = len(levers)
     if k == 0:
         raise InputError("design.sensitivity.levers: empty; allowed at least one lever")
-    pts, moved, steps = morris_design(k, trajectories, levels, seed)
-    tasks = [
-        Task(
-            dict(base),
-            path,
-            profile,
-            {lv.key: lv.value(float(u)) for lv, u in zip(levers, p, strict=True)},
-            None,
-            cycles,
-        )
-        for p in pts
-    ]
-    res = run_tasks(tasks, workers)
-    y = np.array([r[objective] for r in res])
-    ee = np.full((trajectories, k), np.nan)
-    for r in range(trajectories):
-        for j in range(k):
-            a, b = r * (k + 1) + j, r * (k + 1) + j + 1
-            ee[r, moved[r, j]] = (y[b] - y[a]) / steps[r, j]
-    mu_star = np.nanmean(np.abs(ee), axis=0)
-    mu = np.nanmean(ee, axis=0)
-    sigma = np.nanstd(ee, axis=0, ddof=1) if trajectories > 1 else np.zeros(k)
+
+    def func(pts: np.ndarray) -> np.ndarray:
+        tasks = [
+            Task(
+                dict(base),
+                path,
+                profile,
+                {lv.key: lv.value(float(u)) for lv, u in zip(levers, p, strict=True)},
+                None,
+                cycles,
+            )
+            for p in pts
+        ]
+        return np.array([r[objective] for r in run_tasks(tasks, workers)])
+
+    pts, y, ee, mu_star, mu, sigma = elementary_effects(func, k, trajectories, levels, seed)
     order = sorted(range(k), key=lambda i: (-mu_star[i], levers[i].key))
     return MorrisResult(
         list(levers),

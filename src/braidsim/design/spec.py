@@ -251,7 +251,10 @@ class DesignSpec:
 def _machine_table(
     data: Mapping[str, Any], path: Path | None
 ) -> tuple[dict[str, Any], Path | None]:
-    inline = {k: v for k, v in data.items() if k in MACHINE_TOP_KEYS}
+    # name and description belong to the design; the machine's come from its own spec
+    inline = {
+        k: v for k, v in data.items() if k in MACHINE_TOP_KEYS and k not in ("name", "description")
+    }
     ref = data.get("machine_spec")
     if ref is None:
         if "machine" not in inline:

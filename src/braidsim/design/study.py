@@ -16,7 +16,14 @@ from typing import Any
 
 import numpy as np
 
-from braidsim.design.evaluate import Evaluation, Fidelity, evaluate, proxy_fidelity
+from braidsim.design.evaluate import (
+    CarrierClass,
+    Evaluation,
+    Fidelity,
+    carrier_classes,
+    evaluate,
+    proxy_fidelity,
+)
 from braidsim.design.optimise import OptimizationResult, optimise_profile, reductions
 from braidsim.design.profiles import SpeedProfile, feasible, limit_margins
 from braidsim.design.sensitivity import (
@@ -144,6 +151,8 @@ class DesignResult:
         The speed-limit threshold used.
     timings : dict
         Wall time of each stage [s].
+    classes : list of CarrierClass
+        Identical carriers over the proxy's length (one of each is run).
     """
 
     spec: DesignSpec
@@ -160,6 +169,7 @@ class DesignResult:
     nominal_speed_limit: SpeedLimit | None = None
     threshold: float = math.nan
     timings: dict[str, float] = field(default_factory=dict)
+    classes: list[CarrierClass] = field(default_factory=list)
 
 
 def _production(ev: Evaluation) -> dict[str, float]:
@@ -234,6 +244,7 @@ def run_design(
     prod.update({f"after_{k}": v for k, v in _production(after).items()})
 
     result = DesignResult(spec, baseline, fid, opt, before, after, red, prod, timings=timings)
+    result.classes = carrier_classes(spec.machine, cycles * spec.machine.cycle_time)
 
     sens = spec.sensitivity
     if sens.enabled:
