@@ -211,3 +211,9 @@ def test_entry_point_subprocess() -> None:
     assert proc.returncode == 2
     assert proc.stdout == ""
     assert proc.stderr.strip().count("\n") == 0 and "carrier.mass" in proc.stderr
+
+
+def test_unknown_option_is_one_line_exit_2(capsys) -> None:
+    code, out, err = run_cli(capsys, "run", "paper-3.1", "--bogus")
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "--bogus" in err

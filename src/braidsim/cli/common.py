@@ -79,21 +79,23 @@ def parse_sets(sets: list[str] | None) -> dict[str, Any]:
 
 
 def run_app(argv: list[str] | None) -> int:
-    """Run the Typer app; return the exit code."""
-    import click
+    """Run the Typer app; return the exit code.
 
+    Usage errors (unknown option, missing argument) become one line on stderr and exit code 2,
+    like bad parameter values.
+    """
     try:
-        # with standalone_mode=False click returns the code of a typer.Exit instead of raising
+        # with standalone_mode=False typer returns the code of a typer.Exit instead of raising
         rv = app(args=argv, standalone_mode=False)
         if isinstance(rv, int):
             return rv
-    except click.exceptions.Exit as exc:
+    except typer.Exit as exc:
         return int(exc.exit_code or 0)
-    except click.exceptions.Abort:
+    except typer.Abort:
         sys.stderr.write("braidsim: error: aborted\n")
         return 130
-    except click.ClickException as exc:
-        # usage errors: one line, exit code 2
-        sys.stderr.write(f"braidsim: error: {exc.format_message()}\n")
+    except typer.TyperException as exc:
+        message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
+        sys.stderr.write(f"braidsim: error: {message}\n")
         return 2
     return 0
