@@ -139,7 +139,7 @@ class SpeedProfile:
 
     family: str
     params: dict[str, float] = field(default_factory=dict)
-    ramp_nodes: int = 16
+    ramp_nodes: int = 32
 
     # ------------------------------------------------------------------ parts
     @property
@@ -338,7 +338,7 @@ class ProfileFamily:
 
     name: str = "dip"
     harmonics: int = 0
-    ramp_nodes: int = 16
+    ramp_nodes: int = 32
     amplitude: float = 0.5
 
     def __post_init__(self) -> None:

@@ -390,10 +390,14 @@ class OneAtATime:
 
 
 def lever_values(lever: Lever, levels: int) -> list[float]:
-    """``levels`` values evenly over the range (>= 2), with the nominal value added."""
-    v = set(np.linspace(lever.low, lever.high, max(2, levels)).tolist())
-    v.add(lever.nominal)
-    return sorted(v)
+    """``levels`` values evenly over the range (>= 2), with the nominal value added (a grid
+    value within 1e-9 of the range of the nominal is the nominal, not a near-copy of it)."""
+    out = [lever.nominal]
+    tol = 1e-9 * (lever.high - lever.low)
+    for v in np.linspace(lever.low, lever.high, max(2, levels)).tolist():
+        if all(abs(v - u) > tol for u in out):
+            out.append(float(v))
+    return sorted(out)
 
 
 def one_at_a_time(

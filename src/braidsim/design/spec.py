@@ -16,7 +16,7 @@ and says what to study. Every quantity is a number in SI or a string with units:
     [design.profile]                   # the speed-profile family (braidsim.design.profiles)
     family = "dip"                     # dip | fourier | dip+fourier
     harmonics = 2                      # K, for fourier and dip+fourier
-    ramp_nodes = 16                    # table segments per ramp
+    ramp_nodes = 32                    # table segments per ramp
     amplitude = 0.5                    # |a_k|, |b_k| <= amplitude / k
 
     [design.limits]                    # motion limits of the horn-gear drive
@@ -61,10 +61,9 @@ Unknown keys and bad values stop with one line naming the entry and what is allo
 
 from __future__ import annotations
 
-import difflib
 import math
 import tomllib
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -77,6 +76,7 @@ from braidsim.design.speed_limits import SpeedLimitOptions
 from braidsim.errors import InputError
 from braidsim.machine.spec import TOP_KEYS as MACHINE_TOP_KEYS
 from braidsim.machine.spec import MachineSpec
+from braidsim.specfile import check_keys, expect_table
 from braidsim.units import to_si
 
 TOP_KEYS = ("name", "description", "machine_spec", "design", *MACHINE_TOP_KEYS)
@@ -107,20 +107,6 @@ SENSITIVITY_KEYS = (
 )
 SPEED_KEYS = ("enabled", "metric", "threshold", "speeds", "points", "refine")
 METRIC_UNITS = {"peak_force": "N", "mean_peak_force": "N", "impact_energy": "W", "impacts": "1/s"}
-
-
-def _check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
-    for k in table:
-        if k not in allowed:
-            close = difflib.get_close_matches(k, list(allowed), n=1, cutoff=0.5)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise InputError(f"{where}{k}: unknown key{hint}; allowed {', '.join(allowed)}")
-
-
-def _table(where: str, value: Any) -> Mapping[str, Any]:
-    if not isinstance(value, Mapping):
-        raise InputError(f"{where}: expected a table, got {value!r}")
-    return value
 
 
 def _int(where: str, value: Any, low: int, high: int) -> int:
@@ -291,7 +277,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     InputError
         The first problem found, naming the entry and what is allowed.
     """
-    _check_keys("", data, TOP_KEYS)
+    check_keys("", data, TOP_KEYS)
     name = str(data.get("name", path.stem if path else "design"))
     description = str(data.get("description", ""))
     table, mpath = _machine_table(data, path)
@@ -308,13 +294,13 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
             "leave it out of the scenario and its overrides"
         )
 
-    d = _table("design", data.get("design", {}))
-    _check_keys("design.", d, DESIGN_KEYS)
+    d = expect_table("design", data.get("design", {}))
+    check_keys("design.", d, DESIGN_KEYS)
     objective = check_objective(str(d.get("objective", "peak_force")))
     workers = _int("design.workers", d.get("workers", 1), 1, 256)
 
-    p = _table("design.profile", d.get("profile", {}))
-    _check_keys("design.profile.", p, PROFILE_KEYS)
+    p = expect_table("design.profile", d.get("profile", {}))
+    check_keys("design.profile.", p, PROFILE_KEYS)
     fam_name = p.get("family", "dip")
     if not isinstance(fam_name, str):
         raise InputError(f"design.profile.family: {fam_name!r}; allowed dip, fourier, dip+fourier")
@@ -324,12 +310,12 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     family = ProfileFamily(
         fam_name,
         harmonics,
-        _int("design.profile.ramp_nodes", p.get("ramp_nodes", 16), 2, 256),
+        _int("design.profile.ramp_nodes", p.get("ramp_nodes", 32), 2, 256),
         _float("design.profile.amplitude", p.get("amplitude", 0.5)),
     )
 
-    lt = _table("design.limits", d.get("limits", {}))
-    _check_keys("design.limits.", lt, LIMIT_KEYS)
+    lt = expect_table("design.limits", d.get("limits", {}))
+    check_keys("design.limits.", lt, LIMIT_KEYS)
     dflt = Limits()
     limits = Limits(
         _float("design.limits.min_speed", lt.get("min_speed", dflt.min_speed)),
@@ -342,8 +328,8 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         _float("design.limits.max_jerk", lt.get("max_jerk", dflt.max_jerk), "rad/s**3"),
     )
 
-    o = _table("design.optimizer", d.get("optimizer", {}))
-    _check_keys("design.optimizer.", o, OPTIMIZER_KEYS)
+    o = expect_table("design.optimizer", d.get("optimizer", {}))
+    check_keys("design.optimizer.", o, OPTIMIZER_KEYS)
     od = OptimizerOptions()
     mut = o.get("mutation", list(od.mutation))
     if isinstance(mut, int | float) and not isinstance(mut, bool):
@@ -366,13 +352,13 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         workers=workers,
     )
 
-    pc = _table("design.proxy_check", d.get("proxy_check", {}))
-    _check_keys("design.proxy_check.", pc, PROXY_KEYS)
+    pc = expect_table("design.proxy_check", d.get("proxy_check", {}))
+    check_keys("design.proxy_check.", pc, PROXY_KEYS)
     proxy_profiles = _int("design.proxy_check.profiles", pc.get("profiles", 4), 0, 1000)
     proxy_seed = _int("design.proxy_check.seed", pc.get("seed", 1), 0, 2**31 - 1)
 
-    s = _table("design.sensitivity", d.get("sensitivity", {}))
-    _check_keys("design.sensitivity.", s, SENSITIVITY_KEYS)
+    s = expect_table("design.sensitivity", d.get("sensitivity", {}))
+    check_keys("design.sensitivity.", s, SENSITIVITY_KEYS)
     keys = s.get("levers", list(DEFAULT_LEVERS))
     if not isinstance(keys, list) or not all(isinstance(k, str) for k in keys) or not keys:
         raise InputError(
@@ -380,7 +366,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         )
     if len(set(keys)) != len(keys):
         raise InputError(f"design.sensitivity.levers: {keys!r} repeats a key; allowed each once")
-    ranges = _table("design.sensitivity.ranges", s.get("ranges", {}))
+    ranges = expect_table("design.sensitivity.ranges", s.get("ranges", {}))
     levers = make_levers(
         machine.scenario, keys, _float("design.sensitivity.span", s.get("span", 0.5)), ranges
     )
@@ -394,8 +380,8 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         _bool("design.sensitivity.optimised", s.get("optimised", True)),
     )
 
-    sl = _table("design.speed_limit", d.get("speed_limit", {}))
-    _check_keys("design.speed_limit.", sl, SPEED_KEYS)
+    sl = expect_table("design.speed_limit", d.get("speed_limit", {}))
+    check_keys("design.speed_limit.", sl, SPEED_KEYS)
     metric = check_objective(str(sl.get("metric", objective)))
     threshold = None
     if "threshold" in sl:
@@ -421,6 +407,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
             _int("design.speed_limit.refine", sl.get("refine", 5), 0, 30),
         ),
     )
+    _check_runs(table, mpath, machine, sensitivity, speed_limit)
     return DesignSpec(
         name,
         description,
@@ -438,6 +425,36 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         sensitivity,
         speed_limit,
     )
+
+
+def _check_runs(
+    table: dict[str, Any],
+    path: Path | None,
+    machine: MachineSpec,
+    sensitivity: SensitivityOptions,
+    speed_limit: SpeedLimitSettings,
+) -> None:
+    """Build (without running) every kind of machine the study will run, so that a setting the
+    machine rejects stops the study before it starts, not half-way."""
+    if sensitivity.enabled or speed_limit.enabled:
+        for lv in sensitivity.levers:
+            for v in (lv.low, lv.high):
+                try:
+                    machine_for(table, path, overrides={lv.key: v})
+                except InputError as exc:
+                    raise InputError(
+                        f"design.sensitivity.levers: {lv.key} = {v:g} is not allowed on this "
+                        f"machine ({exc})"
+                    ) from None
+    if speed_limit.enabled:
+        w = machine.mean_speed * speed_limit.options.low
+        try:
+            machine_for(table, path, speed=w)
+        except InputError as exc:
+            raise InputError(
+                f"design.speed_limit: the machine cannot run at {w:g} rad/s ({exc}); allowed: "
+                "set the speed with [machine] speed, or enabled = false"
+            ) from None
 
 
 def load_design_spec(path: str | Path) -> DesignSpec:

@@ -104,6 +104,9 @@ class LeverLimits:
         Closed-form first-impact limits [rad/s] (NaN unless the metric is the peak force).
     chatter : list of float
         Chatter speeds [rad/s].
+    curve : dict
+        The closed forms on a fine grid of the lever's range: ``values``, ``estimate`` and
+        ``chatter`` [SI, rad/s].
     """
 
     lever: Lever
@@ -111,6 +114,7 @@ class LeverLimits:
     limits: list[SpeedLimit]
     estimates: list[float]
     chatter: list[float]
+    curve: dict[str, list[float]] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -119,6 +123,7 @@ class LeverLimits:
             "transfer_limit": [lim.to_dict() for lim in self.limits],
             "closed_form_estimate": self.estimates,
             "chatter_speed": self.chatter,
+            "closed_form_curves": self.curve,
         }
 
 
@@ -176,11 +181,15 @@ def _production(ev: Evaluation) -> dict[str, float]:
     run = ev.run
     if run is None:
         return {"mean_speed": math.nan, "transfers_per_second": math.nan}
-    _, ang = run.speed.rotation([run.duration])
+    T = run.duration
+    _, ang = run.speed.rotation([T])
+    # a transfer due exactly at the end of the run can come out of the inversion of
+    # Omega(t) some 1e-15 s early and be listed; it is not part of the run
+    n = int((run.transfers["t"] < T * (1.0 - 1e-12)).sum()) if len(run.transfers) else 0
     return {
-        "mean_speed": float(ang[0] / run.duration),
-        "mean_speed_rpm": float(ang[0] / run.duration * 30.0 / math.pi),
-        "transfers_per_second": float(run.totals["transfers_per_second"]),
+        "mean_speed": float(ang[0] / T),
+        "mean_speed_rpm": float(ang[0] / T * 30.0 / math.pi),
+        "transfers_per_second": n / T,
     }
 
 
@@ -295,19 +304,36 @@ def run_design(
         i = 1
         for lv in levers:
             n = len(values[lv.key])
-            chat, est = [], []
-            for v in values[lv.key]:
-                sc = spec.machine.scenario.with_overrides({lv.key: v})
-                chat.append(chatter_speed(sc))
-                est.append(
-                    transfer_speed_estimate(sc, thr) if sl.metric == "peak_force" else math.nan
-                )
+            chat, est = _closed_forms(spec, lv.key, values[lv.key], thr)
+            grid = np.linspace(lv.low, lv.high, 25).tolist()
+            gc, ge = _closed_forms(spec, lv.key, grid, thr)
             result.speed_limits.append(
-                LeverLimits(lv, values[lv.key], list(lims[i : i + n]), est, chat)
+                LeverLimits(
+                    lv,
+                    values[lv.key],
+                    list(lims[i : i + n]),
+                    est,
+                    chat,
+                    {"values": grid, "estimate": ge, "chatter": gc},
+                )
             )
             i += n
         timings["speed_limits"] = time.perf_counter() - t
     return result
+
+
+def _closed_forms(
+    spec: DesignSpec, key: str, values: list[float], threshold: float
+) -> tuple[list[float], list[float]]:
+    """Chatter speeds and closed-form transfer limits [rad/s] of ``key`` at ``values`` (the
+    latter NaN unless the speed-limit metric is the peak force)."""
+    chat, est = [], []
+    for v in values:
+        sc = spec.machine.scenario.with_overrides({key: v})
+        chat.append(chatter_speed(sc))
+        peak = spec.speed_limit.metric == "peak_force"
+        est.append(transfer_speed_estimate(sc, threshold) if peak else math.nan)
+    return chat, est
 
 
 def _oat_values(oat: list[OneAtATime], lever: Lever) -> list[float]:

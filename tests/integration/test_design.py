@@ -1,0 +1,189 @@
+"""The design study end to end: speed limits against closed forms and simulation, the example
+at a tiny budget through the command line (report whole, JSON, the optimised machine spec that
+reproduces the result), bad input, and the full example (slow)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import braidsim
+from braidsim.cli import main
+from braidsim.design import load_design_spec, run_design
+from braidsim.design.evaluate import evaluate
+from braidsim.design.report import to_toml, write_report
+from braidsim.design.speed_limits import (
+    SpeedLimitOptions,
+    chatter_speed,
+    transfer_speed_estimate,
+    transfer_speed_limit,
+)
+from braidsim.machine import load_machine_spec, run_machine
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLE = ROOT / "examples" / "design16.toml"
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as exc:
+        main(list(argv))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+def tiny_example(tmp_path: Path, **design: Any) -> Path:
+    """examples/design16.toml with a tiny budget (the same machine and study)."""
+    data = tomllib.loads(EXAMPLE.read_text())
+    data["machine_spec"] = str(ROOT / "examples" / "machine16.toml")
+    d = data["design"]
+    d["workers"] = 1
+    d["optimizer"].update({"maxiter": 1, "popsize": 2, "cycles": 4})
+    d["proxy_check"] = {"profiles": 3, "seed": 1}
+    d["sensitivity"].update(
+        {"levers": ["track.clearance", "contact.track.restitution"], "trajectories": 1}
+    )
+    d["speed_limit"].update({"points": 2, "refine": 1})
+    d.update(design)
+    p = tmp_path / "design.toml"
+    p.write_text(to_toml(data))
+    return p
+
+
+def test_chatter_speed_is_where_the_resting_carrier_leaves_the_wall() -> None:
+    """paper-3.3 without transfers: 10 % below the closed-form chatter speed the carrier keeps
+    hitting the vibrating wall (an impact per vibration period), 10 % above it stays on it."""
+    sc = braidsim.load_scenario("paper-3.3")
+    w = chatter_speed(sc)
+    late = []
+    for f in (0.9, 1.1):
+        r = braidsim.simulate(
+            sc, duration=1.5, overrides={"horn_gear.angular_velocity": f * w}, sample_interval=0.0
+        )
+        imp = r.impacts
+        late.append(int(((imp["pair"] == "track") & (imp["t"] > 1.0)).sum()))
+    assert late[0] >= 25  # 60 Hz vibration: one impact per period over 0.5 s
+    assert late[1] == 0
+
+
+def test_transfer_speed_limit_matches_the_closed_form() -> None:
+    """One carrier, no vibration: the first impact of a transfer is its hardest, so the
+    simulated speed at which it reaches 3 kN agrees with the energy balance and the v^(6/5)
+    scaling of the Hunt-Crossley peak force."""
+    base = {
+        "scenario": "paper-3.2",
+        "duration": 1.0,
+        "overrides": {"track.vibration_amplitude": 0.0},
+        "machine": {"horn_gears": 8, "loading": {"A": [0], "B": []}, "speed": "120 rpm"},
+    }
+    lim = transfer_speed_limit(
+        base, None, 3000.0, options=SpeedLimitOptions(0.25, 2.0, 8, 10), cycles=12
+    )
+    assert lim.status == "found"
+    a, b = lim.bracket
+    assert b - a < 1e-3 * lim.speed
+    sc = braidsim.load_scenario("paper-3.2", overrides={"track.vibration_amplitude": 0.0})
+    est = transfer_speed_estimate(sc, 3000.0)
+    assert lim.speed == pytest.approx(est, rel=0.01)
+    # the metric at the limit is the threshold
+    at = evaluate(base, None, speed=lim.speed, cycles=12).metrics["peak_force"]
+    assert at == pytest.approx(3000.0, rel=2e-3)
+    # a threshold above everything in the range, and one below
+    hi = transfer_speed_limit(base, None, 1e5, options=SpeedLimitOptions(0.5, 1.0, 2, 0), cycles=8)
+    lo = transfer_speed_limit(base, None, 10.0, options=SpeedLimitOptions(0.5, 1.0, 2, 0), cycles=8)
+    assert hi.status == "above_range" and math.isnan(hi.speed)
+    assert lo.status == "below_range" and len(lo.speeds) == 1
+
+
+def test_design_command_on_the_example_with_a_tiny_budget(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    spec = tiny_example(tmp_path)
+    out = tmp_path / "report"
+    code, stdout, err = run_cli(capsys, "design", str(spec), "--out", str(out), "--json")
+    assert code == 0, err
+    data = json.loads(stdout)
+    for key in ("baseline", "optimised", "reduction", "production", "profile", "optimisation"):
+        assert key in data
+    for f in data["files"]:
+        assert (out / f).is_file(), f
+    assert (out / "design_summary.png").stat().st_size > 10_000
+    # the same mean speed, the same transfers
+    p = data["production"]
+    assert p["after_mean_speed"] == pytest.approx(p["before_mean_speed"], rel=1e-12)
+    assert p["after_transfers_per_second"] == p["before_transfers_per_second"]
+    # limits respected and reported
+    m = data["profile"]["margins"]
+    assert min(m[k] for k in ("min_speed", "max_speed", "acceleration", "jerk", "fit")) >= 0.0
+    # the ranking covers the levers asked for
+    assert sorted(data["sensitivity"]["morris"]["ranking"]) == [
+        "contact.track.restitution",
+        "track.clearance",
+    ]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["reduction"] == data["reduction"]
+    md = (out / "report.md").read_text()
+    assert "## Result" in md and "![design_summary.png](design_summary.png)" in md
+    # the optimised machine spec runs with `braidsim machine` and gives the reported transfers
+    ms = load_machine_spec(out / "optimised_machine.toml")
+    run = run_machine(ms, workers=1, frames=0)
+    after = pd.read_csv(out / "transfers_after.csv")
+    np.testing.assert_allclose(run.transfers["peak_force"], after["peak_force"], rtol=1e-12)
+    assert run.totals["max_peak_force"] == pytest.approx(data["optimised"]["peak_force"], rel=1e-12)
+
+
+def test_design_command_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad.toml"
+    bad.write_text(
+        f'machine_spec = "{ROOT / "examples" / "machine16.toml"}"\n[design]\nobjectiv = 1\n'
+    )
+    code, out, err = run_cli(capsys, "design", str(bad), "--out", str(tmp_path / "o"))
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "design.objectiv: unknown key" in err
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "mine.txt").write_text("keep")
+    code, _, err = run_cli(capsys, "design", str(tiny_example(tmp_path)), "--out", str(busy))
+    assert code == 2 and "--out" in err
+    assert (busy / "mine.txt").read_text() == "keep"
+    code, _, err = run_cli(capsys, "design", str(tmp_path / "none.toml"), "--out", str(busy))
+    assert code == 2 and "SPEC" in err
+
+
+def test_report_is_whole_or_absent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A failure while writing leaves no directory behind."""
+    spec = load_design_spec(
+        tiny_example(tmp_path, sensitivity={"enabled": False}, speed_limit={"enabled": False})
+    )
+    spec = dataclasses.replace(spec, proxy_profiles=0)
+    res = run_design(spec)
+    from braidsim.design import report
+
+    def boom(_res: Any) -> Any:
+        raise RuntimeError("disk full")
+
+    monkeypatch.setattr(report, "convergence_figure", boom)
+    out = tmp_path / "r"
+    with pytest.raises(RuntimeError):
+        write_report(res, out)
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".r.")]
+
+
+@pytest.mark.slow
+def test_the_example_reduces_peak_force_and_impact_energy_by_40_percent(tmp_path: Path) -> None:
+    """examples/design16.toml as shipped (a few minutes): the README's numbers."""
+    res = run_design(load_design_spec(EXAMPLE))
+    assert res.reductions["peak_force"] >= 0.40
+    assert res.reductions["impact_energy"] >= 0.40
+    assert res.production["after_mean_speed"] == pytest.approx(
+        res.production["before_mean_speed"], rel=1e-12
+    )
+    write_report(res, tmp_path / "design16")

@@ -1,0 +1,393 @@
+"""Design studies: speed profiles (mean held, derivatives, limits), the exact reduction to
+carrier classes, the optimiser's constraints, Morris elementary effects against a closed form,
+speed-limit formulas, the spec parser."""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim.design.evaluate import carrier_classes, evaluate, machine_for, spearman
+from braidsim.design.optimise import OptimizerOptions, optimise_profile
+from braidsim.design.profiles import Limits, ProfileFamily, limit_margins
+from braidsim.design.report import to_toml
+from braidsim.design.sensitivity import (
+    Lever,
+    elementary_effects,
+    make_levers,
+    morris,
+    morris_design,
+)
+from braidsim.design.spec import parse_design_spec
+from braidsim.design.speed_limits import chatter_speed, first_impact_speed
+from braidsim.errors import InputError
+from braidsim.machine.run import plan_transfers
+
+ROOT = Path(__file__).resolve().parents[2]
+MACHINE16 = ROOT / "examples" / "machine16.toml"
+
+
+def base16() -> dict[str, Any]:
+    return tomllib.loads(MACHINE16.read_text())
+
+
+def two_carriers(duration: float = 0.6, h_a: float = 0.0) -> dict[str, Any]:
+    """The 8-gear machine with one carrier of each group (two classes)."""
+    return {
+        "scenario": "paper-3.2",
+        "duration": duration,
+        "overrides": {"track.vibration_amplitude": h_a},
+        "machine": {"horn_gears": 8, "loading": {"A": [0], "B": [1]}, "speed": "120 rpm"},
+    }
+
+
+def random_params(fam: ProfileFamily, rng: np.random.Generator) -> np.ndarray:
+    b = np.array(fam.bounds(Limits()))
+    while True:
+        x = b[:, 0] + rng.random(b.shape[0]) * (b[:, 1] - b[:, 0])
+        if fam.profile(x).fit_margin() >= 0.0:
+            return x
+
+
+# ---------------------------------------------------------------------------- profiles
+
+
+@pytest.mark.parametrize("family,K", [("dip", 0), ("fourier", 3), ("dip+fourier", 2)])
+def test_profile_mean_is_one_and_derivatives_match(family: str, K: int) -> None:
+    """The smooth profile's mean over a cycle is 1 (Simpson on 2^16 intervals, exact to
+    ~1e-12 except at the ramps' kinks in f''), and f', f'' agree with central differences."""
+    fam = ProfileFamily(family, K)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        pr = fam.profile(random_params(fam, rng))
+        n = 2**16
+        ph = np.linspace(0.0, 1.0, n + 1)
+        f, _, _ = pr.evaluate(ph)
+        simpson = (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum()) / (3 * n)
+        assert simpson == pytest.approx(1.0, abs=1e-9)
+        h = 1e-6
+        x = rng.random(200)
+        fp, _, _ = pr.evaluate(x + h)
+        fm, _, _ = pr.evaluate(x - h)
+        f0, g1, g2 = pr.evaluate(x)
+        np.testing.assert_allclose(g1, (fp - fm) / (2 * h), rtol=1e-5, atol=1e-4)
+        # f'' jumps at the ramp ends (cubic ramps): compare away from them
+        corners = pr.corners()
+        far = np.array(
+            [np.min(np.abs(((xi - corners + 0.5) % 1.0) - 0.5), initial=1.0) > 1e-4 for xi in x]
+        )
+        np.testing.assert_allclose(
+            g2[far], (fp - 2 * f0 + fm)[far] / h**2, rtol=1e-3, atol=0.5 + 1e-3 * np.abs(g2).max()
+        )
+
+
+def test_dip_extremes_match_closed_forms() -> None:
+    """For a cubic ramp of width w and height H - L: max|f'| = 1.5 (H - L)/w and
+    max|f''| = 6 (H - L)/w^2 (per unit phase); limit_margins finds them."""
+    pr = ProfileFamily("dip").profile([0.4, -0.05, 0.5, 0.08, 0.12])
+    H = pr.fast_level()
+    gbar = 0.5 + 0.5 * (0.08 + 0.12)
+    assert H == pytest.approx((1 - 0.4 * gbar) / (1 - gbar), rel=1e-15)
+    w, Tc = 4 * math.pi, 0.0625
+    m = limit_margins(pr, Limits(), w, Tc)
+    assert m["acceleration_max"] == pytest.approx(1.5 * (H - 0.4) / 0.08 * w / Tc, rel=1e-6)
+    assert m["jerk_max"] == pytest.approx(6 * (H - 0.4) / 0.08**2 * w / Tc**2, rel=1e-6)
+    assert m["speed_min"] == pytest.approx(0.4, rel=1e-12)
+    assert m["speed_max"] == pytest.approx(H, rel=1e-12)
+
+
+def test_no_dip_is_the_constant_profile() -> None:
+    fam = ProfileFamily("dip")
+    for x in (fam.constant(), [1.0, -0.3, 0.2, 0.05, 0.4]):
+        pr = fam.profile(x)
+        assert pr.is_constant
+        assert pr.table() == ([0.0, 1.0], [1.0, 1.0])
+        f, d1, d2 = pr.evaluate(np.linspace(0, 1, 101))
+        assert np.all(f == 1.0) and np.all(d1 == 0.0) and np.all(d2 == 0.0)
+
+
+def test_table_is_close_to_the_smooth_profile() -> None:
+    """Linear interpolation over n segments of a ramp of width w errs by at most
+    h^2/8 max|f''| = 6 (H - L) / (8 n^2); the rescaling to mean 1 adds about as much."""
+    for n in (8, 32):
+        pr = ProfileFamily("dip", ramp_nodes=n).profile([0.35, -0.1, 0.55, 0.15, 0.2])
+        ph, fa = pr.table()
+        assert ph[0] == 0.0 and ph[-1] == 1.0 and fa[0] == fa[-1]
+        assert np.all(np.diff(ph) > 0)
+        bound = 6.0 * (pr.fast_level() - 0.35) / (8.0 * n * n)
+        assert 0.25 * bound < pr.table_error() < 2.0 * bound
+
+
+def test_limits_reject_bad_values() -> None:
+    with pytest.raises(InputError, match=r"design\.limits\.min_speed"):
+        Limits(min_speed=0.0)
+    with pytest.raises(InputError, match=r"design\.limits\.max_speed"):
+        Limits(max_speed=1.0)
+    with pytest.raises(InputError, match=r"design\.limits\.max_jerk"):
+        Limits(max_jerk=-1.0)
+    with pytest.raises(InputError, match=r"design\.profile\.family"):
+        ProfileFamily("spline")
+    with pytest.raises(InputError, match=r"design\.profile\.harmonics"):
+        ProfileFamily("fourier", 0)
+
+
+# ---------------------------------------------------------------------------- the machine
+
+
+def test_mean_speed_is_held_and_transfers_stay_at_slot_meetings() -> None:
+    """With a deep dip the gears still turn through exactly one transfer cycle per cycle time,
+    so every transfer happens at a multiple of T_c = Theta_c / omega_mean, as at constant speed."""
+    base = base16()
+    pr = ProfileFamily("dip").profile([0.3, 0.05, 0.45, 0.2, 0.2])
+    const = machine_for(base, MACHINE16)
+    spec = machine_for(base, MACHINE16, pr)
+    Tc = const.cycle_time
+    assert spec.cycle_time == const.cycle_time
+    k = np.arange(1, 33)
+    law = plan_transfers(spec, 2.0)[0]
+    _, ang = law.rotation(k * Tc)
+    theta_c = spec.geometry.transfer_cycle * spec.geometry.quantum
+    np.testing.assert_allclose(ang, k * theta_c, rtol=1e-12)
+    assert law.mean == pytest.approx(const.mean_speed, rel=1e-12)
+    # (1.99 s: a transfer falls on 2 s, where the inverted time may land 1e-15 s early)
+    _, p0 = plan_transfers(const, 1.99)
+    _, p1 = plan_transfers(spec, 1.99)
+    for a, b in zip(p0, p1, strict=True):
+        np.testing.assert_allclose(b.times, a.times, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(a.times / Tc, np.round(a.times / Tc), atol=1e-9)
+
+
+def test_no_dip_returns_the_constant_speed_result() -> None:
+    """level = 1 is the constant machine, bit for bit; a flat speed table through the kernel's
+    profile path gives the same impacts to 1e-9."""
+    base = two_carriers(0.6)
+    const = evaluate(base, None, None)
+    flat = evaluate(base, None, ProfileFamily("dip").profile([1.0, -0.2, 0.3, 0.1, 0.1]))
+    assert flat.metrics == const.metrics
+    assert const.metrics["impacts"] > 0
+    table = dict(base)
+    table["machine"] = {
+        **base["machine"],
+        "speed_profile": {"phase": [0, 0.3, 1], "factor": [1, 1, 1]},
+    }
+    from braidsim.machine import parse_machine_spec, run_machine
+
+    run = run_machine(parse_machine_spec(table), workers=1, frames=0)
+    a = run.impacts
+    b = const.run.impacts if const.run is not None else None
+    assert b is not None and len(a) == len(b)
+    np.testing.assert_allclose(a["t"], b["t"], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(a["peak_force"], b["peak_force"], rtol=1e-9)
+
+
+def test_carrier_classes_reproduce_the_full_machine_exactly() -> None:
+    """16 carriers fall into 4 classes with the same crossing angles; one run per class,
+    weighted, gives the full machine's totals (vibration on, a dip profile)."""
+    base = base16()
+    pr = ProfileFamily("dip").profile([0.45, -0.02, 0.58, 0.04, 0.04])
+    spec = machine_for(base, MACHINE16, pr)
+    classes = carrier_classes(spec, 0.5)
+    assert sorted(c.weight for c in classes) == [4, 4, 4, 4]
+    part = evaluate(base, MACHINE16, pr, cycles=8)
+    full = evaluate(base, MACHINE16, pr, cycles=8, full=True)
+    for k in ("peak_force", "impact_energy", "impacts", "mean_peak_force", "dissipated_power"):
+        assert part.metrics[k] == pytest.approx(full.metrics[k], rel=1e-12), k
+
+
+def test_optimiser_respects_limits_and_never_loses_to_constant_speed() -> None:
+    """Tight limits, a tiny budget: every simulated candidate satisfies the limits, the result
+    too, and it is no worse than constant speed on the proxy."""
+    base = two_carriers(1.0)
+    limits = Limits(min_speed=0.5, max_speed=1.6, max_acceleration=1500.0, max_jerk=1.0e6)
+    res = optimise_profile(
+        base,
+        None,
+        ProfileFamily("dip"),
+        limits,
+        "peak_force",
+        OptimizerOptions(maxiter=2, popsize=3, seed=3, cycles=6),
+    )
+    spec = machine_for(base, None)
+    assert len(res.candidates) == res.evaluations >= 10
+    for x, _ in res.candidates:
+        m = limit_margins(res.family.profile(x), limits, spec.mean_speed, spec.cycle_time)
+        assert min(m[k] for k in ("fit", "min_speed", "max_speed", "acceleration", "jerk")) >= 0
+    assert min(res.margins[k] for k in ("min_speed", "max_speed", "acceleration", "jerk")) >= 0
+    assert res.value <= res.baseline_value
+    assert res.value == min(v for _, v in res.candidates)
+    # the mean speed of the kernel's table is the machine's
+    law = plan_transfers(machine_for(base, None, res.profile), 1.0)[0]
+    assert law.mean == pytest.approx(spec.mean_speed, rel=1e-12)
+    # same seed, same result
+    again = optimise_profile(
+        base,
+        None,
+        ProfileFamily("dip"),
+        limits,
+        "peak_force",
+        OptimizerOptions(maxiter=2, popsize=3, seed=3, cycles=6),
+    )
+    np.testing.assert_array_equal(again.x, res.x)
+
+
+# ---------------------------------------------------------------------------- sensitivity
+
+
+def test_morris_effects_of_a_linear_function_are_its_coefficients() -> None:
+    """For Y = sum c_i x_i every elementary effect is c_i: mu* = |c_i|, sigma = 0, and the
+    ranking follows |c_i| (Morris 1991)."""
+    c = np.array([0.3, -2.0, 1.0, 0.0])
+    _, _, ee, mu_star, mu, sigma = elementary_effects(lambda p: p @ c, 4, 6, 4, seed=11)
+    np.testing.assert_allclose(ee, np.broadcast_to(c, ee.shape), atol=1e-12)
+    np.testing.assert_allclose(mu_star, np.abs(c), atol=1e-12)
+    np.testing.assert_allclose(mu, c, atol=1e-12)
+    np.testing.assert_allclose(sigma, 0.0, atol=1e-12)
+    # an interaction shows in sigma: Y = x0 x1
+    *_, s2 = elementary_effects(lambda p: p[:, 0] * p[:, 1], 2, 8, 4, seed=11)
+    assert np.all(s2 > 0.05)
+
+
+def test_morris_design_moves_one_lever_per_step() -> None:
+    pts, moved, steps = morris_design(5, 4, 4, seed=3)
+    assert pts.shape == (4 * 6, 5)
+    assert np.all((pts >= 0) & (pts <= 1))
+    for r in range(4):
+        assert sorted(moved[r]) == list(range(5))
+        for j in range(5):
+            d = pts[r * 6 + j + 1] - pts[r * 6 + j]
+            assert np.count_nonzero(d) == 1
+            assert d[moved[r, j]] == pytest.approx(steps[r, j])
+            assert abs(steps[r, j]) == pytest.approx(4 / 6)
+    again = morris_design(5, 4, 4, seed=3)[0]
+    np.testing.assert_array_equal(again, pts)
+    assert not np.array_equal(morris_design(5, 4, 4, seed=4)[0], pts)
+
+
+def test_sensitivity_ranking_is_reproducible_with_a_seed() -> None:
+    """The simulated Morris study: the same seed gives the same runs, effects and ranking."""
+    base = two_carriers(0.6, h_a=2e-5)
+    sc = machine_for(base, None).scenario
+    levers = make_levers(sc, ["track.clearance", "contact.track.restitution", "carrier.mass"])
+    a = morris(base, None, levers, "peak_force", trajectories=2, levels=4, seed=5, cycles=6)
+    b = morris(base, None, levers, "peak_force", trajectories=2, levels=4, seed=5, cycles=6)
+    assert a.ranking == b.ranking
+    np.testing.assert_array_equal(a.values, b.values)
+    np.testing.assert_array_equal(a.mu_star, b.mu_star)
+    # the clearance sets the gap-crossing energy (v^2 ~ eps_g): it leads
+    assert a.ranking[0] == "track.clearance"
+    c = morris(base, None, levers, "peak_force", trajectories=2, levels=4, seed=6, cycles=6)
+    assert not np.array_equal(c.points, a.points)
+
+
+def test_levers_ranges_and_errors() -> None:
+    sc = braidsim.load_scenario("paper-3.2")
+    lv = make_levers(sc, ["track.clearance"], 0.5, {})[0]
+    assert (lv.low, lv.nominal, lv.high) == pytest.approx((1.5e-3, 3e-3, 4.5e-3))
+    lv = make_levers(sc, ["track.clearance"], 0.5, {"track.clearance": ["2 mm", "5 mm"]})[0]
+    assert (lv.low, lv.high) == pytest.approx((2e-3, 5e-3))
+    assert isinstance(lv, Lever) and lv.label == "clearance eps_g [mm]"
+    with pytest.raises(InputError, match=r"design\.sensitivity\.levers"):
+        make_levers(sc, ["track.clearence"])
+    with pytest.raises(InputError, match=r"design\.sensitivity\.ranges\.track\.clearance"):
+        make_levers(sc, ["track.clearance"], 0.5, {"track.clearance": ["4 mm", "5 mm"]})
+    with pytest.raises(InputError, match=r"design\.sensitivity\.ranges\.carrier\.mass"):
+        make_levers(sc, ["track.clearance"], 0.5, {"carrier.mass": [1, 2]})
+
+
+def test_spearman() -> None:
+    assert spearman(np.array([1.0, 2, 3, 4]), np.array([10.0, 20, 25, 100])) == pytest.approx(1)
+    assert spearman(np.array([1.0, 2, 3]), np.array([3.0, 2, 1])) == pytest.approx(-1)
+
+
+# ---------------------------------------------------------------------------- speed limits
+
+
+def test_chatter_speed_against_model_notes_section_7() -> None:
+    """paper-3.3: a_p = 13.9 m/s^2 < h_a omega_h^2 = 17.1 m/s^2 at 4 pi (it chatters) and
+    44.7 m/s^2 at 8 pi (it stays): the chatter speed lies between; without vibration or with
+    the yarn load alone above h_a omega_h^2 there is none."""
+    sc = braidsim.load_scenario("paper-3.3")
+    w = chatter_speed(sc)
+    m, rc = sc["carrier.mass"], sc["carrier.turning_radius"]
+    a_p = (5.0 * math.cos(math.pi / 6) + m * rc * w**2) / m
+    assert a_p == pytest.approx(1.2e-4 * (120 * math.pi) ** 2, rel=1e-12)
+    assert 4 * math.pi < w < 8 * math.pi
+    assert chatter_speed(sc.with_overrides({"track.vibration_amplitude": 0.0})) == 0.0
+    assert chatter_speed(sc.with_overrides({"track.vibration_amplitude": 2e-5})) == 0.0
+
+
+def test_first_impact_speed_is_the_energy_balance() -> None:
+    """At omega = 4 pi: F = T1 cos(phi) + m r_c omega^2 = 16.65 N, friction mu1 (m g - T2),
+    v = sqrt(v_c^2 + 2 (F - f) eps_g / m) = 0.2808 m/s."""
+    sc = braidsim.load_scenario("paper-3.2")
+    F = 5 * math.cos(math.pi / 6) + 1.2 * 0.065 * (4 * math.pi) ** 2
+    assert F == pytest.approx(16.65, abs=0.01)
+    f = 0.1 * (1.2 * 9.81 - 3.0)
+    v = math.sqrt(0.002**2 + 2 * (F - f) * 0.003 / 1.2)
+    assert first_impact_speed(sc, 4 * math.pi) == pytest.approx(v, rel=1e-12)
+    assert v == pytest.approx(0.2808, abs=1e-4)
+
+
+# ---------------------------------------------------------------------------- spec
+
+
+def spec_table(**design: Any) -> dict[str, Any]:
+    return {"name": "t", "machine_spec": str(MACHINE16), "design": design}
+
+
+def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
+    s = parse_design_spec(spec_table())
+    assert s.objective == "peak_force" and s.family.name == "dip"
+    assert s.limits == Limits()
+    assert s.sensitivity.levers[0].key == "track.clearance"
+    s = parse_design_spec(spec_table(limits={"max_acceleration": "2 krad/s^2"}))
+    assert s.limits.max_acceleration == pytest.approx(2000.0)
+    cases = [
+        (spec_table(objectiv="peak_force"), "design.objectiv: unknown key"),
+        (spec_table(objective="noise"), "design.objective"),
+        (spec_table(optimizer={"maxiter": -1}), "design.optimizer.maxiter"),
+        (spec_table(limits={"max_jerk": "3 m"}), "design.limits.max_jerk"),
+        (spec_table(speed_limit={"threshold": "3 W"}), "design.speed_limit.threshold"),
+        ({"name": "t", "design": {}}, "machine_spec: missing"),
+        ({"machine_spec": str(tmp_path / "no.toml")}, "machine_spec"),
+        ({"machine_spec": str(MACHINE16), "scenario": "paper-3.1"}, "scenario: given together"),
+    ]
+    for table, msg in cases:
+        with pytest.raises(InputError, match=msg):
+            parse_design_spec(table)
+    # a study that would fail half-way stops before it starts
+    inline = {"scenario": "paper-3.4b", "machine": {"horn_gears": 8}}
+    with pytest.raises(InputError, match=r"design\.speed_limit: the machine cannot run"):
+        parse_design_spec(inline)
+    assert parse_design_spec({**inline, "design": {"speed_limit": {"enabled": False}}})
+    radius = spec_table(sensitivity={"levers": ["carrier.turning_radius"]})
+    with pytest.raises(InputError, match=r"carrier\.turning_radius = 0\.0325 is not allowed"):
+        parse_design_spec(radius)
+    prof = tmp_path / "m.toml"
+    prof.write_text(
+        MACHINE16.read_text()
+        + "\n[machine.speed_profile]\nphase = [0, 0.5, 1]\nfactor = [1, 1.2, 1]\n"
+    )
+    with pytest.raises(InputError, match=r"machine\.speed_profile: set by the design study"):
+        parse_design_spec({"machine_spec": str(prof)})
+
+
+def test_toml_writer_round_trips() -> None:
+    t = {
+        "name": 'a "quoted" name',
+        "n": 3,
+        "x": 0.1,
+        "flag": True,
+        "overrides": {"track.vibration_amplitude": "0.02 mm"},
+        "machine": {
+            "speed": "120 rpm",
+            "speed_profile": {"phase": [0.0, 1.0], "factor": [1.0, 1.0]},
+        },
+    }
+    assert tomllib.loads(to_toml(t)) == t
