@@ -13,12 +13,14 @@ from braidsim.cli.common import app
 
 def _register() -> None:
     # Importing a verb module registers its command on `app`.
-    from braidsim.cli import analysis  # noqa: F401
-    from braidsim.cli import design  # noqa: F401
-    from braidsim.cli import machine  # noqa: F401
-    from braidsim.cli import paper  # noqa: F401
-    from braidsim.cli import run  # noqa: F401
-    from braidsim.cli import sweep  # noqa: F401
+    from braidsim.cli import (  # noqa: F401
+        analysis,
+        design,
+        machine,
+        paper,
+        run,
+        sweep,
+    )
 
 
 def main(argv: list[str] | None = None) -> None:

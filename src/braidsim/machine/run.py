@@ -113,7 +113,8 @@ def plan_transfers(
     for g, lane in spec.loading.carriers:
         ev = [e for e in geom.transfer_events(g, lane, end)]
         times = law.time_at_angle(np.array([e.angle for e in ev], dtype=float) * geom.quantum)
-        keep = times < T
+        # the inverted rotation can land a transfer at the very end a rounding error early
+        keep = times < T * (1.0 - 1e-12)
         plans.append(
             CarrierPlan(
                 f"{g}{lane}",
