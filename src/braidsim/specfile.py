@@ -4,7 +4,9 @@ the key, the closest known key and the allowed ones."""
 from __future__ import annotations
 
 import difflib
+import tomllib
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 from braidsim.errors import InputError
@@ -30,3 +32,17 @@ def expect_table(where: str, value: Any) -> Mapping[str, Any]:
     if not isinstance(value, Mapping):
         raise InputError(f"{where}: expected a table, got {value!r}")
     return value
+
+
+def read_toml_file(path: str | Path, kind: str) -> dict[str, Any]:
+    """The table of a spec file; an :class:`InputError` for a missing file or bad TOML.
+
+    ``kind`` names the spec in the message (e.g. "sweep spec").
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"SPEC: {str(p)!r} is not a file; allowed a {kind} TOML file")
+    try:
+        return tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{p}: malformed TOML ({exc})") from None

@@ -76,7 +76,7 @@ from braidsim.design.speed_limits import SpeedLimitOptions
 from braidsim.errors import InputError
 from braidsim.machine.spec import TOP_KEYS as MACHINE_TOP_KEYS
 from braidsim.machine.spec import MachineSpec
-from braidsim.specfile import check_keys, expect_table
+from braidsim.specfile import check_keys, expect_table, read_toml_file
 from braidsim.units import to_si
 
 TOP_KEYS = ("name", "description", "machine_spec", "design", *MACHINE_TOP_KEYS)
@@ -465,14 +465,7 @@ def load_design_spec(path: str | Path) -> DesignSpec:
     InputError
         Missing or malformed file, or any problem listed in the module docstring.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"SPEC: {str(p)!r} is not a file; allowed a design spec TOML file")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: malformed TOML ({exc})") from None
-    return parse_design_spec(data, p)
+    return parse_design_spec(read_toml_file(path, "design spec"), Path(path))
 
 
 __all__ = ["OBJECTIVES", "DesignSpec", "load_design_spec", "parse_design_spec"]

@@ -51,7 +51,6 @@ one-line :class:`~braidsim.errors.InputError`, as is any unknown key (naming the
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,7 +67,7 @@ from braidsim.machine.geometry import (
 from braidsim.machine.kinematics import SpeedLaw, cycle_profile, revolution_time
 from braidsim.model import build_model
 from braidsim.params import Scenario, builtin_names, flatten, load_scenario
-from braidsim.specfile import check_keys, closest_hint, expect_table
+from braidsim.specfile import check_keys, closest_hint, expect_table, read_toml_file
 from braidsim.units import to_si
 
 TOP_KEYS = (
@@ -452,11 +451,4 @@ def load_machine_spec(path: str | Path) -> MachineSpec:
     InputError
         Missing or malformed file, or any problem listed in the module docstring.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"SPEC: {str(p)!r} is not a file; allowed a machine spec TOML file")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: malformed TOML ({exc})") from None
-    return parse_machine_spec(data, p)
+    return parse_machine_spec(read_toml_file(path, "machine spec"), Path(path))
