@@ -1236,31 +1236,42 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Ye)
             STATS[3] += 6
             _dense_coeffs(Y, Ye, he, Ke, RC)
-            nrow, isamp = _scan_step(
-                t,
-                he,
-                RC,
-                Y,
-                Ye,
-                modes[0],
-                modes[1],
-                v0[0],
-                v0[1],
-                open_ep,
-                EP,
-                P,
-                EX,
-                WIN,
-                RANGES,
-                rows,
-                nrow,
-                ST,
-                isamp,
-                Ys,
-                Ke[0],
-                Ke[6],
-            )
-            t_ev = t + he
+            h_taken = he
+            Y_end = Ye
+            K_taken = Ke
+        else:
+            h_taken = h
+            Y_end = Y1
+            K_taken = K
+        # post-process the step taken (to the event, or whole): samples, extremes, ranges
+        nrow, isamp = _scan_step(
+            t,
+            h_taken,
+            RC,
+            Y,
+            Y_end,
+            modes[0],
+            modes[1],
+            v0[0],
+            v0[1],
+            open_ep,
+            EP,
+            P,
+            EX,
+            WIN,
+            RANGES,
+            rows,
+            nrow,
+            ST,
+            isamp,
+            Ys,
+            K_taken[0],
+            K_taken[6],
+        )
+        STATS[0] += 1
+        STATS[5] = min(STATS[5], h_taken)
+        if j_ev >= 0:
+            t_ev = t + h_taken
             for i in range(NY):
                 Y[i] = Ye[i]
             ED[0] = Y[4]
@@ -1302,7 +1313,6 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
                 open_ep[pair] = -1
                 modes[pair] = 0
             _update_ranges(t_ev, Y, modes[0], modes[1], v0[0], v0[1], P, EX, WIN, RANGES)
-            STATS[0] += 1
             STATS[2] += 1
             if t_ev - last_event_t <= 1e-12 * max(1.0, t_ev):
                 same_time_events += 1
@@ -1316,35 +1326,8 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             t = t_ev
             rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
             STATS[3] += 1
-            STATS[5] = min(STATS[5], he)
             continue
         # ---- accepted step without event
-        nrow, isamp = _scan_step(
-            t,
-            h,
-            RC,
-            Y,
-            Y1,
-            modes[0],
-            modes[1],
-            v0[0],
-            v0[1],
-            open_ep,
-            EP,
-            P,
-            EX,
-            WIN,
-            RANGES,
-            rows,
-            nrow,
-            ST,
-            isamp,
-            Ys,
-            K[0],
-            K[6],
-        )
-        STATS[0] += 1
-        STATS[5] = min(STATS[5], h)
         STATS[6] = max(STATS[6], h)
         t = t_stop if hits_stop else t + h
         for i in range(NY):
