@@ -250,13 +250,20 @@ def track_accel_bound(EX):
 
 
 @njit(cache=True, error_model="numpy")
-def track_hdd(t, EX):
-    """Track wall acceleration h''(t) [m/s^2]."""
+def track_motion(t, EX):
+    """Track wall position h [m], speed h' [m/s] and acceleration h'' [m/s^2] at time t."""
+    h = 0.0
+    hd = 0.0
     hdd = 0.0
     for i in range(int(EX[0])):
+        a = EX[EX_HEAD + 3 * i]
         w = EX[EX_HEAD + 3 * i + 1]
-        hdd -= EX[EX_HEAD + 3 * i] * w * w * math.cos(w * t + EX[EX_HEAD + 3 * i + 2])
-    return hdd
+        arg = w * t + EX[EX_HEAD + 3 * i + 2]
+        c = math.cos(arg)
+        h += a * c
+        hd -= a * w * math.sin(arg)
+        hdd -= a * w * w * c
+    return h, hd, hdd
 
 
 @njit(cache=True, error_model="numpy")
@@ -360,7 +367,8 @@ def contact(mode, gap_rel, rate_rel, k, n, d, v0, allow_tension):
         pd = rate_rel
     if p < 0.0:
         p = 0.0
-    fk = k * p**n
+    # the Hertz exponent 3/2 is by far the most common: p sqrt(p) is cheaper than pow
+    fk = k * p * math.sqrt(p) if n == 1.5 else k * p**n
     fc = fk * d * pd / v0
     nn = fk + fc
     if nn < 0.0 and allow_tension == 0.0:
@@ -395,10 +403,10 @@ def penetration_rates(t, Y, F, pair, mode, P, EX):
     """(p, pdot, pddot) of a pair in contact mode ``mode`` from the state Y and its time
     derivative F (the RK stage at that point): penetration, its rate and acceleration."""
     if pair == 0:
-        h, hd = track_h(t, EX)
+        h, hd, hdd = track_motion(t, EX)
         u = Y[0] - h
         ud = Y[1] - hd
-        udd = F[1] - track_hdd(t, EX)
+        udd = F[1] - hdd
         eps = P[P_EPS_G]
     else:
         om, s = horn_gear(t, P, EX)
