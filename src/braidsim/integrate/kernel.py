@@ -398,10 +398,38 @@ def pair_forces(t, Y, pair, mode, v0, P, EX):
     return contact(mode, u, ud, P[base], P[base + 1], P[base + 2], v0, P[P_ALLOW_TENSION])
 
 
+# ---- what the step control and the post-processing need of one pair at one instant ------
+# (computed once at each end of each accepted step and handed from one step to the next)
+INFO_FIELDS = (
+    "u",  # carrier coordinate relative to the inner/rear wall [m]
+    "u_dot",  # its rate [m/s]
+    "u_ddot",  # its second derivative [m/s^2]
+    "p",  # penetration into the wall in contact (>= 0; 0 when free) [m]
+    "p_dot",  # penetration rate [m/s]
+    "p_ddot",  # [m/s^2]
+    "F_k",  # stiffness force K p^n [N]
+    "F_c",  # damping force K p^n D p' / v0 [N]
+    "N",  # normal force [N]
+    "N_dot",  # dN/dt [N/s]
+    "F_c_dot",  # dF_c/dt [N/s]
+)
+I_U, I_UD, I_UDD, I_P, I_PD, I_PDD, I_FK, I_FC, I_N, I_DN, I_DFC = range(len(INFO_FIELDS))
+NI = len(INFO_FIELDS)
+
+
 @njit(cache=True, error_model="numpy")
-def penetration_rates(t, Y, F, pair, mode, P, EX):
-    """(p, pdot, pddot) of a pair in contact mode ``mode`` from the state Y and its time
-    derivative F (the RK stage at that point): penetration, its rate and acceleration."""
+def pair_info(t, Y, F, pair, mode, v0, P, EX, out):
+    """Fill ``out[:NI]`` (see ``INFO_FIELDS``) for one pair in contact mode ``mode``.
+
+    ``F`` is the time derivative of ``Y`` at t (an RK stage, or the derivative of the
+    interpolant); only the accelerations F[1] and F[3] are read. In contact the slopes are
+
+        dN/dt   = K n p^(n-1) p' (1 + D p' / v0) + K p^n D p'' / v0,
+        dF_c/dt = D / v0 (K n p^(n-1) p'^2 + K p^n p''),
+
+    with the factor K n p^(n-1) replaced by 1 at p = 0 (only the signs are used there).
+    The force terms are those of :func:`contact` (same operations, same bits).
+    """
     if pair == 0:
         h, hd, hdd = track_motion(t, EX)
         u = Y[0] - h
@@ -414,28 +442,30 @@ def penetration_rates(t, Y, F, pair, mode, P, EX):
         ud = Y[3] - P[P_RC] * om
         udd = F[3] - P[P_RC] * horn_gear_accel(t, P, EX)
         eps = P[P_EPS_H]
+    out[I_U] = u
+    out[I_UD] = ud
+    out[I_UDD] = udd
+    if mode == 0:
+        for i in range(I_P, NI):
+            out[i] = 0.0
+        return
     if mode < 0:
-        return -u, -ud, -udd
-    return u - eps, ud, udd
-
-
-@njit(cache=True, error_model="numpy")
-def force_slopes(p, pd, pdd, k, n, d, v0):
-    """Time derivatives of N = K p^n (1 + D pd / v0) and of F_c = K p^n D pd / v0.
-
-    dN/dt = K n p^(n-1) pd (1 + D pd / v0) + K p^n D pdd / v0,
-    dF_c/dt = D / v0 (K n p^(n-1) pd^2 + K p^n pdd). Only their signs are used; at p = 0
-    the factor K n p^(n-1) is replaced by 1 (its sign is what matters).
-    """
-    if p > 0.0:
-        fk = k * p**n
-        dfk = n * fk / p * pd
+        p, pd, pdd = -u, -ud, -udd
     else:
-        fk = 0.0
-        dfk = pd
-    dn = dfk * (1.0 + d * pd / v0) + fk * d * pdd / v0
-    dfc = d / v0 * (dfk * pd + fk * pdd)
-    return dn, dfc
+        p, pd, pdd = u - eps, ud, udd
+    base = P_K_T if pair == 0 else P_K_S
+    p, pd, fk, fc, nn = contact(1, p, pd, P[base], P[base + 1], P[base + 2], v0, P[P_ALLOW_TENSION])
+    n = P[base + 1]
+    dfk = n * fk / p * pd if p > 0.0 else pd
+    d_v0 = P[base + 2] / v0
+    out[I_P] = p
+    out[I_PD] = pd
+    out[I_PDD] = pdd
+    out[I_FK] = fk
+    out[I_FC] = fc
+    out[I_N] = nn
+    out[I_DN] = dfk * (1.0 + d_v0 * pd) + fk * d_v0 * pdd
+    out[I_DFC] = d_v0 * (dfk * pd + fk * pdd)
 
 
 @njit(cache=True, error_model="numpy")
@@ -492,6 +522,19 @@ def dense_eval(theta, RC, out):
         )
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def dense_deriv(theta, h, RC, out):
+    """Time derivative of the continuous extension at theta for the four coordinates and
+    speeds (d/dtheta of :func:`dense_eval`, divided by the step h); it equals the RK
+    derivative at both ends of the step."""
+    th1 = 1.0 - theta
+    for i in range(4):
+        b = RC[3, i] + th1 * RC[4, i]
+        c = RC[2, i] + theta * b
+        d = RC[1, i] + th1 * c
+        out[i] = (d + theta * (th1 * (b - theta * RC[4, i]) - c)) / h
+
+
 @njit(cache=True, error_model="numpy")
 def event_value(j, t, Y, mt, ms, P, EX):
     """Event function j (>= 0 allowed, < 0 means the event happened); +1 when inactive.
@@ -510,23 +553,6 @@ def event_value(j, t, Y, mt, ms, P, EX):
     if mode != side:
         return 1.0
     return -u if side < 0 else u - eps
-
-
-@njit(cache=True, error_model="numpy")
-def quantity(q, t, Y, mt, ms, v0t, v0s, P, EX):
-    """Scalar tracked for extremes: q = 4*pair + {0: p, 1: F_c, 2: -F_c, 3: N}."""
-    pair = q // 4
-    kind = q % 4
-    mode = mt if pair == 0 else ms
-    v0 = v0t if pair == 0 else v0s
-    p, _, _, fc, nn = pair_forces(t, Y, pair, mode, v0, P, EX)
-    if kind == 0:
-        return p
-    if kind == 1:
-        return fc
-    if kind == 2:
-        return -fc
-    return nn
 
 
 # =======================================================================================
@@ -641,7 +667,7 @@ def _golden_dip(j, t0, h, a, b, RC, mt, ms, P, EX, Ys):
 
 
 @njit(cache=True, error_model="numpy")
-def _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX):
+def _track_events_possible(h, F0, F1, mt, P, EX, I0, I1):
     """Screen: can a track event (onset in free flight, exit in contact) happen in the step?
 
     For a function g with |g''| <= A on a step of length h, g >= min(g(0), g(h)) - A h^2 / 8.
@@ -649,14 +675,13 @@ def _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX):
     plus 10 % and the full friction swing, and sum |a| w^2 of the vibration); in contact g is
     the penetration and A is twice the larger |p''| at the ends (the contact force varies
     smoothly over the tens of steps a contact takes). Only when the bound does not clear zero
-    are the event functions sampled.
+    are the event functions sampled. ``I0``, ``I1``: :func:`pair_info` of the track at the
+    two ends of the step.
     """
-    h0, _ = track_h(t0, EX)
-    h1, _ = track_h(t0 + h, EX)
-    u0 = Y0[0] - h0
-    u1 = Y1[0] - h1
-    eps = P[P_EPS_G]
     if mt == 0:
+        u0 = I0[I_U]
+        u1 = I1[I_U]
+        eps = P[P_EPS_G]
         acc = (
             1.1 * max(abs(F0[1]), abs(F1[1]))
             + 2.0 * P[P_MU1] * P[P_NX] / P[P_MASS]
@@ -664,21 +689,18 @@ def _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX):
         )
         margin = acc * h * h / 8.0
         return min(u0, u1) <= margin or min(eps - u0, eps - u1) <= margin
-    track = mt - mt  # 0 as a run-time integer
-    p0, _, pdd0 = penetration_rates(t0, Y0, F0, track, mt, P, EX)
-    p1, _, pdd1 = penetration_rates(t0 + h, Y1, F1, track, mt, P, EX)
-    margin = 2.0 * max(abs(pdd0), abs(pdd1)) * h * h / 8.0
-    return min(p0, p1) <= margin
+    margin = 2.0 * max(abs(I0[I_PDD]), abs(I1[I_PDD])) * h * h / 8.0
+    return min(I0[I_P], I1[I_P]) <= margin
 
 
 @njit(cache=True, error_model="numpy")
-def _sample_events(t0, h, RC, mt, ms, P, EX, Ys, GS, Y0, Y1, F0, F1):
+def _sample_events(t0, h, RC, mt, ms, P, EX, Ys, GS, F0, F1, I0, I1):
     """Event functions at the N_SUB + 1 equally spaced points of the step (GS[j, k]).
 
     A pair whose events the screen :func:`_track_events_possible` rules out is not sampled
     (its rows are +1). Returns False when nothing needs sampling.
     """
-    track_on = _track_events_possible(t0, h, Y0, Y1, F0, F1, mt, P, EX)
+    track_on = _track_events_possible(h, F0, F1, mt, P, EX, I0, I1)
     slot_on = P[P_DOF] > 1.5
     if not (track_on or slot_on):
         return False
@@ -824,32 +846,79 @@ def _update_ranges(t, Y, mt, ms, v0t, v0s, P, EX, WIN, RANGES):
 
 
 @njit(cache=True, error_model="numpy")
-def _golden_max(q, t0, h, a, b, RC, mt, ms, v0t, v0s, P, EX, Ys):
-    """Maximise quantity q over theta in [a, b] on the interpolant (golden section)."""
-    c = a + GOLD * (b - a)
-    d = b - GOLD * (b - a)
-    dense_eval(c, RC, Ys)
-    fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, EX)
-    dense_eval(d, RC, Ys)
-    fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, EX)
-    for _ in range(80):
-        if b - a < 1e-10:
+def _fold_ranges(t, pair, mode, info, WIN, RANGES):
+    """:func:`_update_ranges` for one pair from its :func:`pair_info` at time t."""
+    sgn = float(mode)
+    vals = (sgn * info[I_P], sgn * info[I_FK], sgn * info[I_FC], sgn * info[I_N])
+    if mode == 0:
+        vals = (0.0, 0.0, 0.0, 0.0)
+    for w in range(WIN.shape[0]):
+        if WIN[w, 0] <= t <= WIN[w, 1]:
+            for q in range(4):
+                v = vals[q]
+                if v < RANGES[w, pair, q, 0]:
+                    RANGES[w, pair, q, 0] = v
+                if v > RANGES[w, pair, q, 1]:
+                    RANGES[w, pair, q, 1] = v
+
+
+@njit(cache=True, error_model="numpy")
+def _extreme_slope(kind, info):
+    """Time derivative of the quantity tracked for extremes: 0 p, 1 F_c, 2 -F_c, 3 N."""
+    if kind == 0:
+        return info[I_PD]
+    if kind == 1:
+        return info[I_DFC]
+    if kind == 2:
+        return -info[I_DFC]
+    return info[I_DN]
+
+
+@njit(cache=True, error_model="numpy")
+def _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, info):
+    """The maximum inside the step of quantity ``kind`` (see :func:`_extreme_slope`), whose
+    slope goes from g0 > 0 at the start to g1 <= 0 at the end.
+
+    The slope is evaluated on the interpolant (state from :func:`dense_eval`, accelerations
+    from :func:`dense_deriv`, which match the RK derivatives at the ends) and its zero found
+    by the Illinois method. Returns theta and leaves the pair's :func:`pair_info` there in
+    ``info`` and the state in ``Ys``.
+    """
+    lo = 0.0
+    hi = 1.0
+    glo = g0
+    ghi = g1
+    side = 0
+    for _ in range(100):
+        if hi - lo <= 1e-12:
             break
-        if fc > fd:
-            b = d
-            d = c
-            fd = fc
-            c = a + GOLD * (b - a)
-            dense_eval(c, RC, Ys)
-            fc = quantity(q, t0 + c * h, Ys, mt, ms, v0t, v0s, P, EX)
+        denom = glo - ghi
+        mid = lo + glo * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
+        if not (lo < mid < hi):
+            mid = 0.5 * (lo + hi)
+        dense_eval(mid, RC, Ys)
+        dense_deriv(mid, h, RC, Yd)
+        pair_info(t0 + mid * h, Ys, Yd, pair, mode, v0, P, EX, info)
+        gm = _extreme_slope(kind, info)
+        if gm == 0.0:
+            return mid
+        if gm > 0.0:
+            lo = mid
+            glo = gm
+            if side == 1:
+                ghi *= 0.5
+            side = 1
         else:
-            a = c
-            c = d
-            fc = fd
-            d = b - GOLD * (b - a)
-            dense_eval(d, RC, Ys)
-            fd = quantity(q, t0 + d * h, Ys, mt, ms, v0t, v0s, P, EX)
-    return 0.5 * (a + b)
+            hi = mid
+            ghi = gm
+            if side == -1:
+                glo *= 0.5
+            side = -1
+    theta = 0.5 * (lo + hi)
+    dense_eval(theta, RC, Ys)
+    dense_deriv(theta, h, RC, Yd)
+    pair_info(t0 + theta * h, Ys, Yd, pair, mode, v0, P, EX, info)
+    return theta
 
 
 @njit(cache=True, error_model="numpy")
@@ -881,8 +950,6 @@ def _scan_step(
     t0,
     h,
     RC,
-    Y0,
-    Y1,
     mt,
     ms,
     v0t,
@@ -898,12 +965,15 @@ def _scan_step(
     ST,
     isamp,
     Ys,
-    F0,
-    F1,
+    Yd,
+    I0,
+    I1,
+    IX,
 ):
     """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks.
 
-    ``F0`` and ``F1`` are the state derivatives at the two ends of the step.
+    ``I0`` and ``I1`` hold the :func:`pair_info` of both pairs at the two ends of the step;
+    ``IX`` is work space.
     """
     t1 = t0 + h
     # sampled series
@@ -914,61 +984,64 @@ def _scan_step(
             nrow = _write_row(rows, nrow, ST[isamp], Ys, mt, ms, v0t, v0s, KIND_SAMPLE, P, EX)
         isamp += 1
     # ranges at the end point and at window boundaries inside the step
-    _update_ranges(t1, Y1, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
-    for w in range(WIN.shape[0]):
-        for e in range(2):
-            tb = WIN[w, e]
-            if t0 < tb < t1:
-                dense_eval((tb - t0) / h, RC, Ys)
-                _update_ranges(tb, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
+    if WIN.shape[0] > 0:
+        _fold_ranges(t1, 0, mt, I1[0], WIN, RANGES)
+        _fold_ranges(t1, 1, ms, I1[1], WIN, RANGES)
+        for w in range(WIN.shape[0]):
+            for e in range(2):
+                tb = WIN[w, e]
+                if t0 < tb < t1:
+                    dense_eval((tb - t0) / h, RC, Ys)
+                    _update_ranges(tb, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
     if mt == 0 and ms == 0:
         return nrow, isamp
     # Extremes inside the step for each pair in contact. The sign of each quantity's time
-    # derivative at the two ends of the step (from the state and its RK derivative) tells
-    # whether a maximum (or a minimum of F_c) lies inside; only then is it refined, by golden
-    # section on the interpolant. Steps resolve a contact in tens of steps, so a quantity
-    # does not turn twice within one step.
+    # derivative at the two ends of the step tells whether a maximum (or a minimum of F_c)
+    # lies inside; only then is it located, by a root of the slope on the interpolant.
+    # Steps resolve a contact in tens of steps, so a quantity does not turn twice in a step.
     for pair in range(2):
         mode = mt if pair == 0 else ms
         if mode == 0:
             continue
         ie = open_ep[pair]
         v0 = v0t if pair == 0 else v0s
-        base = P_K_T if pair == 0 else P_K_S
-        k = P[base]
-        n = P[base + 1]
-        d = P[base + 2]
-        p0, pd0, pdd0 = penetration_rates(t0, Y0, F0, pair, mode, P, EX)
-        p1, pd1, pdd1 = penetration_rates(t1, Y1, F1, pair, mode, P, EX)
-        dn0, dfc0 = force_slopes(max(p0, 0.0), pd0, pdd0, k, n, d, v0)
-        dn1, dfc1 = force_slopes(max(p1, 0.0), pd1, pdd1, k, n, d, v0)
+        a0 = I0[pair]
+        a1 = I1[pair]
         if ie >= 0:
-            pe, _, _, fce, nne = pair_forces(t1, Y1, pair, mode, v0, P, EX)
-            _episode_update(EP, ie, 4 * pair, pe, t1)
-            _episode_update(EP, ie, 4 * pair + 1, fce, t1)
-            _episode_update(EP, ie, 4 * pair + 3, nne, t1)
+            _episode_update(EP, ie, 4 * pair, a1[I_P], t1)
+            _episode_update(EP, ie, 4 * pair + 1, a1[I_FC], t1)
+            _episode_update(EP, ie, 4 * pair + 3, a1[I_N], t1)
         for kind in range(4):
-            if kind == 0:
-                inside = pd0 > 0.0 and pd1 <= 0.0
-            elif kind == 1:
-                inside = dfc0 > 0.0 and dfc1 <= 0.0
-            elif kind == 2:
-                inside = dfc0 < 0.0 and dfc1 >= 0.0
-            else:
-                inside = dn0 > 0.0 and dn1 <= 0.0
-            if not inside:
+            g0 = _extreme_slope(kind, a0)
+            g1 = _extreme_slope(kind, a1)
+            if not (g0 > 0.0 and g1 <= 0.0):
                 continue
-            q = 4 * pair + kind
-            theta = _golden_max(q, t0, h, 0.0, 1.0, RC, mt, ms, v0t, v0s, P, EX, Ys)
-            dense_eval(theta, RC, Ys)
+            theta = _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, IX)
             tq = t0 + theta * h
-            val = quantity(q, tq, Ys, mt, ms, v0t, v0s, P, EX)
+            if kind == 0:
+                val = IX[I_P]
+            elif kind == 1:
+                val = IX[I_FC]
+            elif kind == 2:
+                val = -IX[I_FC]
+            else:
+                val = IX[I_N]
+            q = 4 * pair + kind
             if ie >= 0:
                 _episode_update(EP, ie, q, val, tq)
-            _update_ranges(tq, Ys, mt, ms, v0t, v0s, P, EX, WIN, RANGES)
+            _fold_ranges(tq, pair, mode, IX, WIN, RANGES)
             if kind == 0 or kind == 3:
                 nrow = _write_row(rows, nrow, tq, Ys, mt, ms, v0t, v0s, KIND_PEAK, P, EX)
     return nrow, isamp
+
+
+@njit(cache=True, error_model="numpy")
+def _pair_infos(t, Y, F, mt, ms, v0t, v0s, P, EX, INF):
+    """:func:`pair_info` of the track (INF[0]) and, with two DOFs, of the slot (INF[1])."""
+    track = mt - mt  # 0 as a run-time integer (see the note on literals)
+    pair_info(t, Y, F, track, mt, v0t, P, EX, INF[0])
+    if P[P_DOF] > 1.5:
+        pair_info(t, Y, F, track + 1, ms, v0s, P, EX, INF[1])
 
 
 @njit(cache=True, error_model="numpy")
@@ -1073,7 +1146,11 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     Y1 = np.empty(NY)
     Yt = np.empty(NY)
     Ys = np.empty(NY)
+    Yd = np.empty(NY)
     Ye = np.empty(NY)
+    INF0 = np.zeros((2, NI))  # pair_info at the start of the step (the end of the last one)
+    INF1 = np.zeros((2, NI))  # ... at its end
+    IX = np.zeros(NI)
     K = np.empty((7, NY))
     Ke = np.empty((7, NY))
     RC = np.empty((5, NY))
@@ -1126,6 +1203,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
         itr += 1
 
     rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
+    _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0)
     STATS[3] += 1
     h = min(1e-6, hmax, t_end - t)
     nsteps = 0
@@ -1134,6 +1212,9 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     stiff_run = 0
     nonstiff_run = 0
     err_old = 1e-4
+    # error exponent of the first step of a contact: the force K p^n grows as s^n after onset,
+    # so that step's error scales as h^(n+1), not h^5 (0: no contact step pending)
+    onset_q = 0.0
     while t < t_end:
         if nsteps >= max_steps:
             status = ST_MAX_STEPS
@@ -1164,6 +1245,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             )
             nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, nrow - nrow + 1, P, EX)
             rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
+            _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0)
             STATS[3] += 1
         t_stop = t_end
         if itr < TR.shape[0] and TR[itr] < t_stop:
@@ -1193,7 +1275,10 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             STATS[1] += 1
             continue
         if err > 1.0:
-            fac = max(0.2, 0.9 * err ** (-0.2))
+            if onset_q > 0.0:
+                fac = max(0.02, 0.9 * err ** (-1.0 / onset_q))
+            else:
+                fac = max(0.2, 0.9 * err ** (-0.2))
             h *= fac
             STATS[1] += 1
             continue
@@ -1223,12 +1308,16 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             fac = 0.9 * err ** (-0.17) * err_old**0.04
             fac = min(5.0, max(0.2, fac))
         err_old = max(err, 1e-4)
+        onset_q = 0.0
         h_next = min(h * fac, hmax)
         _dense_coeffs(Y, Y1, h, K, RC)
+        _pair_infos(t + h, Y1, K[6], modes[0], modes[1], v0[0], v0[1], P, EX, INF1)
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
-        if _sample_events(t, h, RC, modes[0], modes[1], P, EX, Ys, GS, Y, Y1, K[0], K[6]):
+        if _sample_events(
+            t, h, RC, modes[0], modes[1], P, EX, Ys, GS, K[0], K[6], INF0[0], INF1[0]
+        ):
             for j in range(4):
                 th = _locate_event(j, t, h, RC, modes[0], modes[1], P, EX, Ys, GS)
                 if th < theta_ev:
@@ -1244,20 +1333,15 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Ye)
             STATS[3] += 6
             _dense_coeffs(Y, Ye, he, Ke, RC)
+            _pair_infos(t + he, Ye, Ke[6], modes[0], modes[1], v0[0], v0[1], P, EX, INF1)
             h_taken = he
-            Y_end = Ye
-            K_taken = Ke
         else:
             h_taken = h
-            Y_end = Y1
-            K_taken = K
         # post-process the step taken (to the event, or whole): samples, extremes, ranges
         nrow, isamp = _scan_step(
             t,
             h_taken,
             RC,
-            Y,
-            Y_end,
             modes[0],
             modes[1],
             v0[0],
@@ -1273,8 +1357,10 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             ST,
             isamp,
             Ys,
-            K_taken[0],
-            K_taken[6],
+            Yd,
+            INF0,
+            INF1,
+            IX,
         )
         STATS[0] += 1
         STATS[5] = min(STATS[5], h_taken)
@@ -1307,6 +1393,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
                 n1 = P[base + 1] + 1.0
                 p_m = (n1 * P[P_MASS] * vlat * vlat / (2.0 * P[base])) ** (1.0 / n1)
                 h = min(h, 0.25 * p_m / vlat)
+                onset_q = n1
             else:
                 # exit
                 nrow = _write_row(
@@ -1333,6 +1420,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             last_event_t = t_ev
             t = t_ev
             rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
+            _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0)
             STATS[3] += 1
             continue
         # ---- accepted step without event
@@ -1341,6 +1429,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
         for i in range(NY):
             Y[i] = Y1[i]
             K[0, i] = K[6, i]
+        INF0, INF1 = INF1, INF0
         ED[0] = Y[4]
         ED[1] = Y[5]
         h = h_next
