@@ -637,14 +637,14 @@ def _step(t, Y, h, K, mt, ms, v0t, v0s, P, EX, Yt, Y1):
     cb = math.cos(arg) if rot else 1.0
     sb = math.sin(arg) if rot else 0.0
     for s in range(1, 7):
-        Ys = Y1 if s == 6 else Yt
+        Ystage = Y1 if s == 6 else Yt
         for i in range(NY):
             acc = 0.0
             for j in range(s):
                 acc += RK_A[s, j] * K[j, i]
-            Ys[i] = Y[i] + h * acc
+            Ystage[i] = Y[i] + h * acc
         ht, hdt = _track_at(RK_C[s], h, t, rot, amp, w, cb, sb, EX)
-        rhs_track(t + RK_C[s] * h, Ys, ht, hdt, mt, ms, v0t, v0s, P, EX, K[s])
+        rhs_track(t + RK_C[s] * h, Ystage, ht, hdt, mt, ms, v0t, v0s, P, EX, K[s])
 
 
 @helper
@@ -923,8 +923,20 @@ def _fold_ranges(t, pair, mode, info, WIN, RANGES):
 
 
 @inline_helper
+def _extreme_value(kind, info):
+    """The quantity tracked for extremes: kind 0 p, 1 F_c, 2 -F_c (its minimum), 3 N."""
+    if kind == 0:
+        return info[I_P]
+    if kind == 1:
+        return info[I_FC]
+    if kind == 2:
+        return -info[I_FC]
+    return info[I_N]
+
+
+@inline_helper
 def _extreme_slope(kind, info):
-    """Time derivative of the quantity tracked for extremes: 0 p, 1 F_c, 2 -F_c, 3 N."""
+    """Time derivative of :func:`_extreme_value`."""
     if kind == 0:
         return info[I_PD]
     if kind == 1:
@@ -1078,14 +1090,7 @@ def _scan_step(
                 continue
             theta = _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, IX)
             tq = t0 + theta * h
-            if kind == 0:
-                val = IX[I_P]
-            elif kind == 1:
-                val = IX[I_FC]
-            elif kind == 2:
-                val = -IX[I_FC]
-            else:
-                val = IX[I_N]
+            val = _extreme_value(kind, IX)
             q = 4 * pair + kind
             if ie >= 0:
                 _episode_update(EP, ie, q, val, tq)
