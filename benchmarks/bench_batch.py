@@ -48,6 +48,7 @@ from braidsim.sweep import load_spec, run_sweep
 DURATION = 1.0
 TARGET_RATIO = 200.0
 TARGET_PER_MINUTE = 10_000.0
+IMPACT_METRICS = ("track_inner_impacts", "track_outer_impacts")
 
 
 def parameter_sets(n: int) -> list[dict[str, float]]:
@@ -147,25 +148,40 @@ def main() -> None:
     # at some amplitudes), differently for the two integrators
     subset = [sets[i] for i in np.unique(np.linspace(0, args.runs - 1, k).round().astype(int))]
     k = len(subset)
-    wall_s, cpu_s, res = timed(
-        lambda: [simulate_scipy(sc, DURATION, overrides=ov) for ov in subset]
-    )
-    rate_s = k / wall_s
+    scipy_runs = [timed(lambda ov=ov: simulate_scipy(sc, DURATION, overrides=ov)) for ov in subset]
+    ours = [timed(lambda ov=ov: simulate_batch(sc, [ov], DURATION), args.repeats) for ov in subset]
+    # solve_ivp checks its events at step ends only: a grazing contact that begins and ends
+    # inside one step goes unseen, the carrier then passes through the wall and the rest of
+    # the run is free flight (cheaper, and wrong). Such runs are reported, not compared.
+    agree = [
+        int((~r[2].impacts["initial"].astype(bool)).sum())
+        == int(sum(o[2].metrics[m][0] for m in IMPACT_METRICS))
+        for r, o in zip(scipy_runs, ours, strict=True)
+    ]
+    ka = sum(agree)
+    wall_s = sum(r[0] for r, a in zip(scipy_runs, agree, strict=True) if a)
+    cpu_s = sum(r[1] for r, a in zip(scipy_runs, agree, strict=True) if a)
+    wall_b = sum(o[0] for o, a in zip(ours, agree, strict=True) if a)
+    rate_s = ka / wall_s if ka else float("nan")
     print(f"\n3. SciPy solve_ivp (simulate_scipy, DOP853, rtol 1e-8), {k} parameter sets")
     print(
-        f"   {rate_s:8.2f} runs/s wall ({k / cpu_s:.2f} runs/s of CPU time), "
-        f"{statistics.median([r.stats['rhs_evaluations'] for r in res]):.0f} rhs evaluations "
-        "per run"
+        f"   same impacts as braidsim in {ka} of {k} runs (the others missed a grazing contact "
+        "inside a step and fell through the wall; left out of the ratio)"
+    )
+    print(
+        f"   {rate_s:8.2f} runs/s wall ({ka / cpu_s if ka else float('nan'):.2f} runs/s of CPU "
+        f"time) on those; braidsim on the same sets, one process: {ka / wall_b:.1f} runs/s"
     )
 
     # 4. ratios and targets
-    ratio = rate2 / rate_s
+    per_core = (ka / wall_b) / rate_s
+    ratio = per_core * rate2 / rate1
     print("\n4. summary")
     print(
         f"   braidsim {n} processes / SciPy one process: {ratio:7.1f}x  "
         f"(target >= {TARGET_RATIO:g}x)"
     )
-    print(f"   braidsim one process / SciPy one process:   {rate1 / rate_s:7.1f}x  (per core)")
+    print(f"   braidsim one process / SciPy one process:   {per_core:7.1f}x  (per core)")
     print(
         f"   one-second runs per minute on {n} processes: {rate2 * 60:9.0f} "
         f"(target >= {TARGET_PER_MINUTE:,.0f}); a whole sweep: {rate3 * 60:9.0f}"
