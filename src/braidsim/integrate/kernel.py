@@ -883,6 +883,20 @@ def _write_row(rows, nrow, t, Y, mt, ms, v0t, v0s, kind, P, EX):
     return nrow + 1
 
 
+@inline_helper
+def _fold_values(t, pair, vals, WIN, RANGES):
+    """Fold one pair's (depth, F_kg, F_cg, contact force) at time t into the [min, max] of
+    each window containing t: RANGES[w, pair, q, 0/1]."""
+    for w in range(WIN.shape[0]):
+        if WIN[w, 0] <= t <= WIN[w, 1]:
+            for q in range(4):
+                v = vals[q]
+                if v < RANGES[w, pair, q, 0]:
+                    RANGES[w, pair, q, 0] = v
+                if v > RANGES[w, pair, q, 1]:
+                    RANGES[w, pair, q, 1] = v
+
+
 @helper
 def _update_ranges(t, Y, mt, ms, v0t, v0s, P, EX, WIN, RANGES):
     """Fold the contact quantities at time t into the [min, max] of each window containing t.
@@ -894,15 +908,7 @@ def _update_ranges(t, Y, mt, ms, v0t, v0s, P, EX, WIN, RANGES):
         v0 = v0t if pair == 0 else v0s
         p, _, fk, fc, nn = pair_forces(t, Y, pair, mode, v0, P, EX)
         sgn = float(mode)
-        vals = (sgn * p, sgn * fk, sgn * fc, sgn * nn)
-        for w in range(WIN.shape[0]):
-            if WIN[w, 0] <= t <= WIN[w, 1]:
-                for q in range(4):
-                    v = vals[q]
-                    if v < RANGES[w, pair, q, 0]:
-                        RANGES[w, pair, q, 0] = v
-                    if v > RANGES[w, pair, q, 1]:
-                        RANGES[w, pair, q, 1] = v
+        _fold_values(t, pair, (sgn * p, sgn * fk, sgn * fc, sgn * nn), WIN, RANGES)
 
 
 @inline_helper
@@ -912,14 +918,7 @@ def _fold_ranges(t, pair, mode, info, WIN, RANGES):
     vals = (sgn * info[I_P], sgn * info[I_FK], sgn * info[I_FC], sgn * info[I_N])
     if mode == 0:
         vals = (0.0, 0.0, 0.0, 0.0)
-    for w in range(WIN.shape[0]):
-        if WIN[w, 0] <= t <= WIN[w, 1]:
-            for q in range(4):
-                v = vals[q]
-                if v < RANGES[w, pair, q, 0]:
-                    RANGES[w, pair, q, 0] = v
-                if v > RANGES[w, pair, q, 1]:
-                    RANGES[w, pair, q, 1] = v
+    _fold_values(t, pair, vals, WIN, RANGES)
 
 
 @inline_helper
