@@ -170,6 +170,10 @@ class Result:
     final_state : State
         Final state with the contact modes and latched speeds, to continue the run with
         ``simulate(..., start=result.final_state)``.
+    rms_x : np.ndarray or None
+        RMS of x over each window [m], sqrt((1 / (t1 - t0)) int_t0^t1 x^2 dt), the integral
+        by a 4-point Gauss-Legendre rule on the interpolant of every step (exact up to the
+        integrator's own error, whatever the samples).
     """
 
     model: Model
@@ -180,6 +184,7 @@ class Result:
     stats: Mapping[str, Any]
     final: Mapping[str, float]
     final_state: State | None = None
+    rms_x: np.ndarray | None = None
     backend: str = "compiled"
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 

@@ -89,7 +89,7 @@ def run_kernel(
     record_events: bool = True,
     start: State | None = None,
     episode_capacity: int = 256,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Run the compiled kernel, growing the output arrays until they fit.
 
     ``start`` continues from a :class:`State` (its time, state vector, contact modes and
@@ -98,8 +98,8 @@ def run_kernel(
     table: a run with more contact episodes is repeated with a larger one, so a caller that
     expects many (a long run with many transfers) saves that repetition by asking for enough.
 
-    Returns (rows, episodes, ranges, stats, final state vector, status). Raises
-    :class:`SimulationError` on a numerical failure.
+    Returns (rows, episodes, ranges, integrals of x^2 dt over the windows, stats, final state
+    vector, status). Raises :class:`SimulationError` on a numerical failure.
     """
     P = model.P.copy()
     P[K.P_RECORD_EVENTS] = 1.0 if record_events else 0.0
@@ -123,6 +123,7 @@ def run_kernel(
         R = np.empty((windows.shape[0], 2, 4, 2))
         R[..., 0] = np.inf
         R[..., 1] = -np.inf
+        xsq = np.empty(windows.shape[0])
         stats = np.zeros(K.N_STATS)
         y = y_init.copy()
         status, nrow, nep = K.integrate(
@@ -135,6 +136,7 @@ def run_kernel(
             rows,
             EP,
             R,
+            xsq,
             stats,
         )
         if status == K.ST_CAPACITY_ROWS:
@@ -147,7 +149,7 @@ def run_kernel(
             raise SimulationError(
                 failure_message(status, float(stats[7]), model, stats), float(stats[7])
             )
-        return rows[:nrow], EP[:nep], R, stats, y, status
+        return rows[:nrow], EP[:nep], R, xsq, stats, y, status
 
 
 def simulate(
@@ -213,7 +215,7 @@ def simulate(
             )
         st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
     W = _windows(t_start, T, windows)
-    rows, EP, R, stats, y, _ = run_kernel(model, st, W, record_events, start)
+    rows, EP, R, xsq, stats, y, _ = run_kernel(model, st, W, record_events, start)
     order = np.argsort(rows[:, 0], kind="stable")
     rows = rows[order]
     series = {name: np.ascontiguousarray(rows[:, i]) for i, name in enumerate(K.COLUMNS)}
@@ -244,4 +246,5 @@ def simulate(
         track_v0=float(stats[10]),
         slot_v0=float(stats[11]),
     )
-    return Result(model, series, EP, W, R, st_dict, final, final_state)
+    rms_x = np.sqrt(xsq / (W[:, 1] - W[:, 0]))
+    return Result(model, series, EP, W, R, st_dict, final, final_state, rms_x=rms_x)

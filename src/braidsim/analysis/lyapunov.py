@@ -188,7 +188,7 @@ class CarrierFlow:
 
         model = dataclasses.replace(self.full, duration=float(tau))
         W = np.array([[state.t, state.t + tau]])
-        _, _, _, stats, y, _ = run_kernel(model, np.zeros(0), W, False, state)
+        _, _, _, _, stats, y, _ = run_kernel(model, np.zeros(0), W, False, state)
         return State(
             t=float(stats[7]),
             y=tuple(float(v) for v in y),

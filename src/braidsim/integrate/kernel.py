@@ -217,6 +217,19 @@ RK_A[5, :5] = (A61, A62, A63, A64, A65)
 RK_A[6, :6] = (A71, 0.0, A73, A74, A75, A76)
 RK_C = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
 GOLD = 0.3819660112501051  # 2 - golden ratio
+# 4-point Gauss-Legendre rule on [0, 1] (nodes, weights), exact for polynomials of degree 7:
+# the quadrature of x^2 over each step, x being the degree-5 interpolant
+GL_NODES = np.array(
+    [
+        0.5 - 0.4305681557970263,
+        0.5 - 0.1699905217924281,
+        0.5 + 0.1699905217924281,
+        0.5 + 0.4305681557970263,
+    ]
+)
+GL_WEIGHTS = np.array(
+    [0.1739274225687269, 0.3260725774312731, 0.3260725774312731, 0.1739274225687269]
+)
 
 
 # =======================================================================================
@@ -575,13 +588,17 @@ def _track_at(c, h, t, rot, amp, w, cb, sb, EX):
 
 
 @inline_helper
+def dense_component(theta, RC, i):
+    """Component i of the state at fraction theta of the step (continuous extension)."""
+    th1 = 1.0 - theta
+    return RC[0, i] + theta * (RC[1, i] + th1 * (RC[2, i] + theta * (RC[3, i] + th1 * RC[4, i])))
+
+
+@inline_helper
 def dense_eval(theta, RC, out):
     """State at fraction theta of the step from the continuous extension coefficients."""
-    th1 = 1.0 - theta
     for i in range(NY):
-        out[i] = RC[0, i] + theta * (
-            RC[1, i] + th1 * (RC[2, i] + theta * (RC[3, i] + th1 * RC[4, i]))
-        )
+        out[i] = dense_component(theta, RC, i)
 
 
 @inline_helper
@@ -1031,6 +1048,7 @@ def _scan_step(
     EX,
     WIN,
     RANGES,
+    XSQ,
     rows,
     nrow,
     ST,
@@ -1041,7 +1059,8 @@ def _scan_step(
     I1,
     IX,
 ):
-    """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks.
+    """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks,
+    the windows' integrals of x^2.
 
     ``I0`` and ``I1`` hold the :func:`pair_info` of both pairs at the two ends of the step;
     ``IX`` is work space.
@@ -1054,6 +1073,19 @@ def _scan_step(
             dense_eval(theta, RC, Ys)
             nrow = _write_row(rows, nrow, ST[isamp], Ys, mt, ms, v0t, v0s, KIND_SAMPLE, P, EX)
         isamp += 1
+    # int x^2 dt over the part of the step inside each window (Gauss-Legendre on the
+    # interpolant), for the RMS of x
+    for w in range(WIN.shape[0]):
+        a = max(t0, WIN[w, 0])
+        b = min(t1, WIN[w, 1])
+        if b > a and h > 0.0:
+            ta = (a - t0) / h
+            dth = (b - a) / h
+            acc = 0.0
+            for k in range(4):
+                xk = dense_component(ta + GL_NODES[k] * dth, RC, 0)
+                acc += GL_WEIGHTS[k] * xk * xk
+            XSQ[w] += (b - a) * acc
     # ranges at the end point and at window boundaries inside the step
     if WIN.shape[0] > 0:
         _fold_ranges(t1, 0, mt, I1[0], WIN, RANGES)
@@ -1186,12 +1218,16 @@ def _start_contacts(t, Y, mt_ms, v0s_arr, open_ep, EP, nep, ED, npair, P, EX):
     return nep
 
 
-@njit(cache=True, error_model="numpy")
-def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
+# nogil: the kernel touches no Python object, so it releases the GIL and runs of a batch
+# overlap on threads (braidsim.batch)
+@njit(cache=True, error_model="numpy", nogil=True)
+def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
     """Integrate from t = 0 to P[P_T_END]; returns (status, number of rows, number of episodes).
 
     Outputs are written into the preallocated ``rows`` (series), ``EP`` (episodes),
-    ``RANGES`` (window extremes, initialised by the caller to +inf/-inf) and ``STATS``.
+    ``RANGES`` (window extremes, initialised by the caller to +inf/-inf), ``XSQ`` (the
+    integral of x^2 dt over each window [m^2 s], from a Gauss-Legendre rule on the
+    interpolant of every step: exact up to the integrator's own error) and ``STATS``.
     A status of ST_CAPACITY_* asks the caller to retry with larger arrays.
     """
     if (
@@ -1201,6 +1237,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
         or rows.shape[1] != NCOL
         or EP.shape[1] != NEP
         or RANGES.shape[0] != WIN.shape[0]
+        or XSQ.shape[0] != WIN.shape[0]
     ):
         return ST_BAD_ARRAYS, 0, 0
     t_end = P[P_T_END]
@@ -1233,6 +1270,8 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
     status = ST_OK
     for i in range(STATS.shape[0]):
         STATS[i] = 0.0
+    for w in range(XSQ.shape[0]):
+        XSQ[w] = 0.0
     STATS[5] = math.inf
 
     if P[P_INIT_GIVEN] > 0.5:
@@ -1416,6 +1455,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, STATS):
             EX,
             WIN,
             RANGES,
+            XSQ,
             rows,
             nrow,
             ST,

@@ -143,7 +143,7 @@ def _run_one(
     # not repeat the run with a larger one
     cap = 256 + 32 * times.size + int(100.0 * duration)
     W = np.array([[0.0, duration]])
-    rows, EP, _, stats, _, _ = run_kernel(
+    rows, EP, _, _, stats, _, _ = run_kernel(
         model, samples, W, record_events=False, episode_capacity=cap
     )
     if rows.shape[0] != samples.size or not np.array_equal(rows[:, 0], samples):

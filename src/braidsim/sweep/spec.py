@@ -32,7 +32,6 @@ Format (every quantity a number in SI or a string with units)::
     [metrics]
     keep = ["regime", "track_max_contact_force"]    # default: all of braidsim.batch.METRICS
     window = ["0.5 s", "1 s"]               # metrics window; default: the whole run
-    rms_interval = "0.1 ms"                 # optional; default: half the maximum step
 
     [series]                                # optional sampled time series of every run
     variables = ["x", "track_contact_force"]  # columns of braidsim.integrate.kernel.COLUMNS
@@ -90,7 +89,7 @@ TOP_KEYS = (
 AXIS_KEYS = ("key", "name", "values", "start", "stop", "num", "spacing")
 SAMPLES_KEYS = ("method", "n", "seed", "ranges")
 RANGE_KEYS = ("low", "high", "spacing")
-METRICS_KEYS = ("keep", "window", "rms_interval")
+METRICS_KEYS = ("keep", "window")
 SERIES_KEYS = ("variables", "times", "start", "stop", "num")
 EXECUTION_KEYS = ("chunk_size", "retries")
 SAMPLE_METHODS = ("random", "latin_hypercube")
@@ -98,7 +97,7 @@ SPACINGS = ("linear", "log")
 AXIS_KINDS = ("float", "int", "choice", "bool")
 RUN_DIM = "run"
 TIME_DIM = "t"
-MIN_AUTO_CHUNK = 16
+MIN_AUTO_CHUNK = 64
 MAX_AUTO_CHUNK = 256
 
 
@@ -330,7 +329,6 @@ class SweepSpec:
             "samples": samples,
             "metrics": list(self.metrics),
             "window": None if o.window is None else list(o.window),
-            "rms_interval": o.rms_interval,
             "series": list(o.series),
             "series_times": [float(t) for t in o.series_times],
             "chunk_shape": list(self.chunk_shape),
@@ -500,12 +498,13 @@ def _samples(table: Any, base: Scenario) -> Samples:
 
 
 def auto_chunk_size(n_runs: int) -> int:
-    """Runs per chunk when the spec gives none: 1/64 of the runs, between 16 and 256.
+    """Runs per chunk when the spec gives none: 1/64 of the runs, between 64 and 256.
 
-    At least 16 runs, so that writing a chunk (about 2 ms per array, some 25 arrays) costs a
-    few per cent of computing it (25-100 ms per one-second run); at most 256, so that a
-    million runs still make thousands of tasks to spread over a cluster. It depends on the
-    number of runs only (not on the executor), so a store can be resumed with other workers.
+    At least 64 runs, so that writing a chunk (some 30 ms: about 1 ms per zarr array, ~27
+    arrays, by the sweep process while the workers compute) costs under a tenth of computing
+    it (one-second paper-3.3 runs take ~6 ms each); at most 256, so that a million runs still
+    make thousands of tasks to spread over a cluster. It depends on the number of runs only
+    (not on the executor), so a store can be resumed with other workers.
     """
     return int(min(MAX_AUTO_CHUNK, max(MIN_AUTO_CHUNK, -(-n_runs // 64))))
 
@@ -643,7 +642,6 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
         if not isinstance(w, list) or len(w) != 2:
             raise InputError(f"metrics.window: {w!r} is not [T0, T1]; allowed two times")
         window = (_time("metrics.window", w[0]), _time("metrics.window", w[1]))
-    rms = _time("metrics.rms_interval", met["rms_interval"]) if "rms_interval" in met else None
 
     partial = SweepSpec(
         path, text, "", ref, base, duration, axes, samples, metrics, RunOptions(), (1,), 0
@@ -654,12 +652,10 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     if "series" in data:
         series_names, series_times = _series(data["series"], durations)
     try:
-        opts = check_options(durations, window, rms, series_names, series_times)
+        opts = check_options(durations, window, series_names, series_times)
     except InputError as exc:
         msg = str(exc)
-        raise InputError(
-            f"metrics.{msg}" if msg.startswith(("window", "rms_interval")) else msg
-        ) from None
+        raise InputError(f"metrics.{msg}" if msg.startswith("window") else msg) from None
 
     ex = expect_table("execution", data.get("execution", {}))
     check_keys("execution.", ex, EXECUTION_KEYS)

@@ -77,7 +77,7 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
         "parameter_units": json.dumps({k: s.unit for k, s in SCHEMA.items()}, sort_keys=True),
         "duration": "simulation.duration of each run" if spec.duration is None else spec.duration,
         "metrics_window": "whole run" if o.window is None else list(o.window),
-        "rms_interval": "half the maximum step" if o.rms_interval is None else o.rms_interval,
+        "rms_x": "Gauss-Legendre quadrature of x^2 on the interpolant of every step",
         "regime_labels": json.dumps(
             {str(REGIME_FAILED): "failed", **{str(i): r for i, r in enumerate(REGIMES)}}
         ),
