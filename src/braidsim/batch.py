@@ -10,8 +10,9 @@ from :func:`braidsim.simulate` with the same parameters (``tests/unit/test_batch
 kernel releases the GIL, so the integrations overlap; measured 1.9x on 2 cores against 1.7x
 for two processes, which pay for their start and for shipping the work), or on local processes
 (``executor="processes"``: on many cores, where the Python share of a run, ~0.35 of ~6 ms
-for one second of paper-3.3, would make the threads wait for each other). :mod:`braidsim.sweep` builds parameter grids
-and samples on top of this and stores the results.
+for one second of paper-3.3, would make the threads wait for each other).
+:mod:`braidsim.sweep` builds parameter grids and samples on top of this and stores the
+results.
 
 Metrics window
 --------------

@@ -2,8 +2,9 @@
 
 These are the pieces the step loop relies on without re-checking: the phase rotation of the
 track at the RK stages (Taylor series for small angles), the time derivative of the
-continuous extension (used to locate peaks), and the slopes dN/dt, dF_c/dt of
-``pair_info`` (whose signs decide whether a step holds a peak).
+continuous extension (used to locate peaks), the slopes dN/dt, dF_c/dt of ``pair_info``
+(whose signs decide whether a step holds a peak), and the phase memo shared by a step's end
+and the next step's start.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ def _one_contact_step() -> tuple[np.ndarray, np.ndarray, np.ndarray, float, floa
     Kst = np.empty((7, K.NY))
     K.rhs(t, Y, -1, 0, 0.3, 1.0, P, EX, Kst[0])
     Yt, Y1, RC = np.empty(K.NY), np.empty(K.NY), np.empty((5, K.NY))
-    K._step(t, Y, h, Kst, -1, 0, 0.3, 1.0, P, EX, Yt, Y1)
+    K._step(t, Y, h, Kst, -1, 0, 0.3, 1.0, P, EX, Yt, Y1, np.full(3, math.nan))
     K._dense_coeffs(Y, Y1, h, Kst, RC)
     return P, EX, Kst, t, h, RC
 
@@ -95,3 +96,32 @@ def test_pair_info_slopes_are_the_time_derivatives_of_the_forces() -> None:
         assert info[K.I_DN] == pytest.approx((ip[K.I_N] - im[K.I_N]) / dt, rel=1e-5)
         assert info[K.I_DFC] == pytest.approx((ip[K.I_FC] - im[K.I_FC]) / dt, rel=1e-5)
         assert info[K.I_PD] == pytest.approx((ip[K.I_P] - im[K.I_P]) / dt, rel=1e-5)
+
+
+def test_phase_memo_gives_the_bits_of_direct_evaluation() -> None:
+    """The step-end summaries from the remembered phase equal ``pair_info`` with the track
+    from ``track_motion``, bit for bit, and a step started from the memo equals one started
+    from a fresh evaluation (a stale memo, for another time, is recomputed)."""
+    P, EX, _, t, h, RC = _one_contact_step()
+    Ys, Yd = np.empty(K.NY), np.empty(K.NY)
+    K.dense_eval(0.6, RC, Ys)
+    K.dense_deriv(0.6, h, RC, Yd)
+    tq = t + 0.6 * h
+    direct = np.empty(K.NI)
+    K.pair_info(tq, Ys, Yd, 0, -1, 0.3, P, EX, direct)
+    TC = np.array([t, 0.5, 0.5])  # stale: remembers another time
+    INF = np.empty((2, K.NI))
+    K._pair_infos(tq, Ys, Yd, -1, 0, 0.3, 1.0, P, EX, INF, TC)
+    assert TC[0] == tq
+    np.testing.assert_array_equal(INF[0], direct)
+    K._pair_infos(tq, Ys, Yd, -1, 0, 0.3, 1.0, P, EX, INF, TC)  # from the memo now
+    np.testing.assert_array_equal(INF[0], direct)
+    Y = Ys.copy()
+    K0 = np.empty((7, K.NY))
+    K.rhs(tq, Y, -1, 0, 0.3, 1.0, P, EX, K0[0])
+    K1 = K0.copy()
+    out = [np.empty(K.NY) for _ in range(4)]
+    K._step(tq, Y, h, K0, -1, 0, 0.3, 1.0, P, EX, out[0], out[1], TC)
+    K._step(tq, Y, h, K1, -1, 0, 0.3, 1.0, P, EX, out[2], out[3], np.full(3, math.nan))
+    np.testing.assert_array_equal(out[1], out[3])
+    np.testing.assert_array_equal(K0, K1)

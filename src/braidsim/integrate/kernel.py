@@ -453,7 +453,28 @@ NI = len(INFO_FIELDS)
 
 @helper
 def pair_info(t, Y, F, pair, mode, v0, P, EX, out):
-    """Fill ``out[:NI]`` (see ``INFO_FIELDS``) for one pair in contact mode ``mode``.
+    """:func:`pair_info_track` with the track's motion from :func:`track_motion`."""
+    h, hd, hdd = track_motion(t, EX) if pair == 0 else (0.0, 0.0, 0.0)
+    pair_info_track(t, Y, F, pair, mode, v0, P, EX, out, h, hd, hdd)
+
+
+@inline_helper
+def _phase(t, EX, TC):
+    """(cos, sin) of the first harmonic's phase w t + phi of the track at t, remembered in
+    TC = (t, cos, sin): the end of one step, where :func:`_pair_infos` needs them, is the
+    start of the next, where :func:`_step` does (one libm sincos per step instead of two)."""
+    if TC[0] != t:
+        arg = EX[EX_HEAD + 1] * t + EX[EX_HEAD + 2]
+        TC[0] = t
+        TC[1] = math.cos(arg)
+        TC[2] = math.sin(arg)
+    return TC[1], TC[2]
+
+
+@helper
+def pair_info_track(t, Y, F, pair, mode, v0, P, EX, out, h, hd, hdd):
+    """Fill ``out[:NI]`` (see ``INFO_FIELDS``) for one pair in contact mode ``mode``, the
+    track wall being at h [m], moving at h' [m/s] with h'' [m/s^2] (read for the track only).
 
     ``F`` is the time derivative of ``Y`` at t (an RK stage, or the derivative of the
     interpolant); only the accelerations F[1] and F[3] are read. In contact the slopes are
@@ -465,7 +486,6 @@ def pair_info(t, Y, F, pair, mode, v0, P, EX, out):
     The force terms are those of :func:`contact` (same operations, same bits).
     """
     if pair == 0:
-        h, hd, hdd = track_motion(t, EX)
         u = Y[0] - h
         ud = Y[1] - hd
         udd = F[1] - hdd
@@ -640,7 +660,7 @@ def event_value(j, t, Y, mt, ms, P, EX):
 
 
 @helper
-def _step(t, Y, h, K, mt, ms, v0t, v0s, P, EX, Yt, Y1):
+def _step(t, Y, h, K, mt, ms, v0t, v0s, P, EX, Yt, Y1, TC):
     """One Dormand-Prince step of size h from (t, Y) with K[0] = f(t, Y); fills K[1..6], Y1.
 
     Stage s (1..5) is evaluated at Y + h sum_j A[s, j] K[j]; the solution Y1 uses the row
@@ -650,9 +670,10 @@ def _step(t, Y, h, K, mt, ms, v0t, v0s, P, EX, Yt, Y1):
     rot = EX[0] == 1.0
     amp = EX[EX_HEAD]
     w = EX[EX_HEAD + 1]
-    arg = w * t + EX[EX_HEAD + 2]
-    cb = math.cos(arg) if rot else 1.0
-    sb = math.sin(arg) if rot else 0.0
+    cb = 1.0
+    sb = 0.0
+    if rot:
+        cb, sb = _phase(t, EX, TC)
     for s in range(1, 7):
         Ystage = Y1 if s == 6 else Yt
         for i in range(NY):
@@ -1132,10 +1153,21 @@ def _scan_step(
 
 
 @helper
-def _pair_infos(t, Y, F, mt, ms, v0t, v0s, P, EX, INF):
-    """:func:`pair_info` of the track (INF[0]) and, with two DOFs, of the slot (INF[1])."""
+def _pair_infos(t, Y, F, mt, ms, v0t, v0s, P, EX, INF, TC):
+    """:func:`pair_info` of the track (INF[0]) and, with two DOFs, of the slot (INF[1]);
+    a single-harmonic track from the phase memo TC (see :func:`_phase`), with the very
+    operations of :func:`track_motion` (same bits)."""
     track = mt - mt  # 0 as a run-time integer (see the note on literals)
-    pair_info(t, Y, F, track, mt, v0t, P, EX, INF[0])
+    if EX[0] == 1.0:
+        c, sn = _phase(t, EX, TC)
+        a = EX[EX_HEAD]
+        w = EX[EX_HEAD + 1]
+        h = 0.0 + a * c
+        hd = 0.0 - a * w * sn
+        hdd = 0.0 - a * w * w * c
+    else:
+        h, hd, hdd = track_motion(t, EX)
+    pair_info_track(t, Y, F, track, mt, v0t, P, EX, INF[0], h, hd, hdd)
     if P[P_DOF] > 1.5:
         pair_info(t, Y, F, track + 1, ms, v0s, P, EX, INF[1])
 
@@ -1252,6 +1284,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
     INF0 = np.zeros((2, NI))  # pair_info at the start of the step (the end of the last one)
     INF1 = np.zeros((2, NI))  # ... at its end
     IX = np.zeros(NI)
+    TC = np.full(3, math.nan)  # phase memo of a single-harmonic track (see _phase)
     K = np.empty((7, NY))
     Ke = np.empty((7, NY))
     RC = np.empty((5, NY))
@@ -1306,7 +1339,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
         itr += 1
 
     rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
-    _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0)
+    _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0, TC)
     STATS[3] += 1
     h = min(1e-6, hmax, t_end - t)
     nsteps = 0
@@ -1348,7 +1381,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
             )
             nep = _start_contacts(t, Y, modes, v0, open_ep, EP, nep, ED, nrow - nrow + 1, P, EX)
             rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
-            _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0)
+            _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0, TC)
             STATS[3] += 1
         t_stop = t_end
         if itr < TR.shape[0] and TR[itr] < t_stop:
@@ -1361,7 +1394,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
         if not hits_stop and h < 4e-16 * max(1.0, abs(t)) * 8:
             status = ST_STEP_COLLAPSE
             break
-        _step(t, Y, h, K, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Y1)
+        _step(t, Y, h, K, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Y1, TC)
         STATS[3] += 6
         nsteps += 1
         err = _error_norm(Y, Y1, h, K, P)
@@ -1414,7 +1447,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
         onset_q = 0.0
         h_next = min(h * fac, hmax)
         _dense_coeffs(Y, Y1, h, K, RC)
-        _pair_infos(t + h, Y1, K[6], modes[0], modes[1], v0[0], v0[1], P, EX, INF1)
+        _pair_infos(t + h, Y1, K[6], modes[0], modes[1], v0[0], v0[1], P, EX, INF1, TC)
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
@@ -1433,10 +1466,10 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
                 he = 1e-16 * max(1.0, t)
             for i in range(NY):
                 Ke[0, i] = K[0, i]
-            _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Ye)
+            _step(t, Y, he, Ke, modes[0], modes[1], v0[0], v0[1], P, EX, Yt, Ye, TC)
             STATS[3] += 6
             _dense_coeffs(Y, Ye, he, Ke, RC)
-            _pair_infos(t + he, Ye, Ke[6], modes[0], modes[1], v0[0], v0[1], P, EX, INF1)
+            _pair_infos(t + he, Ye, Ke[6], modes[0], modes[1], v0[0], v0[1], P, EX, INF1, TC)
             h_taken = he
         else:
             h_taken = h
@@ -1524,7 +1557,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
             last_event_t = t_ev
             t = t_ev
             rhs(t, Y, modes[0], modes[1], v0[0], v0[1], P, EX, K[0])
-            _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0)
+            _pair_infos(t, Y, K[0], modes[0], modes[1], v0[0], v0[1], P, EX, INF0, TC)
             STATS[3] += 1
             continue
         # ---- accepted step without event
