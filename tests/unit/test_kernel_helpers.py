@@ -89,7 +89,7 @@ def test_pair_info_slopes_are_the_time_derivatives_of_the_forces() -> None:
         for th, out in ((theta, info), (theta + e, ip), (theta - e, im)):
             K.dense_eval(th, RC, Ys)
             K.dense_deriv(th, h, RC, Yd)
-            K.pair_info(t + th * h, Ys, Yd, 0, -1, v0, P, EX, out)
+            K.pair_info(t + th * h, Ys, Yd, 0, -1, v0, P, EX, out, np.full(3, math.nan))
         dt = 2 * e * h
         assert info[K.I_P] > 0.0
         assert info[K.I_N] == pytest.approx(info[K.I_FK] + info[K.I_FC], rel=1e-14)
@@ -99,24 +99,22 @@ def test_pair_info_slopes_are_the_time_derivatives_of_the_forces() -> None:
 
 
 def test_phase_memo_gives_the_bits_of_direct_evaluation() -> None:
-    """The step-end summaries from the remembered phase equal ``pair_info`` with the track
-    from ``track_motion``, bit for bit, and a step started from the memo equals one started
-    from a fresh evaluation (a stale memo, for another time, is recomputed)."""
+    """The track's motion from the remembered phase equals a fresh evaluation bit for bit
+    (a stale memo, for another time, is recomputed) and the closed form a cos(w t + phi);
+    a step started from the memo equals one started from a fresh evaluation."""
     P, EX, _, t, h, RC = _one_contact_step()
-    Ys, Yd = np.empty(K.NY), np.empty(K.NY)
-    K.dense_eval(0.6, RC, Ys)
-    K.dense_deriv(0.6, h, RC, Yd)
+    amp, w, ph = EX[K.EX_HEAD : K.EX_HEAD + 3]
     tq = t + 0.6 * h
-    direct = np.empty(K.NI)
-    K.pair_info(tq, Ys, Yd, 0, -1, 0.3, P, EX, direct)
+    fresh = K.track_motion(tq, EX, np.full(3, math.nan))
     TC = np.array([t, 0.5, 0.5])  # stale: remembers another time
-    INF = np.empty((2, K.NI))
-    K._pair_infos(tq, Ys, Yd, -1, 0, 0.3, 1.0, P, EX, INF, TC)
+    assert K.track_motion(tq, EX, TC) == fresh
     assert TC[0] == tq
-    np.testing.assert_array_equal(INF[0], direct)
-    K._pair_infos(tq, Ys, Yd, -1, 0, 0.3, 1.0, P, EX, INF, TC)  # from the memo now
-    np.testing.assert_array_equal(INF[0], direct)
-    Y = Ys.copy()
+    assert K.track_motion(tq, EX, TC) == fresh  # from the memo now
+    arg = w * tq + ph
+    closed = (amp * math.cos(arg), -amp * w * math.sin(arg), -amp * w * w * math.cos(arg))
+    assert fresh == pytest.approx(closed, rel=1e-15)
+    Y = np.empty(K.NY)
+    K.dense_eval(0.6, RC, Y)
     K0 = np.empty((7, K.NY))
     K.rhs(tq, Y, -1, 0, 0.3, 1.0, P, EX, K0[0])
     K1 = K0.copy()

@@ -283,19 +283,38 @@ def track_accel_bound(EX):
     return acc
 
 
+@inline_helper
+def _phase(t, EX, TC):
+    """(cos, sin) of the first harmonic's phase w t + phi of the track at t, remembered in
+    TC = (t, cos, sin): the end of one step, where the contact summaries need them
+    (:func:`track_motion`), is the start of the next, where :func:`_step` does (one libm
+    sincos per step instead of two; the same bits as without the memo)."""
+    if TC[0] != t:
+        arg = EX[EX_HEAD + 1] * t + EX[EX_HEAD + 2]
+        TC[0] = t
+        TC[1] = math.cos(arg)
+        TC[2] = math.sin(arg)
+    return TC[1], TC[2]
+
+
 @helper
-def track_motion(t, EX):
-    """Track wall position h [m], speed h' [m/s] and acceleration h'' [m/s^2] at time t."""
+def track_motion(t, EX, TC):
+    """Track wall position h [m], speed h' [m/s] and acceleration h'' [m/s^2] at time t;
+    the first harmonic's cos and sin from the phase memo ``TC`` (:func:`_phase`)."""
     h = 0.0
     hd = 0.0
     hdd = 0.0
     for i in range(int(EX[0])):
         a = EX[EX_HEAD + 3 * i]
         w = EX[EX_HEAD + 3 * i + 1]
-        arg = w * t + EX[EX_HEAD + 3 * i + 2]
-        c = math.cos(arg)
+        if i == 0:
+            c, sn = _phase(t, EX, TC)
+        else:
+            arg = w * t + EX[EX_HEAD + 3 * i + 2]
+            c = math.cos(arg)
+            sn = math.sin(arg)
         h += a * c
-        hd -= a * w * math.sin(arg)
+        hd -= a * w * sn
         hdd -= a * w * w * c
     return h, hd, hdd
 
@@ -452,29 +471,9 @@ NI = len(INFO_FIELDS)
 
 
 @helper
-def pair_info(t, Y, F, pair, mode, v0, P, EX, out):
-    """:func:`pair_info_track` with the track's motion from :func:`track_motion`."""
-    h, hd, hdd = track_motion(t, EX) if pair == 0 else (0.0, 0.0, 0.0)
-    pair_info_track(t, Y, F, pair, mode, v0, P, EX, out, h, hd, hdd)
-
-
-@inline_helper
-def _phase(t, EX, TC):
-    """(cos, sin) of the first harmonic's phase w t + phi of the track at t, remembered in
-    TC = (t, cos, sin): the end of one step, where :func:`_pair_infos` needs them, is the
-    start of the next, where :func:`_step` does (one libm sincos per step instead of two)."""
-    if TC[0] != t:
-        arg = EX[EX_HEAD + 1] * t + EX[EX_HEAD + 2]
-        TC[0] = t
-        TC[1] = math.cos(arg)
-        TC[2] = math.sin(arg)
-    return TC[1], TC[2]
-
-
-@helper
-def pair_info_track(t, Y, F, pair, mode, v0, P, EX, out, h, hd, hdd):
-    """Fill ``out[:NI]`` (see ``INFO_FIELDS``) for one pair in contact mode ``mode``, the
-    track wall being at h [m], moving at h' [m/s] with h'' [m/s^2] (read for the track only).
+def pair_info(t, Y, F, pair, mode, v0, P, EX, out, TC):
+    """Fill ``out[:NI]`` (see ``INFO_FIELDS``) for one pair in contact mode ``mode``
+    (``TC``: the track's phase memo, see :func:`_phase`).
 
     ``F`` is the time derivative of ``Y`` at t (an RK stage, or the derivative of the
     interpolant); only the accelerations F[1] and F[3] are read. In contact the slopes are
@@ -486,6 +485,7 @@ def pair_info_track(t, Y, F, pair, mode, v0, P, EX, out, h, hd, hdd):
     The force terms are those of :func:`contact` (same operations, same bits).
     """
     if pair == 0:
+        h, hd, hdd = track_motion(t, EX, TC)
         u = Y[0] - h
         ud = Y[1] - hd
         udd = F[1] - hdd
@@ -984,7 +984,7 @@ def _extreme_slope(kind, info):
 
 
 @helper
-def _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, info):
+def _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, info, TC):
     """The maximum inside the step of quantity ``kind`` (see :func:`_extreme_slope`), whose
     slope goes from g0 > 0 at the start to g1 <= 0 at the end.
 
@@ -1007,7 +1007,7 @@ def _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, info
             mid = 0.5 * (lo + hi)
         dense_eval(mid, RC, Ys)
         dense_deriv(mid, h, RC, Yd)
-        pair_info(t0 + mid * h, Ys, Yd, pair, mode, v0, P, EX, info)
+        pair_info(t0 + mid * h, Ys, Yd, pair, mode, v0, P, EX, info, TC)
         gm = _extreme_slope(kind, info)
         if gm == 0.0:
             return mid
@@ -1026,7 +1026,7 @@ def _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, info
     theta = 0.5 * (lo + hi)
     dense_eval(theta, RC, Ys)
     dense_deriv(theta, h, RC, Yd)
-    pair_info(t0 + theta * h, Ys, Yd, pair, mode, v0, P, EX, info)
+    pair_info(t0 + theta * h, Ys, Yd, pair, mode, v0, P, EX, info, TC)
     return theta
 
 
@@ -1079,12 +1079,13 @@ def _scan_step(
     I0,
     I1,
     IX,
+    TC,
 ):
     """Post-process an accepted (sub)step [t0, t0 + h]: samples, extremes, ranges, peaks,
     the windows' integrals of x^2.
 
     ``I0`` and ``I1`` hold the :func:`pair_info` of both pairs at the two ends of the step;
-    ``IX`` is work space.
+    ``IX`` is work space, ``TC`` the track's phase memo.
     """
     t1 = t0 + h
     # sampled series
@@ -1140,7 +1141,7 @@ def _scan_step(
             g1 = _extreme_slope(kind, a1)
             if not (g0 > 0.0 and g1 <= 0.0):
                 continue
-            theta = _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, IX)
+            theta = _refine_extreme(kind, pair, mode, v0, t0, h, g0, g1, RC, P, EX, Ys, Yd, IX, TC)
             tq = t0 + theta * h
             val = _extreme_value(kind, IX)
             q = 4 * pair + kind
@@ -1154,22 +1155,11 @@ def _scan_step(
 
 @helper
 def _pair_infos(t, Y, F, mt, ms, v0t, v0s, P, EX, INF, TC):
-    """:func:`pair_info` of the track (INF[0]) and, with two DOFs, of the slot (INF[1]);
-    a single-harmonic track from the phase memo TC (see :func:`_phase`), with the very
-    operations of :func:`track_motion` (same bits)."""
+    """:func:`pair_info` of the track (INF[0]) and, with two DOFs, of the slot (INF[1])."""
     track = mt - mt  # 0 as a run-time integer (see the note on literals)
-    if EX[0] == 1.0:
-        c, sn = _phase(t, EX, TC)
-        a = EX[EX_HEAD]
-        w = EX[EX_HEAD + 1]
-        h = 0.0 + a * c
-        hd = 0.0 - a * w * sn
-        hdd = 0.0 - a * w * w * c
-    else:
-        h, hd, hdd = track_motion(t, EX)
-    pair_info_track(t, Y, F, track, mt, v0t, P, EX, INF[0], h, hd, hdd)
+    pair_info(t, Y, F, track, mt, v0t, P, EX, INF[0], TC)
     if P[P_DOF] > 1.5:
-        pair_info(t, Y, F, track + 1, ms, v0s, P, EX, INF[1])
+        pair_info(t, Y, F, track + 1, ms, v0s, P, EX, INF[1], TC)
 
 
 @helper
@@ -1284,7 +1274,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
     INF0 = np.zeros((2, NI))  # pair_info at the start of the step (the end of the last one)
     INF1 = np.zeros((2, NI))  # ... at its end
     IX = np.zeros(NI)
-    TC = np.full(3, math.nan)  # phase memo of a single-harmonic track (see _phase)
+    TC = np.full(3, math.nan)  # phase memo of the track's first harmonic (see _phase)
     K = np.empty((7, NY))
     Ke = np.empty((7, NY))
     RC = np.empty((5, NY))
@@ -1498,6 +1488,7 @@ def integrate(Y0, P, EX, TR, WIN, ST, rows, EP, RANGES, XSQ, STATS):
             INF0,
             INF1,
             IX,
+            TC,
         )
         STATS[0] += 1
         STATS[5] = min(STATS[5], h_taken)
