@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from braidsim.integrate import kernel as K
+from braidsim.core.layout import EPISODE_COLUMNS, KIND_NAMES
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -52,7 +52,6 @@ UNITS = {
     "omega": "rad/s",
     "kind": "",
 }
-KIND_NAMES = ("sample", "onset", "exit", "peak", "transfer", "start", "end")
 RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")
 PAIRS = ("track", "slot")
 WALLS = {("track", -1): "inner", ("track", 1): "outer", ("slot", -1): "rear", ("slot", 1): "front"}
@@ -74,10 +73,10 @@ IMPACT_UNITS = {
 
 
 def impacts_frame(episodes: np.ndarray) -> pd.DataFrame:
-    """The impact table of a raw episode array (columns of ``kernel.EPISODE_COLUMNS``)."""
+    """The impact table of the solver's episode records (``EPISODE_DTYPE`` rows)."""
     import pandas as pd
 
-    c = {name: episodes[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
+    c = {name: episodes[name] for name in EPISODE_COLUMNS}
     pairs = [PAIRS[int(p)] for p in c["pair"]]
     walls = [WALLS[(pr, int(w))] for pr, w in zip(pairs, c["wall"], strict=True)]
     return pd.DataFrame(
@@ -126,11 +125,18 @@ class State:
     t : float
         Time [s].
     y : tuple of float
-        The kernel's state vector (x, vx, y, vy [SI] and the energy quadratures [J]).
+        The model's state vector: x, vx (and y, vy in the xy mode) [SI], then the energy
+        quadratures [J] (see :mod:`braidsim.core.models.carrier`).
     track_mode, slot_mode : int
         -1 inner/rear wall, +1 outer/front wall, 0 free.
     track_v0, slot_v0 : float
         Latched approach speeds of the contacts in progress [m/s].
+    step : float
+        The next step size of the step control [s] (0: chosen afresh).
+    err_old : float
+        The step control's memory of the last error norm.
+    onset_q : float
+        Error exponent of a pending first contact step (0: none).
     """
 
     t: float
@@ -139,6 +145,9 @@ class State:
     slot_mode: int = 0
     track_v0: float = 1.0
     slot_v0: float = 1.0
+    step: float = 0.0
+    err_old: float = 1e-4
+    onset_q: float = 0.0
 
 
 def _json_float(v: float) -> float | None:
@@ -155,10 +164,10 @@ class Result:
     model : Model
         The resolved model (parameters, stiffnesses, damping factors).
     series : Mapping[str, np.ndarray]
-        Columns of :data:`braidsim.integrate.kernel.COLUMNS`, sorted by time: the samples
+        Columns of :data:`braidsim.core.CARRIER_COLUMNS`, sorted by time: the samples
         asked for plus the exact states at contact onset, exit, peaks and transfers.
     episodes : np.ndarray
-        Raw contact episodes, columns :data:`braidsim.integrate.kernel.EPISODE_COLUMNS`.
+        Contact episodes, records of :data:`braidsim.core.layout.EPISODE_DTYPE`.
     windows : np.ndarray
         (n, 2) windows of ``ranges``; window 0 is the whole run.
     ranges : np.ndarray

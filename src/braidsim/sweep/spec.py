@@ -34,7 +34,7 @@ Format (every quantity a number in SI or a string with units)::
     window = ["0.5 s", "1 s"]               # metrics window; default: the whole run
 
     [series]                                # optional sampled time series of every run
-    variables = ["x", "track_contact_force"]  # columns of braidsim.integrate.kernel.COLUMNS
+    variables = ["x", "track_contact_force"]  # columns of braidsim.core.CARRIER_COLUMNS
     start = "0.9 s"                         # a uniform grid (or times = [...])
     stop = "1 s"
     num = 101
