@@ -164,6 +164,10 @@ def run_model(
     return raw
 
 
+SERIES_MEMORY = 64 * 2**20
+"""Default memory budget of a series kept in memory [bytes] (``max_series_bytes``)."""
+
+
 def simulate(
     scenario: Scenario | str | Path | Mapping[str, Any],
     duration: float | None = None,
@@ -174,6 +178,8 @@ def simulate(
     sample_times: Sequence[float] | np.ndarray | None = None,
     record_events: bool = True,
     start: State | None = None,
+    series: bool | SeriesSink = True,
+    max_series_bytes: int | None = SERIES_MEMORY,
 ) -> Result:
     """Simulate one carrier.
 
@@ -198,6 +204,17 @@ def simulate(
     start : State, optional
         Continue from this state (e.g. ``previous.final_state``) for ``duration`` more
         seconds; windows and sample times are then absolute times within the new span.
+    series : bool or callable
+        True (default): keep the sampled series in ``Result.series``. False: record none
+        (the lean path: impacts, ranges, summary and final state only). A callable: receive
+        the series in chunks of rows (arrays in the columns of
+        :data:`braidsim.core.CARRIER_COLUMNS`, in time order), keeping none in memory: for
+        runs of any length, streamed to a store or reduced on the fly.
+    max_series_bytes : int or None
+        Memory budget of the samples kept in memory (default 64 MiB, about 300,000 rows). A
+        ``sample_interval`` that would exceed it is widened to a multiple of itself that
+        fits (``Result.stats["sample_interval"]`` says which); explicit ``sample_times`` are
+        never thinned. None: no budget.
 
     Returns
     -------
@@ -211,7 +228,10 @@ def simulate(
     t_start = 0.0 if start is None else float(start.t)
     model = build_model(sc, duration, t_start=t_start)
     T = t_start + model.duration
-    if sample_times is not None:
+    dt_used: float | None = None
+    if series is False:
+        st = np.zeros(0)
+    elif sample_times is not None:
         st = np.sort(np.asarray(sample_times, dtype=float))
         if st.size and (st[0] < t_start or st[-1] > T or not np.all(np.isfinite(st))):
             raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
@@ -220,27 +240,46 @@ def simulate(
         if dt < 0 or not math.isfinite(dt):
             raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
         n = math.floor((T - t_start) / dt + 1e-9) + 1 if dt > 0 else 0
-        if n > 50_000_000:
-            raise InputError(
-                f"simulation.sample_interval: {dt:g} s gives {n} samples; "
-                f"allowed >= {T / 5e7:.3g} s"
-            )
+        row_bytes = 8 * len(CARRIER_COLUMNS)
+        if series is True and max_series_bytes is not None and n * row_bytes > max_series_bytes:
+            # keep every k-th sample: the widest interval that fits the budget
+            k = math.ceil(n * row_bytes / max_series_bytes)
+            dt *= k
+            n = math.floor((T - t_start) / dt + 1e-9) + 1
         st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
+        dt_used = dt
     W = _windows(t_start, T, windows)
-    raw = run_model(model, sample_times=st, windows=W, record_events=record_events, start=start)
-    rows = raw.series if raw.series is not None else np.zeros((0, len(CARRIER_COLUMNS)))
-    order = np.argsort(rows[:, 0], kind="stable")
-    rows = rows[order]
-    series = {name: np.ascontiguousarray(rows[:, i]) for i, name in enumerate(CARRIER_COLUMNS)}
+    # a series kept in memory is collected column by column from the solver's chunks, so
+    # that it is held once (not as chunks and again as their concatenation)
+    columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS]
+
+    def keep(chunk: np.ndarray) -> None:
+        for i, col in enumerate(columns):
+            col.append(chunk[:, i].copy())
+
+    raw = run_model(
+        model,
+        sample_times=st,
+        windows=W,
+        series=keep if series is True else series,
+        record_events=record_events and series is not False,
+        start=start,
+    )
+    series_cols = {}
+    for i, name in enumerate(CARRIER_COLUMNS):
+        series_cols[name] = np.concatenate(columns[i]) if columns[i] else np.zeros(0)
+        columns[i] = []
     if not model.two_dof:
         # the x-only carrier does not move tangentially: y and y' stay at their start values
-        series["y"][:] = sc["initial.y"]
-        series["vy"][:] = sc["initial.vy"]
+        series_cols["y"][:] = sc["initial.y"]
+        series_cols["vy"][:] = sc["initial.vy"]
     st_dict: dict[str, Any] = stats_dict(raw)
     st_dict.update(
         track_stiffness=model.track.stiffness,
         track_damping_factor=model.track.damping_factor,
         track_effective_restitution=model.track.effective_restitution,
+        sample_interval=dt_used,
+        series_rows=raw.rows_written,
     )
     fs = final_state(raw)
     y = raw.y
@@ -253,4 +292,4 @@ def simulate(
     }
     xsq = raw.xsq if raw.xsq is not None else np.full(W.shape[0], np.nan)
     rms_x = np.sqrt(xsq / (W[:, 1] - W[:, 0]))
-    return Result(model, series, raw.episodes, W, raw.ranges, st_dict, final, fs, rms_x=rms_x)
+    return Result(model, series_cols, raw.episodes, W, raw.ranges, st_dict, final, fs, rms_x=rms_x)

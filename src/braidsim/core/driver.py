@@ -36,8 +36,8 @@ class RawRun:
     status : int
         A status code of :mod:`braidsim.core.layout` (``ST_OK`` or a failure).
     series : np.ndarray or None
-        (rows, columns) in the model's ``COLUMNS`` order, time-sorted within the run's
-        order of writing (samples and event rows interleaved); None when not kept in memory.
+        (rows, columns) in the model's :func:`~braidsim.core.interfaces.series_columns`
+        order, sorted by time (samples and event rows interleaved); None when not kept.
     episodes : np.ndarray
         The impact table (EPISODE_DTYPE); contacts still open at the end are closed at the
         final time with ``end_reason = END_ONGOING``.
@@ -108,7 +108,8 @@ def run(
     series : bool or callable
         True: keep the series rows in memory; False: record no series (the lean path: the
         impact table, window ranges and statistics only); a callable: receive the rows in
-        chunks of at most ``row_chunk`` (plus one step's worth) and keep none.
+        chunks of at most ``row_chunk`` (plus one step's worth), each sorted by time and
+        together in time order, and keep none.
     xsq : bool
         Integrate x^2 over the windows (for the RMS of x).
     restart : RESTART_DTYPE record, optional
@@ -148,7 +149,9 @@ def run(
             if nrow > rows.shape[0]:
                 raise RuntimeError(f"solver wrote {nrow} rows into a buffer of {rows.shape[0]}")
             if nrow and (final or status == L.ST_ROWS_FULL):
-                chunk = rows[:nrow].copy()
+                # a flush happens between steps, and a step's rows (its samples, then its
+                # peaks and event) lie inside the step: sorted chunks make a sorted stream
+                chunk = rows[:nrow][np.argsort(rows[:nrow, 0], kind="stable")]
                 written += nrow
                 if keep:
                     chunks.append(chunk)
