@@ -387,6 +387,8 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                 open_ep[pair] = nep
                 e0 = _energy(y, dissipation_index(model, pair), n)
                 nep = open_episode(EP, nep, t_ev, pair, side, rate, vlat, 0.0, e0)
+                # a law whose force jumps at onset (a dashpot) has its first extremes there
+                episode_start_values(model, EP, open_ep[pair], t_ev, y, pair, side, vlat)
                 nrow = write_row(model, rows, nrow, t_ev, y, modes, v0s, n, KIND_ONSET, rec)
                 # start the contact with a step of a fraction of its duration estimated from
                 # the elastic closed form, and rescale a rejected first step by its own law
