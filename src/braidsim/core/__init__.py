@@ -32,7 +32,15 @@ from braidsim.core.interfaces import (
     wall_motion,
 )
 from braidsim.core.models import CARRIER_COLUMNS, CarrierX, CarrierXY, ImpactOscillator
-from braidsim.core.physics import HornGear, PowerLawContact, RegularizedFriction, TrackHarmonics
+from braidsim.core.physics import (
+    CoulombViscousFriction,
+    HornGear,
+    KelvinVoigtContact,
+    MeasuredTrack,
+    PowerLawContact,
+    RegularizedFriction,
+    TrackHarmonics,
+)
 from braidsim.core.physics.excitation import horn_gear_state
 from braidsim.core.solver.pairs import contact_quantities
 
@@ -40,8 +48,11 @@ __all__ = [
     "CARRIER_COLUMNS",
     "CarrierX",
     "CarrierXY",
+    "CoulombViscousFriction",
     "HornGear",
     "ImpactOscillator",
+    "KelvinVoigtContact",
+    "MeasuredTrack",
     "PowerLawContact",
     "RawRun",
     "RegularizedFriction",
