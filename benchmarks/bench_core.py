@@ -1,0 +1,378 @@
+"""The compiled core against its peers, as ratios of CPU time measured in one process.
+
+Run: ``python benchmarks/bench_core.py [--part lean|numbalsoda|scipy|batch|machine|memory|startup]
+[--repeats 15]`` (every part by default; ``--part`` may be given more than once).
+
+Parts (all on paper-3.3, x only, unless said otherwise):
+
+lean
+    braidsim's public ``simulate`` call with no sampled series (``braidsim_call`` below)
+    against the lean event-exact numba Dormand-Prince 5(4) loop of ``lean_dp5.py``, over
+    0.5 s, at two accuracy levels: largest relative peak-force error over the 33 contact
+    episodes of about 2.5e-6 and 1.2e-7 against a tight reference (braidsim at rtol 1e-12,
+    atol 1e-16 m / 1e-13 m/s; the lean loop at the same tolerances is compared with it, as a
+    check of both). Each integrator's tolerance for a level is calibrated separately: rtol runs
+    over a grid of 8 points per decade, with atol scaled in proportion from the scenario's
+    defaults (1e-13 m and 1e-9 m/s at rtol 1e-8), and the loosest rtol whose error and the
+    errors of all tighter grid points are at most the level is taken. Printed: the achieved
+    errors, right-hand-side evaluations, accepted and rejected steps, and the CPU times
+    (``time.process_time``, the two calls interleaved A B A B, best of ``--repeats``) and their
+    ratio.
+numbalsoda
+    the same against numbalsoda's DOP853 (Hairer's DOP853, Fortran) where it is installed.
+    Its ``solve_ivp`` is called from numba-compiled code, with the right-hand side and the
+    event functions as numba ``cfunc``s: terminal events at contact onset and exit (it checks
+    for sign changes at step ends and locates them by Brent's method on the 7th-order dense
+    output to 1e-8 s, its fixed tolerance) and a terminal event at dN/dt = 0 for the peak
+    force; after each event the event time is refined by one Newton step with a 2nd-order
+    Taylor update of the state (so that the switch is not 1e-8 s off) and the integration
+    restarts from there. One absolute tolerance serves x and x' (the library takes a scalar).
+scipy
+    the same against ``scipy.integrate.solve_ivp`` (DOP853, terminal events at contact onset,
+    exit and the force peak, restart after each), plain Python right-hand side.
+batch
+    one-second paper-3.3 runs per CPU second in ``simulate_batch`` (one worker, 64 parameter
+    sets with h_a spread over 0.11-0.13 mm).
+machine
+    carrier-transfers per CPU second of the 16-carrier machine of ``examples/machine16.toml``
+    over one carrier revolution (``run_machine``, one worker).
+memory
+    peak RSS and CPU time of 10, 100 and 1000-s paper-3.3 runs in subprocesses, with the
+    default outputs and summary-only (no sampled series). Each child runs under a timeout
+    and an address-space limit (``--timeout``, ``--mem-limit-gb``); a child past either is
+    reported as "did not finish within ...".
+startup
+    the first run from an empty compile cache (a fresh ``NUMBA_CACHE_DIR``) and a warm run,
+    both ``braidsim run paper-3.3 --json`` in a subprocess: CPU time of the child
+    (``os.wait4``'s resource usage) and wall time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import braidsim
+from braidsim import Scenario, load_scenario
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import lean_dp5  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENARIO = "paper-3.3"
+DURATION = 0.5
+LEVELS = (2.5e-6, 1.2e-7)  # peak-force accuracies at which the integrators are compared
+TIGHT = {"simulation.rtol": 1e-12, "simulation.atol_position": 1e-16, "simulation.atol_velocity": 1e-13}
+# atol belongs to rtol as in the scenario's defaults (1e-13 m, 1e-9 m/s at rtol 1e-8)
+ATOL_X_PER_RTOL = 1e-13 / 1e-8
+ATOL_V_PER_RTOL = 1e-9 / 1e-8
+RTOL_GRID = tuple(10.0 ** (-6.0 - k / 8.0) for k in range(0, 49))  # 1e-6 ... 1e-12
+HMAX = 1e-3  # braidsim's default maximum step for a 60-Hz track (1 ms cap)
+PARTS = ("lean", "numbalsoda", "scipy", "batch", "machine", "memory", "startup")
+
+
+def tolerances(rtol: float) -> dict[str, float]:
+    return {
+        "simulation.rtol": rtol,
+        "simulation.atol_position": ATOL_X_PER_RTOL * rtol,
+        "simulation.atol_velocity": ATOL_V_PER_RTOL * rtol,
+    }
+
+
+def braidsim_call(sc: Scenario) -> Any:
+    """braidsim's public call with no sampled series: the one line to change when
+    ``simulate`` gets its own switch for that (today: no samples, no event rows)."""
+    return braidsim.simulate(sc, DURATION, sample_interval=0.0, record_events=False)
+
+
+def peak_error(peaks: np.ndarray, walls: np.ndarray, ref: Any) -> float:
+    """Largest relative peak-force error over the episodes; inf if the sequences differ."""
+    rp = ref["peak_force"].to_numpy(dtype=float)
+    rw = np.where(ref["wall"].to_numpy() == "inner", -1.0, 1.0)
+    if peaks.shape != rp.shape or not np.array_equal(walls, rw):
+        return math.inf
+    return float(np.max(np.abs(peaks - rp) / np.abs(rp)))
+
+
+def interleaved(fa: Callable[[], Any], fb: Callable[[], Any], repeats: int) -> tuple[float, float]:
+    """Best CPU times [s] of fa and fb, called A B A B ... ``repeats`` times each."""
+    ta = tb = math.inf
+    for _ in range(repeats):
+        c0 = time.process_time()
+        fa()
+        c1 = time.process_time()
+        fb()
+        c2 = time.process_time()
+        ta = min(ta, c1 - c0)
+        tb = min(tb, c2 - c1)
+    return ta, tb
+
+
+class Peer:
+    """An integrator under calibration: ``run(rtol)`` returns (peaks, walls, stats dict)."""
+
+    name: str
+
+    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+        raise NotImplementedError
+
+    def call(self, rtol: float) -> Callable[[], Any]:
+        return lambda: self.run(rtol)
+
+
+class BraidsimPeer(Peer):
+    name = "braidsim simulate()"
+
+    def __init__(self, sc: Scenario) -> None:
+        self.sc = sc
+        self.scs: dict[float, Scenario] = {}
+
+    def scenario(self, rtol: float) -> Scenario:
+        if rtol not in self.scs:
+            self.scs[rtol] = self.sc.with_overrides(tolerances(rtol))
+        return self.scs[rtol]
+
+    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+        res = braidsim_call(self.scenario(rtol))
+        im = res.impacts
+        walls = np.where(im["wall"].to_numpy() == "inner", -1.0, 1.0)
+        st = {
+            "rhs": res.stats["rhs_evaluations"],
+            "steps": res.stats["steps"],
+            "rejected": res.stats["rejected_steps"],
+        }
+        return im["peak_force"].to_numpy(dtype=float), walls, st
+
+    def call(self, rtol: float) -> Callable[[], Any]:
+        sc = self.scenario(rtol)
+        return lambda: braidsim_call(sc)
+
+
+class LeanPeer(Peer):
+    name = "lean DP5 loop"
+
+    def __init__(self, q: np.ndarray, x0: float, v0: float) -> None:
+        self.q, self.x0, self.v0 = q, x0, v0
+
+    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+        ep, st = lean_dp5.run_lean(
+            self.q,
+            DURATION,
+            self.x0,
+            self.v0,
+            rtol,
+            ATOL_X_PER_RTOL * rtol,
+            ATOL_V_PER_RTOL * rtol,
+            HMAX,
+        )
+        stats = {"rhs": st[lean_dp5.S_NFEV], "steps": st[lean_dp5.S_ACC], "rejected": st[lean_dp5.S_REJ]}
+        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
+
+
+def calibrate(peer: Peer, ref: Any, grid: tuple[float, ...]) -> list[tuple[float, float, dict[str, float]]]:
+    """(rtol, error, stats) over the grid, loosest first."""
+    out = []
+    for rtol in grid:
+        try:
+            peaks, walls, st = peer.run(rtol)
+            err = peak_error(peaks, walls, ref)
+        except Exception as exc:  # a failed run at a loose tolerance is a result, not a crash
+            err, st = math.inf, {"failure": str(exc)}  # type: ignore[dict-item]
+        out.append((rtol, err, st))
+    return out
+
+
+def pick(cal: list[tuple[float, float, dict[str, float]]], level: float) -> tuple[float, float, dict[str, float]] | None:
+    """The loosest grid point whose error, and that of every tighter one, is <= level."""
+    chosen = None
+    for rtol, err, st in reversed(cal):  # tightest first
+        if err <= level:
+            chosen = (rtol, err, st)
+        else:
+            break
+    return chosen
+
+
+def compare(peer_a: Peer, peer_b: Peer, ref: Any, repeats: int, grid_b: tuple[float, ...] = RTOL_GRID) -> None:
+    """Calibrate both, then time them at each level (A = braidsim) and print the ratio."""
+    cal_a = calibrate(peer_a, ref, RTOL_GRID)
+    cal_b = calibrate(peer_b, ref, grid_b)
+    for level in LEVELS:
+        ca = pick(cal_a, level)
+        cb = pick(cal_b, level)
+        print(f"  level {level:.1e}:")
+        if ca is None or cb is None:
+            who = peer_a.name if ca is None else peer_b.name
+            print(f"    {who} reaches no error <= {level:.1e} on the rtol grid")
+            continue
+        ta, tb = interleaved(peer_a.call(ca[0]), peer_b.call(cb[0]), repeats)
+        for (rtol, err, st), t, nm in ((ca, ta, peer_a.name), (cb, tb, peer_b.name)):
+            print(
+                f"    {nm:22s} rtol {rtol:8.2e}  error {err:8.2e}  {t * 1e3:8.3f} ms CPU  "
+                f"{int(st['rhs']):6d} rhs evaluations, {int(st['steps']):5d} steps, "
+                f"{_count(st['rejected']):>4s} rejected  ({t / st['rhs'] * 1e9:.0f} ns per rhs evaluation)"
+            )
+        print(f"    ratio {peer_b.name} / {peer_a.name} time: {tb / ta:.2f}  (>1: braidsim faster)")
+
+
+def _count(v: float) -> str:
+    return "-" if math.isnan(v) else str(int(v))
+
+
+def reference(sc: Scenario) -> Any:
+    return braidsim.simulate(sc.with_overrides(TIGHT), DURATION, sample_interval=0.0, record_events=False)
+
+
+def lean_peer(sc: Scenario, ref_result: Any) -> LeanPeer:
+    q = lean_dp5.lean_params(sc, ref_result.stats["track_stiffness"], ref_result.stats["track_damping_factor"])
+    return LeanPeer(q, sc["initial.x"], sc["initial.vx"])
+
+
+def part_lean(sc: Scenario, repeats: int) -> None:
+    print(f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, {SCENARIO} x only, {DURATION} s")
+    print("   braidsim call: simulate(sc, 0.5, sample_interval=0.0, record_events=False) (no sampled series, no event rows)")
+    res = reference(sc)
+    ref = res.impacts
+    lean = lean_peer(sc, res)
+    ep, _ = lean_dp5.run_lean(lean.q, DURATION, lean.x0, lean.v0, 1e-12, 1e-16, 1e-13, HMAX)
+    chk = peak_error(ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], ref)
+    print(
+        f"   reference: braidsim rtol 1e-12 (atol 1e-16 m, 1e-13 m/s), {len(ref)} episodes; "
+        f"the lean loop at the same tolerances differs by {chk:.1e} (peak force)"
+    )
+    compare(BraidsimPeer(sc), lean, ref, repeats)
+
+
+def part_scipy(sc: Scenario, repeats: int) -> None:
+    from scipy.integrate import solve_ivp
+
+    print(f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, {SCENARIO} x only, {DURATION} s")
+    res = reference(sc)
+    q = lean_peer(sc, res).q
+    m, load, K, n, D, eps, ha, w, ph, fric, vhat, vmin, vinit = (float(v) for v in q[: lean_dp5.Q_SIZE])
+
+    def wall(t: float) -> tuple[float, float, float]:
+        c = math.cos(w * t + ph)
+        return ha * c, -ha * w * math.sin(w * t + ph), -ha * w * w * c
+
+    def contact(t: float, x: float, v: float, mode: int, v0: float) -> tuple[float, float, float, float]:
+        h, hd, _ = wall(t)
+        p, pd = (h - x, hd - v) if mode < 0 else (x - h - eps, v - hd)
+        if p <= 0.0:
+            return p, pd, 0.0, 0.0
+        fk = K * p**n
+        return p, pd, max(fk * (1.0 + D * pd / v0), 0.0), fk
+
+    class Run:
+        def __init__(self, rtol: float) -> None:
+            self.rtol = rtol
+            self.nfev = 0
+            self.steps = 0
+
+        def solve(self) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+            t, y = 0.0, np.array([sc["initial.x"], sc["initial.vx"]])
+            h0 = wall(0.0)[0]
+            mode, v0 = (-1 if y[0] < h0 else 1 if y[0] > h0 + eps else 0), math.inf
+            peaks: list[float] = []
+            walls: list[float] = []
+            if mode:
+                v0 = vinit if vinit > 0.0 else math.inf
+                peaks.append(contact(0.0, y[0], y[1], mode, v0)[2])
+                walls.append(mode)
+            armed = True
+            while t < DURATION:
+                md, vv = mode, v0
+
+                def f(t: float, y: np.ndarray, md: int = md, vv: float = vv) -> list[float]:
+                    a = -(fric * math.atan(y[1] / vhat) + load)
+                    if md:
+                        a -= md * contact(t, y[0], y[1], md, vv)[2]
+                    return [y[1], a / m]
+
+                evs: list[Callable[[float, np.ndarray], float]] = []
+                if mode == 0:
+                    evs = [lambda t, y: y[0] - wall(t)[0], lambda t, y: eps - (y[0] - wall(t)[0])]
+                else:
+                    evs = [lambda t, y, md=md, vv=vv: contact(t, y[0], y[1], md, vv)[0]]
+                    if armed:
+
+                        def slope(t: float, y: np.ndarray, md: int = md, vv: float = vv) -> float:
+                            h, hd, hdd = wall(t)
+                            a = f(t, y)[1]
+                            p, pd, pdd = (h - y[0], hd - y[1], hdd - a) if md < 0 else (y[0] - h - eps, y[1] - hd, a - hdd)
+                            if p <= 0.0:
+                                return pd
+                            fk = K * p**n
+                            return n * fk / p * pd * (1.0 + D * pd / vv) + fk * D * pdd / vv
+
+                        evs.append(slope)
+                for e in evs:
+                    e.terminal = True  # type: ignore[attr-defined]
+                    e.direction = -1  # type: ignore[attr-defined]
+                sol = solve_ivp(f, (t, DURATION), y, method="DOP853", rtol=self.rtol,
+                                atol=[ATOL_X_PER_RTOL * self.rtol, ATOL_V_PER_RTOL * self.rtol],
+                                events=evs, max_step=HMAX)
+                self.nfev += sol.nfev
+                self.steps += sol.t.size - 1
+                if sol.status == -1:
+                    raise RuntimeError(sol.message)
+                hit = [i for i, te in enumerate(sol.t_events) if te.size]
+                if not hit:
+                    t, y = DURATION, sol.y[:, -1]
+                    if mode:
+                        peaks[-1] = max(peaks[-1], contact(t, y[0], y[1], mode, v0)[2])
+                    break
+                i = hit[0]
+                t, y = float(sol.t_events[i][0]), sol.y_events[i][0].copy()
+                if mode and i == 1:  # the force peak
+                    peaks[-1] = max(peaks[-1], contact(t, y[0], y[1], mode, v0)[2])
+                    armed = False
+                elif mode:  # exit
+                    peaks[-1] = max(peaks[-1], contact(t, y[0], y[1], mode, v0)[2])
+                    mode = 0
+                else:  # onset: latch the approach speed
+                    mode = -1 if i == 0 else 1
+                    v0 = max(contact(t, y[0], y[1], mode, 1.0)[1], vmin)
+                    peaks.append(0.0)
+                    walls.append(mode)
+                    armed = True
+            return np.array(peaks), np.array(walls, dtype=float), {"rhs": self.nfev, "steps": self.steps, "rejected": math.nan}
+
+    class ScipyPeer(Peer):
+        name = "scipy solve_ivp DOP853"
+
+        def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+            return Run(rtol).solve()
+
+    print("   scipy: plain Python right-hand side; 'steps' are accepted steps, rejected ones not reported by solve_ivp")
+    compare(BraidsimPeer(sc), ScipyPeer(), res.impacts, max(2, repeats // 5), tuple(10.0 ** (-6.0 - k / 4.0) for k in range(0, 21)))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--part", action="append", choices=PARTS, help="run only this part (repeatable)")
+    ap.add_argument("--repeats", type=int, default=15, help="timed calls of each (best is kept)")
+    ap.add_argument("--timeout", type=float, default=300.0, help="memory part: seconds per child")
+    ap.add_argument("--mem-limit-gb", type=float, default=8.0, help="memory part: address-space limit per child")
+    args = ap.parse_args()
+    parts = args.part or list(PARTS)
+    sc = load_scenario(SCENARIO)
+    braidsim_call(sc)  # load the compiled kernel
+    print(f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; CPU times by time.process_time")
+    for p in parts:
+        globals()[f"part_{p}"](sc, args) if p in ("memory", "startup") else globals()[f"part_{p}"](sc, args.repeats)
+
+
+if __name__ == "__main__":
+    main()
