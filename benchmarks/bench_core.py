@@ -73,7 +73,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = "paper-3.3"
 DURATION = 0.5
 LEVELS = (2.5e-6, 1.2e-7)  # peak-force accuracies at which the integrators are compared
-TIGHT = {"simulation.rtol": 1e-12, "simulation.atol_position": 1e-16, "simulation.atol_velocity": 1e-13}
+TIGHT = {
+    "simulation.rtol": 1e-12,
+    "simulation.atol_position": 1e-16,
+    "simulation.atol_velocity": 1e-13,
+}
 # atol belongs to rtol as in the scenario's defaults (1e-13 m, 1e-9 m/s at rtol 1e-8)
 ATOL_X_PER_RTOL = 1e-13 / 1e-8
 ATOL_V_PER_RTOL = 1e-9 / 1e-8
@@ -176,11 +180,17 @@ class LeanPeer(Peer):
             ATOL_V_PER_RTOL * rtol,
             HMAX,
         )
-        stats = {"rhs": st[lean_dp5.S_NFEV], "steps": st[lean_dp5.S_ACC], "rejected": st[lean_dp5.S_REJ]}
+        stats = {
+            "rhs": st[lean_dp5.S_NFEV],
+            "steps": st[lean_dp5.S_ACC],
+            "rejected": st[lean_dp5.S_REJ],
+        }
         return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
 
 
-def calibrate(peer: Peer, ref: Any, grid: tuple[float, ...]) -> list[tuple[float, float, dict[str, float]]]:
+def calibrate(
+    peer: Peer, ref: Any, grid: tuple[float, ...]
+) -> list[tuple[float, float, dict[str, float]]]:
     """(rtol, error, stats) over the grid, loosest first."""
     out = []
     for rtol in grid:
@@ -193,7 +203,9 @@ def calibrate(peer: Peer, ref: Any, grid: tuple[float, ...]) -> list[tuple[float
     return out
 
 
-def pick(cal: list[tuple[float, float, dict[str, float]]], level: float) -> tuple[float, float, dict[str, float]] | None:
+def pick(
+    cal: list[tuple[float, float, dict[str, float]]], level: float
+) -> tuple[float, float, dict[str, float]] | None:
     """The loosest grid point whose error, and that of every tighter one, is <= level."""
     chosen = None
     for rtol, err, st in reversed(cal):  # tightest first
@@ -204,7 +216,9 @@ def pick(cal: list[tuple[float, float, dict[str, float]]], level: float) -> tupl
     return chosen
 
 
-def compare(peer_a: Peer, peer_b: Peer, ref: Any, repeats: int, grid_b: tuple[float, ...] = RTOL_GRID) -> None:
+def compare(
+    peer_a: Peer, peer_b: Peer, ref: Any, repeats: int, grid_b: tuple[float, ...] = RTOL_GRID
+) -> None:
     """Calibrate both, then time them at each level (A = braidsim) and print the ratio."""
     cal_a = calibrate(peer_a, ref, RTOL_GRID)
     cal_b = calibrate(peer_b, ref, grid_b)
@@ -220,7 +234,7 @@ def compare(peer_a: Peer, peer_b: Peer, ref: Any, repeats: int, grid_b: tuple[fl
         for (rtol, err, st), t, nm in ((ca, ta, peer_a.name), (cb, tb, peer_b.name)):
             print(
                 f"    {nm:22s} rtol {rtol:8.2e}  error {err:8.2e}  {t * 1e3:8.3f} ms CPU  "
-                f"{int(st['rhs']):6d} rhs evaluations, {int(st['steps']):5d} steps, "
+                f"{int(st['rhs']):6d} rhs evaluations, {_count(st['steps']):>5s} steps, "
                 f"{_count(st['rejected']):>4s} rejected  ({t / st['rhs'] * 1e9:.0f} ns per rhs evaluation)"
             )
         print(f"    ratio {peer_b.name} / {peer_a.name} time: {tb / ta:.2f}  (>1: braidsim faster)")
@@ -231,17 +245,25 @@ def _count(v: float) -> str:
 
 
 def reference(sc: Scenario) -> Any:
-    return braidsim.simulate(sc.with_overrides(TIGHT), DURATION, sample_interval=0.0, record_events=False)
+    return braidsim.simulate(
+        sc.with_overrides(TIGHT), DURATION, sample_interval=0.0, record_events=False
+    )
 
 
 def lean_peer(sc: Scenario, ref_result: Any) -> LeanPeer:
-    q = lean_dp5.lean_params(sc, ref_result.stats["track_stiffness"], ref_result.stats["track_damping_factor"])
+    q = lean_dp5.lean_params(
+        sc, ref_result.stats["track_stiffness"], ref_result.stats["track_damping_factor"]
+    )
     return LeanPeer(q, sc["initial.x"], sc["initial.vx"])
 
 
 def part_lean(sc: Scenario, repeats: int) -> None:
-    print(f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, {SCENARIO} x only, {DURATION} s")
-    print("   braidsim call: simulate(sc, 0.5, sample_interval=0.0, record_events=False) (no sampled series, no event rows)")
+    print(
+        f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, {SCENARIO} x only, {DURATION} s"
+    )
+    print(
+        "   braidsim call: simulate(sc, 0.5, sample_interval=0.0, record_events=False) (no sampled series, no event rows)"
+    )
     res = reference(sc)
     ref = res.impacts
     lean = lean_peer(sc, res)
@@ -257,16 +279,22 @@ def part_lean(sc: Scenario, repeats: int) -> None:
 def part_scipy(sc: Scenario, repeats: int) -> None:
     from scipy.integrate import solve_ivp
 
-    print(f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, {SCENARIO} x only, {DURATION} s")
+    print(
+        f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, {SCENARIO} x only, {DURATION} s"
+    )
     res = reference(sc)
     q = lean_peer(sc, res).q
-    m, load, K, n, D, eps, ha, w, ph, fric, vhat, vmin, vinit = (float(v) for v in q[: lean_dp5.Q_SIZE])
+    m, load, K, n, D, eps, ha, w, ph, fric, vhat, vmin, vinit = (
+        float(v) for v in q[: lean_dp5.Q_SIZE]
+    )
 
     def wall(t: float) -> tuple[float, float, float]:
         c = math.cos(w * t + ph)
         return ha * c, -ha * w * math.sin(w * t + ph), -ha * w * w * c
 
-    def contact(t: float, x: float, v: float, mode: int, v0: float) -> tuple[float, float, float, float]:
+    def contact(
+        t: float, x: float, v: float, mode: int, v0: float
+    ) -> tuple[float, float, float, float]:
         h, hd, _ = wall(t)
         p, pd = (h - x, hd - v) if mode < 0 else (x - h - eps, v - hd)
         if p <= 0.0:
@@ -310,7 +338,11 @@ def part_scipy(sc: Scenario, repeats: int) -> None:
                         def slope(t: float, y: np.ndarray, md: int = md, vv: float = vv) -> float:
                             h, hd, hdd = wall(t)
                             a = f(t, y)[1]
-                            p, pd, pdd = (h - y[0], hd - y[1], hdd - a) if md < 0 else (y[0] - h - eps, y[1] - hd, a - hdd)
+                            p, pd, pdd = (
+                                (h - y[0], hd - y[1], hdd - a)
+                                if md < 0
+                                else (y[0] - h - eps, y[1] - hd, a - hdd)
+                            )
                             if p <= 0.0:
                                 return pd
                             fk = K * p**n
@@ -320,9 +352,16 @@ def part_scipy(sc: Scenario, repeats: int) -> None:
                 for e in evs:
                     e.terminal = True  # type: ignore[attr-defined]
                     e.direction = -1  # type: ignore[attr-defined]
-                sol = solve_ivp(f, (t, DURATION), y, method="DOP853", rtol=self.rtol,
-                                atol=[ATOL_X_PER_RTOL * self.rtol, ATOL_V_PER_RTOL * self.rtol],
-                                events=evs, max_step=HMAX)
+                sol = solve_ivp(
+                    f,
+                    (t, DURATION),
+                    y,
+                    method="DOP853",
+                    rtol=self.rtol,
+                    atol=[ATOL_X_PER_RTOL * self.rtol, ATOL_V_PER_RTOL * self.rtol],
+                    events=evs,
+                    max_step=HMAX,
+                )
                 self.nfev += sol.nfev
                 self.steps += sol.t.size - 1
                 if sol.status == -1:
@@ -347,7 +386,11 @@ def part_scipy(sc: Scenario, repeats: int) -> None:
                     peaks.append(0.0)
                     walls.append(mode)
                     armed = True
-            return np.array(peaks), np.array(walls, dtype=float), {"rhs": self.nfev, "steps": self.steps, "rejected": math.nan}
+            return (
+                np.array(peaks),
+                np.array(walls, dtype=float),
+                {"rhs": self.nfev, "steps": self.steps, "rejected": math.nan},
+            )
 
     class ScipyPeer(Peer):
         name = "scipy solve_ivp DOP853"
@@ -355,23 +398,225 @@ def part_scipy(sc: Scenario, repeats: int) -> None:
         def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
             return Run(rtol).solve()
 
-    print("   scipy: plain Python right-hand side; 'steps' are accepted steps, rejected ones not reported by solve_ivp")
-    compare(BraidsimPeer(sc), ScipyPeer(), res.impacts, max(2, repeats // 5), tuple(10.0 ** (-6.0 - k / 4.0) for k in range(0, 21)))
+    print(
+        "   scipy: plain Python right-hand side; 'steps' are accepted steps, rejected ones not reported by solve_ivp"
+    )
+    compare(
+        BraidsimPeer(sc),
+        ScipyPeer(),
+        res.impacts,
+        max(2, repeats // 5),
+        tuple(10.0 ** (-6.0 - k / 4.0) for k in range(0, 21)),
+    )
+
+
+class NumbalsodaPeer(Peer):
+    name = "numbalsoda DOP853"
+
+    def __init__(self, q: np.ndarray, x0: float, v0: float) -> None:
+        import numbalsoda_peer
+
+        self.mod = numbalsoda_peer
+        self.q, self.x0, self.v0 = q, x0, v0
+
+    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+        ep, st = self.mod.run(
+            self.q, DURATION, self.x0, self.v0, rtol, ATOL_X_PER_RTOL * rtol, HMAX
+        )
+        stats = {"rhs": st[0], "steps": math.nan, "rejected": math.nan}
+        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
+
+
+def part_numbalsoda(sc: Scenario, repeats: int) -> None:
+    print(
+        f"\n== numbalsoda: braidsim simulate() vs numbalsoda's DOP853 with events, {SCENARIO} x only, {DURATION} s"
+    )
+    try:
+        import numbalsoda  # noqa: F401
+    except ImportError as exc:
+        print(
+            f"   numbalsoda is not installed ({exc}); it builds from source with a Fortran "
+            "compiler: apt-get install gfortran, then pip install numbalsoda"
+        )
+        return
+    res = reference(sc)
+    peer = NumbalsodaPeer(lean_peer(sc, res).q, sc["initial.x"], sc["initial.vx"])
+    print(
+        "   numbalsoda: solve_ivp (DOP853) called from numba per contact mode, terminal events "
+        "at onset, exit and dN/dt = 0 located by its Brent (1e-8 s), onset/exit refined by a "
+        "Newton step; one scalar atol; 'steps' not reported by the library"
+    )
+    compare(BraidsimPeer(sc), peer, res.impacts, repeats)
+
+
+def part_batch(sc: Scenario, repeats: int) -> None:
+    from braidsim.batch import simulate_batch
+
+    n = 64
+    sets = [{"track.vibration_amplitude": float(h)} for h in np.linspace(0.11e-3, 0.13e-3, n)]
+    print(
+        f"\n== batch: simulate_batch of {n} one-second {SCENARIO} runs (h_a 0.11-0.13 mm), one worker"
+    )
+    simulate_batch(sc, sets[:1], 0.01)
+    best = math.inf
+    out = None
+    for _ in range(max(1, repeats // 5)):
+        c0 = time.process_time()
+        out = simulate_batch(sc, sets, 1.0, workers=1)
+        best = min(best, time.process_time() - c0)
+    assert out is not None
+    print(
+        f"   {n / best:.1f} one-second runs per CPU second ({best / n * 1e3:.2f} ms CPU per run; "
+        f"median {np.median(out.metrics['steps']):.0f} steps, "
+        f"{np.median(out.metrics['rhs_evaluations']):.0f} rhs evaluations per run; "
+        f"failed runs: {int(out.failed.sum())})"
+    )
+
+
+def part_machine(sc: Scenario, repeats: int) -> None:
+    from braidsim.machine import load_machine_spec, run_machine
+
+    spec = load_machine_spec(ROOT / "examples" / "machine16.toml")
+    T = spec.revolution_time
+    print(
+        f"\n== machine: {spec.name}, {len(spec.loading.carriers)} carriers, one carrier "
+        f"revolution ({T:g} s), run_machine(workers=1, frames=0)"
+    )
+    run_machine(spec, duration=0.05, workers=1, frames=0)
+    best = math.inf
+    run = None
+    for _ in range(max(1, repeats // 5)):
+        c0 = time.process_time()
+        run = run_machine(spec, duration=T, workers=1, frames=0)
+        best = min(best, time.process_time() - c0)
+    assert run is not None
+    n_tr = run.totals["transfers"]
+    print(
+        f"   {n_tr} carrier-transfers in {best:.3f} s CPU: {n_tr / best:.1f} carrier-transfers per CPU second"
+    )
+
+
+CHILD = """
+import resource, sys, time
+import braidsim
+T, summary = float(sys.argv[1]), sys.argv[2] == "summary"
+kw = dict(sample_interval=0.0, record_events=False) if summary else {}
+sc = braidsim.load_scenario("paper-3.3")
+braidsim.simulate(sc, 0.01, **kw)
+c0 = time.process_time()
+r = braidsim.simulate(sc, T, **kw)
+c = time.process_time() - c0
+print(c, len(r.impacts), r.stats["steps"], resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+"""
+
+
+def child(
+    cmd: list[str], env: dict[str, str] | None, timeout: float, mem_gb: float | None
+) -> tuple[str, float, float, float, str]:
+    """Run ``cmd``; returns (stdout, CPU s of the child, peak RSS MB, wall s, failure or "")."""
+
+    def limit() -> None:
+        if mem_gb:
+            lim = int(mem_gb * 2**30)
+            resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        proc = subprocess.Popen(cmd, stdout=out, stderr=err, env=env, preexec_fn=limit)
+        deadline = t0 + timeout
+        while True:
+            pid, status, ru = os.wait4(proc.pid, os.WNOHANG)
+            if pid:
+                break
+            if time.perf_counter() > deadline:
+                proc.kill()
+                pid, status, ru = os.wait4(proc.pid, 0)
+                break
+            time.sleep(0.05)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        out.seek(0)
+        err.seek(0)
+        text, etext = out.read().decode(), err.read().decode()
+    fail = ""
+    if wall > timeout:
+        fail = f"did not finish within {timeout:g} s"
+    elif proc.returncode != 0:
+        last = (etext.strip().splitlines() or ["?"])[-1]
+        fail = f"failed (exit {proc.returncode}): {last[:160]}"
+        if "MemoryError" in etext or proc.returncode < 0:
+            fail = f"did not finish within {mem_gb:g} GB of address space: {last[:120]}"
+    return text, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0, wall, fail
+
+
+def part_memory(sc: Scenario, args: argparse.Namespace) -> None:
+    print(
+        f"\n== memory: {SCENARIO} runs of 10, 100, 1000 s in subprocesses (limits: "
+        f"{args.timeout:g} s, {args.mem_limit_gb:g} GB address space); CPU of the simulate call "
+        "(after a 0.01-s warm-up run), CPU of the whole child, peak RSS of the child"
+    )
+    for T in (10.0, 100.0, 1000.0):
+        for mode in ("default", "summary"):
+            what = (
+                "default outputs"
+                if mode == "default"
+                else "summary only (no samples, no event rows)"
+            )
+            text, cpu, rss, wall, fail = child(
+                [sys.executable, "-c", CHILD, str(T), mode], None, args.timeout, args.mem_limit_gb
+            )
+            if fail:
+                print(f"   {T:6g} s, {what:42s}: {fail} (peak RSS {rss:.0f} MB, {cpu:.1f} s CPU)")
+                continue
+            c, nimp, steps, _ = text.split()
+            print(
+                f"   {T:6g} s, {what:42s}: simulate {float(c):8.2f} s CPU, child {cpu:8.2f} s CPU, "
+                f"peak RSS {rss:8.0f} MB ({nimp} episodes, {steps} steps)"
+            )
+
+
+def part_startup(sc: Scenario, args: argparse.Namespace) -> None:
+    cmd = [sys.executable, "-c", "from braidsim.cli import main; main()", "run", SCENARIO, "--json"]
+    print(f"\n== startup: `braidsim run {SCENARIO} --json` in a subprocess")
+    with tempfile.TemporaryDirectory(prefix="braidsim-numba-") as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        _, cpu, rss, wall, fail = child(cmd, env, 600.0, None)
+        print(
+            f"   cold (empty NUMBA_CACHE_DIR): {cpu:6.2f} s CPU, {wall:6.2f} s wall, peak RSS {rss:.0f} MB {fail}"
+        )
+        warm = [child(cmd, env, 120.0, None) for _ in range(3)]
+        cpu_w = min(w[1] for w in warm)
+        wall_w = min(w[3] for w in warm)
+        print(
+            f"   warm (the cache just written), best of 3: {cpu_w:6.2f} s CPU, {wall_w:6.2f} s wall"
+        )
+        imp = min(
+            child([sys.executable, "-c", "import braidsim"], env, 120.0, None)[1] for _ in range(3)
+        )
+        print(f"   of which `import braidsim` alone: {imp:.2f} s CPU")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--part", action="append", choices=PARTS, help="run only this part (repeatable)")
+    ap.add_argument(
+        "--part", action="append", choices=PARTS, help="run only this part (repeatable)"
+    )
     ap.add_argument("--repeats", type=int, default=15, help="timed calls of each (best is kept)")
     ap.add_argument("--timeout", type=float, default=300.0, help="memory part: seconds per child")
-    ap.add_argument("--mem-limit-gb", type=float, default=8.0, help="memory part: address-space limit per child")
+    ap.add_argument(
+        "--mem-limit-gb", type=float, default=8.0, help="memory part: address-space limit per child"
+    )
     args = ap.parse_args()
     parts = args.part or list(PARTS)
     sc = load_scenario(SCENARIO)
     braidsim_call(sc)  # load the compiled kernel
-    print(f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; CPU times by time.process_time")
+    print(
+        f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; CPU times by time.process_time"
+    )
     for p in parts:
-        globals()[f"part_{p}"](sc, args) if p in ("memory", "startup") else globals()[f"part_{p}"](sc, args.repeats)
+        globals()[f"part_{p}"](sc, args) if p in ("memory", "startup") else globals()[f"part_{p}"](
+            sc, args.repeats
+        )
 
 
 if __name__ == "__main__":
