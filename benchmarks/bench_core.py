@@ -67,7 +67,7 @@ import braidsim
 from braidsim import Scenario, load_scenario
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import lean_dp5  # noqa: E402
+import lean_dp5
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = "paper-3.3"
@@ -235,7 +235,8 @@ def compare(
             print(
                 f"    {nm:22s} rtol {rtol:8.2e}  error {err:8.2e}  {t * 1e3:8.3f} ms CPU  "
                 f"{int(st['rhs']):6d} rhs evaluations, {_count(st['steps']):>5s} steps, "
-                f"{_count(st['rejected']):>4s} rejected  ({t / st['rhs'] * 1e9:.0f} ns per rhs evaluation)"
+                f"{_count(st['rejected']):>4s} rejected  "
+                f"({t / st['rhs'] * 1e9:.0f} ns per rhs evaluation)"
             )
         print(f"    ratio {peer_b.name} / {peer_a.name} time: {tb / ta:.2f}  (>1: braidsim faster)")
 
@@ -257,12 +258,15 @@ def lean_peer(sc: Scenario, ref_result: Any) -> LeanPeer:
     return LeanPeer(q, sc["initial.x"], sc["initial.vx"])
 
 
-def part_lean(sc: Scenario, repeats: int) -> None:
+def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
+    repeats = args.repeats
     print(
-        f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, {SCENARIO} x only, {DURATION} s"
+        f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, "
+        f"{SCENARIO} x only, {DURATION} s"
     )
     print(
-        "   braidsim call: simulate(sc, 0.5, sample_interval=0.0, record_events=False) (no sampled series, no event rows)"
+        "   braidsim call: simulate(sc, 0.5, sample_interval=0.0, record_events=False) "
+        "(no sampled series, no event rows)"
     )
     res = reference(sc)
     ref = res.impacts
@@ -276,11 +280,13 @@ def part_lean(sc: Scenario, repeats: int) -> None:
     compare(BraidsimPeer(sc), lean, ref, repeats)
 
 
-def part_scipy(sc: Scenario, repeats: int) -> None:
+def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
+    repeats = args.repeats
     from scipy.integrate import solve_ivp
 
     print(
-        f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, {SCENARIO} x only, {DURATION} s"
+        f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, "
+        f"{SCENARIO} x only, {DURATION} s"
     )
     res = reference(sc)
     q = lean_peer(sc, res).q
@@ -399,7 +405,8 @@ def part_scipy(sc: Scenario, repeats: int) -> None:
             return Run(rtol).solve()
 
     print(
-        "   scipy: plain Python right-hand side; 'steps' are accepted steps, rejected ones not reported by solve_ivp"
+        "   scipy: plain Python right-hand side; 'steps' are accepted steps (solve_ivp does "
+        "not report rejected ones)"
     )
     compare(
         BraidsimPeer(sc),
@@ -427,9 +434,11 @@ class NumbalsodaPeer(Peer):
         return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
 
 
-def part_numbalsoda(sc: Scenario, repeats: int) -> None:
+def part_numbalsoda(sc: Scenario, args: argparse.Namespace) -> None:
+    repeats = args.repeats
     print(
-        f"\n== numbalsoda: braidsim simulate() vs numbalsoda's DOP853 with events, {SCENARIO} x only, {DURATION} s"
+        f"\n== numbalsoda: braidsim simulate() vs numbalsoda's DOP853 with events, "
+        f"{SCENARIO} x only, {DURATION} s"
     )
     try:
         import numbalsoda  # noqa: F401
@@ -449,13 +458,15 @@ def part_numbalsoda(sc: Scenario, repeats: int) -> None:
     compare(BraidsimPeer(sc), peer, res.impacts, repeats)
 
 
-def part_batch(sc: Scenario, repeats: int) -> None:
+def part_batch(sc: Scenario, args: argparse.Namespace) -> None:
+    repeats = args.repeats
     from braidsim.batch import simulate_batch
 
     n = 64
     sets = [{"track.vibration_amplitude": float(h)} for h in np.linspace(0.11e-3, 0.13e-3, n)]
     print(
-        f"\n== batch: simulate_batch of {n} one-second {SCENARIO} runs (h_a 0.11-0.13 mm), one worker"
+        f"\n== batch: simulate_batch of {n} one-second {SCENARIO} runs "
+        "(h_a 0.11-0.13 mm), one worker"
     )
     simulate_batch(sc, sets[:1], 0.01)
     best = math.inf
@@ -473,7 +484,8 @@ def part_batch(sc: Scenario, repeats: int) -> None:
     )
 
 
-def part_machine(sc: Scenario, repeats: int) -> None:
+def part_machine(sc: Scenario, args: argparse.Namespace) -> None:
+    repeats = args.repeats
     from braidsim.machine import load_machine_spec, run_machine
 
     spec = load_machine_spec(ROOT / "examples" / "machine16.toml")
@@ -492,7 +504,8 @@ def part_machine(sc: Scenario, repeats: int) -> None:
     assert run is not None
     n_tr = run.totals["transfers"]
     print(
-        f"   {n_tr} carrier-transfers in {best:.3f} s CPU: {n_tr / best:.1f} carrier-transfers per CPU second"
+        f"   {n_tr} carrier-transfers in {best:.3f} s CPU: "
+        f"{n_tr / best:.1f} carrier-transfers per CPU second"
     )
 
 
@@ -564,7 +577,7 @@ def part_memory(sc: Scenario, args: argparse.Namespace) -> None:
                 if mode == "default"
                 else "summary only (no samples, no event rows)"
             )
-            text, cpu, rss, wall, fail = child(
+            text, cpu, rss, _, fail = child(
                 [sys.executable, "-c", CHILD, str(T), mode], None, args.timeout, args.mem_limit_gb
             )
             if fail:
@@ -584,7 +597,8 @@ def part_startup(sc: Scenario, args: argparse.Namespace) -> None:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache)
         _, cpu, rss, wall, fail = child(cmd, env, 600.0, None)
         print(
-            f"   cold (empty NUMBA_CACHE_DIR): {cpu:6.2f} s CPU, {wall:6.2f} s wall, peak RSS {rss:.0f} MB {fail}"
+            f"   cold (empty NUMBA_CACHE_DIR): {cpu:6.2f} s CPU, {wall:6.2f} s wall, "
+            f"peak RSS {rss:.0f} MB {fail}"
         )
         warm = [child(cmd, env, 120.0, None) for _ in range(3)]
         cpu_w = min(w[1] for w in warm)
@@ -598,6 +612,17 @@ def part_startup(sc: Scenario, args: argparse.Namespace) -> None:
         print(f"   of which `import braidsim` alone: {imp:.2f} s CPU")
 
 
+PART_FUNCTIONS: dict[str, Callable[[Scenario, argparse.Namespace], None]] = {
+    "lean": part_lean,
+    "numbalsoda": part_numbalsoda,
+    "scipy": part_scipy,
+    "batch": part_batch,
+    "machine": part_machine,
+    "memory": part_memory,
+    "startup": part_startup,
+}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
@@ -606,20 +631,21 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=15, help="timed calls of each (best is kept)")
     ap.add_argument("--timeout", type=float, default=300.0, help="memory part: seconds per child")
     ap.add_argument(
-        "--mem-limit-gb", type=float, default=12.0,
-        help="memory part: address-space limit per child [GB]"
+        "--mem-limit-gb",
+        type=float,
+        default=12.0,
+        help="memory part: address-space limit per child [GB]",
     )
     args = ap.parse_args()
     parts = args.part or list(PARTS)
     sc = load_scenario(SCENARIO)
     braidsim_call(sc)  # load the compiled kernel
     print(
-        f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; CPU times by time.process_time"
+        f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; "
+        "CPU times by time.process_time"
     )
     for p in parts:
-        globals()[f"part_{p}"](sc, args) if p in ("memory", "startup") else globals()[f"part_{p}"](
-            sc, args.repeats
-        )
+        PART_FUNCTIONS[p](sc, args)
 
 
 if __name__ == "__main__":
