@@ -58,3 +58,29 @@ def test_lean_loop_matches_simulate_on_paper_3_3(
     np.testing.assert_allclose(
         ep[:, lean_dp5.EP_V0], imp["latched_velocity"].to_numpy(), rtol=peak_tol, atol=0
     )
+
+
+def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
+    """The DOP853 variant of the loop (an experiment on what a higher-order pair buys)."""
+    import lean_dop853
+
+    sc = load_scenario("paper-3.3")
+    ref = simulate(
+        sc,
+        0.5,
+        overrides={
+            "simulation.rtol": 1e-12,
+            "simulation.atol_position": 1e-16,
+            "simulation.atol_velocity": 1e-13,
+        },
+        sample_interval=0.0,
+        record_events=False,
+    )
+    q = lean_dp5.lean_params(sc, ref.stats["track_stiffness"], ref.stats["track_damping_factor"])
+    ep, _ = lean_dop853.run(q, 0.5, sc["initial.x"], sc["initial.vx"], 1e-11, 1e-16, 1e-12, 1e-3)
+    imp = ref.impacts
+    assert len(ep) == len(imp)
+    np.testing.assert_allclose(ep[:, lean_dp5.EP_T], imp["t"].to_numpy(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        ep[:, lean_dp5.EP_PEAK], imp["peak_force"].to_numpy(), rtol=1e-7, atol=0
+    )
