@@ -124,6 +124,15 @@ def figure_key(figure: str, pair: str) -> str:
     return figure if pair == "both" else f"{pair}.{figure}"
 
 
+def metric_label(key: str) -> tuple[str, str]:
+    """(title, unit) of a metrics key."""
+    if key == "mean_peak_force":
+        return ("mean largest track force per transfer", "N")
+    pair, _, fig = key.rpartition(".")
+    title, unit = FIGURES[fig]
+    return (f"{pair} {title}" if pair else f"{title} (both pairs)", unit)
+
+
 def _ratio(a: float, b: float) -> float:
     """a / b for figures >= 0; 1 when both are 0, 1 + a when only b is 0 (a new kind of
     impact where constant speed had none counts as worse)."""

@@ -32,7 +32,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from braidsim.design.evaluate import FIGURES, METRIC_KEYS, OBJECTIVES, noise_level
+from braidsim.design.evaluate import (
+    FIGURES,
+    METRIC_KEYS,
+    OBJECTIVES,
+    metric_label,
+    noise_level,
+)
 from braidsim.io import atomic_directory, atomic_write_text
 
 if TYPE_CHECKING:
@@ -248,8 +254,8 @@ def main_figure(res: DesignResult) -> Figure:
         )
         + "\n"
         + ", ".join(
-            f"{OBJECTIVES[k][0]} (both pairs) {res.before.metrics[k]:.4g} -> "
-            f"{res.after.metrics[k]:.4g} {OBJECTIVES[k][1]} ({-100 * res.reductions[k]:+.0f} %)"
+            f"{metric_label(k)[0]} {res.before.metrics[k]:.4g} -> "
+            f"{res.after.metrics[k]:.4g} {metric_label(k)[1]} ({-100 * res.reductions[k]:+.0f} %)"
             for k in ("impact_energy", "impacts")
         ),
         fontsize=8,
@@ -306,16 +312,16 @@ def _robust_axes(ax: Any, res: DesignResult) -> None:
     data = [100.0 * lv.improvement.values for lv in results] or [100.0 * res.robust.values]
     data = [d[np.isfinite(d)] for d in data]
     y = np.arange(len(names))[::-1]
-    ax.boxplot(
-        data,
-        positions=y,
-        vert=False,
-        widths=0.5,
-        whis=(5, 95),
-        showfliers=True,
-        medianprops={"color": "C3"},
-    )
+    jitter = np.random.default_rng(0).uniform(-0.15, 0.15, max(len(d) for d in data))
+    for yi, d, name in zip(y, data, names, strict=True):
+        colour = "C3" if name == "profile" else "C0"
+        ax.plot(d, yi + jitter[: d.size], "o", ms=2.5, color=colour, alpha=0.45)
+        if d.size:
+            p5, med, p95 = np.quantile(d, [0.05, 0.5, 0.95])
+            ax.plot([p5, p95], [yi, yi], color="k", lw=1.2)
+            ax.plot([med], [yi], "D", ms=6, color=colour, mec="k")
     ax.set_yticks(y, names)
+    ax.set_ylim(-0.6, len(names) - 0.4)
     ax.axvline(0.0, color="k", lw=0.8)
     st = res.robust.stats()
     obj = res.spec.objective
@@ -324,7 +330,7 @@ def _robust_axes(ax: Any, res: DesignResult) -> None:
     )
     ax.set_title(
         f"{st['samples']} held-out tolerance samples, {res.spec.robust.check_cycles:g} cycles "
-        f"each (whiskers 5-95 %): profile median {100 * st['median_improvement']:+.1f} %, "
+        f"each (dots; diamond median, bar 5-95 %): profile median {100 * st['median_improvement']:+.1f} %, "
         f"5th percentile {100 * st['p5_improvement']:+.1f} %",
         fontsize=8,
     )
@@ -443,13 +449,13 @@ def sensitivity_figure(res: DesignResult) -> Figure:
                 )
     ax1.axvline(0.0, color="k", lw=0.6)
     ax1.set_yticks(y, [levers[k].label for k in order], fontsize=7)
-    ax1.set_xlabel(f"change of the {OBJECTIVES[obj][0]} / %")
+    ax1.set_xlabel(f"change of the {metric_label(obj)[0]} / %")
     ax1.legend(fontsize=6, frameon=False)
     ax1.set_title("one lever at a time, to each end of its range", fontsize=8)
     idx = [mor.levers.index(levers[k]) for k in order]
     ax2.barh(y, mor.mu_star[idx], color="C0", alpha=0.8, xerr=mor.sigma[idx], capsize=2)
     ax2.set_yticks(y, [""] * len(y))
-    ax2.set_xlabel(f"Morris mu* / {OBJECTIVES[obj][1]} (bars: sigma)")
+    ax2.set_xlabel(f"Morris mu* / {metric_label(obj)[1]} (bars: sigma)")
     ax2.set_title(
         f"elementary effects over each range ({mor.trajectories} trajectories, seed {mor.seed})",
         fontsize=8,
@@ -499,8 +505,8 @@ def speed_limits_figure(res: DesignResult) -> Figure:
         axes[0].legend(fontsize=6, frameon=False)
     metric = res.spec.speed_limit.metric
     fig.suptitle(
-        f"constant-speed limits: {OBJECTIVES[metric][0]} <= {res.threshold:.4g} "
-        f"{OBJECTIVES[metric][1]} (triangles: not reached in the scanned range)",
+        f"constant-speed limits: {metric_label(metric)[0]} <= {res.threshold:.4g} "
+        f"{metric_label(metric)[1]} (triangles: not reached in the scanned range)",
         fontsize=9,
     )
     return fig
@@ -581,13 +587,17 @@ def optimised_machine_toml(res: DesignResult) -> str:
     if not res.optimisation.profile.is_constant:
         mt["speed_profile"] = {"phase": ph, "factor": fa}
     t["machine"] = mt
+    # the design runs the two-DOF model (track and slot contacts)
+    t["overrides"] = {**dict(t.get("overrides", {})), "simulation.dof": "xy"}
     red = res.reductions
     head = (
         f"# {spec.name}: the machine with the optimised horn-gear speed profile\n"
-        f"# (braidsim design; objective {spec.objective}).\n"
+        f"# (braidsim design; objective {spec.objective} of {spec.pair}).\n"
         "# Run: braidsim machine THIS.toml --out DIR\n"
-        f"# Full-machine result: peak force -{100 * red['peak_force']:.1f} %, impact energy "
-        f"-{100 * red['impact_energy']:.1f} % against constant speed at the same mean speed.\n"
+        f"# Full-machine result against constant speed at the same mean speed: track peak "
+        f"force {-100 * red['track.peak_force']:+.1f} %, slot peak force "
+        f"{-100 * red['slot.peak_force']:+.1f} %, impact energy of both contacts "
+        f"{-100 * red['impact_energy']:+.1f} %.\n"
     )
     return head + to_toml(t)
 
@@ -669,7 +679,7 @@ def _robustness(res: DesignResult) -> list[str]:
     if len(res.oat) < 2:
         return []
     bad = robustness(res)
-    unit = OBJECTIVES[res.spec.figure][1]
+    unit = metric_label(res.spec.figure)[1]
     if not bad:
         return [
             "At every setting of the one-at-a-time study the optimised profile (tuned at the "
@@ -950,7 +960,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             "",
             _table(
                 [
-                    [OBJECTIVES[k][0], fd.rank_correlation[k], fd.median_relative_error[k]]
+                    [metric_label(k)[0], fd.rank_correlation[k], fd.median_relative_error[k]]
                     for k in METRIC_KEYS
                 ],
                 ["objective", "Spearman rank correlation", "median relative difference"],
@@ -965,9 +975,9 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             f"Ranked by Morris mu* (mean |elementary effect| over each lever's range, "
             f"{mor.trajectories} trajectories, {mor.levels} levels, seed {mor.seed}, "
             f"{mor.values.size} runs at constant speed), with the one-at-a-time change of the "
-            f"{OBJECTIVES[spec.figure][0]} at each end of the range "
+            f"{metric_label(spec.figure)[0]} at each end of the range "
             f"(nominal: {', '.join(f'{k} {v:.5g}' for k, v in nominal.items())} "
-            f"{OBJECTIVES[spec.figure][1]}).",
+            f"{metric_label(spec.figure)[1]}).",
             "",
         ]
         rows = []
@@ -1003,7 +1013,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             "## Speed limits",
             "",
             f"Transfer limit: the largest constant horn-gear speed at which the "
-            f"{OBJECTIVES[metric][0]} stays <= {res.threshold:.5g} {OBJECTIVES[metric][1]} "
+            f"{metric_label(metric)[0]} stays <= {res.threshold:.5g} {metric_label(metric)[1]} "
             f"(scan of {spec.speed_limit.options.points} speeds from "
             f"{spec.speed_limit.options.low:g} to {spec.speed_limit.options.high:g} x the mean, "
             f"then {spec.speed_limit.options.refine} bisections). Chatter speed: below it the "
