@@ -330,7 +330,8 @@ def _robust_axes(ax: Any, res: DesignResult) -> None:
     )
     ax.set_title(
         f"{st['samples']} held-out tolerance samples, {res.spec.robust.check_cycles:g} cycles "
-        f"each (dots; diamond median, bar 5-95 %): profile median {100 * st['median_improvement']:+.1f} %, "
+        f"each (dots; diamond median, bar 5-95 %): profile median "
+        f"{100 * st['median_improvement']:+.1f} %, "
         f"5th percentile {100 * st['p5_improvement']:+.1f} %",
         fontsize=8,
     )
