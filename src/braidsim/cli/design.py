@@ -77,9 +77,10 @@ def design(
 
     con = Console()
     b, a = data["baseline"], data["optimised"]
+    from rich.markup import escape
+
     con.print(
-        f"[bold]{data['name']}[/bold] (objective {data['objective']}, pairs {data['pair']})",
-        markup=False,
+        f"[bold]{escape(data['name'])}[/bold] (objective {data['objective']}, pairs {data['pair']})"
     )
     for pair in ("track", "slot"):
         for k, unit in (
