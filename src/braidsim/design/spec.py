@@ -83,6 +83,10 @@ and says what to study. Every quantity is a number in SI or a string with units:
     refine = 5
 
 Unknown keys and bad values stop with one line naming the entry and what is allowed.
+
+Every run of the study uses the two-DOF carrier model (``simulation.dof = "xy"`` is set on
+the machine whatever its scenario says): a speed profile acts on the carriers through the
+slot walls, so the slot contact belongs in every figure.
 """
 
 from __future__ import annotations
