@@ -42,6 +42,10 @@ A carrier's run is cut at its transfer times ``t_1 < t_2 < ...`` into intervals
   ``int (N - K p^n) pdot dt`` over the interval (exact up to the integrator's tolerance);
   friction energy the same for ``int f v dt``.
 
+The slot contact (two-DOF runs, ``simulation.dof = "xy"``) is reduced per carrier only:
+its impacts (onsets on a slot wall), their largest peak force, sum of m v^2 / 2 and sum of
+squared peak forces.
+
 Machine totals: impacts per second and impact energy per second (over all carriers and the
 whole run), dissipated power, the worst carrier (largest peak force) and the worst transfer.
 """
@@ -257,7 +261,11 @@ class MachineRun:
     transfers : pd.DataFrame
         One row per transfer (module docstring), SI units.
     carriers : pd.DataFrame
-        One row per carrier.
+        One row per carrier: track impacts, largest peak force, impact energy and friction
+        and dissipated energies, ``peak_force_squares`` (sum of the squared peak forces of its
+        track impacts [N^2]), and the same for the slot contact (two-DOF runs; zero otherwise):
+        ``slot_impacts``, ``slot_max_peak_force``, ``slot_impact_energy``,
+        ``slot_peak_force_squares``.
     impacts : pd.DataFrame
         Every track impact: carrier, interval (transfer index, 0 before the first), t, wall,
         velocity, peak_force, dissipated_energy.
@@ -425,6 +433,10 @@ def run_machine(
                 }
             )
         worst_k = int(np.argmax(pk[1:]) + 1) if n_int > 1 else 0
+        # the slot contact (two-DOF runs only): onsets of the carrier on a slot wall
+        s_on = (EP[:, _EP["pair"]] == 1.0) & (EP[:, _EP["initial"]] == 0.0)
+        s_vel = EP[s_on, _EP["velocity"]]
+        s_peak = EP[s_on, _EP["peak_force"]]
         ca_rows.append(
             {
                 "carrier": p.carrier,
@@ -440,6 +452,11 @@ def run_machine(
                 "dissipated_energy": float(diss[-1] - diss[0]),
                 "friction_energy": float(fric[-1] - fric[0]),
                 "worst_transfer": worst_k,
+                "peak_force_squares": float(np.sum(peak * peak)),
+                "slot_impacts": int(s_vel.size),
+                "slot_max_peak_force": float(s_peak.max()) if s_peak.size else 0.0,
+                "slot_impact_energy": float(np.sum(0.5 * mass * s_vel * s_vel)),
+                "slot_peak_force_squares": float(np.sum(s_peak * s_peak)),
             }
         )
         if ft.size:
