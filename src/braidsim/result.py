@@ -50,6 +50,7 @@ UNITS = {
     "track_position": "m",
     "slot_position": "m",
     "omega": "rad/s",
+    "transfer_work": "J",
     "kind": "",
 }
 RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")

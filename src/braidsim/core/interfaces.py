@@ -54,6 +54,12 @@ def contact_forces(law, p, p_dot, v0):
 
 
 @generic
+def contact_potential(law, p):
+    """Elastic energy stored at penetration ``p`` >= 0 [J]: int_0^p F_k dp."""
+    raise NotImplementedError
+
+
+@generic
 def contact_force_rates(law, p, p_dot, p_ddot, v0, f_k, f_c):
     """(dN/dt, dF_c/dt) [N/s] given the penetration, its first two time derivatives and the
     forces ``f_k``, ``f_c`` of :func:`contact_forces` at the same instant. Only their signs

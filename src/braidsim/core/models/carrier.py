@@ -19,7 +19,12 @@ work the moving walls do on the carrier int -s N h' dt. With them the carrier's 
 m v^2/2 + K p^(n+1)/(n+1) balances to the integrator's tolerance.
 
 A transfer to the next horn gear maps the carrier from the wall it leans on to the far wall:
-x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr (the track pair only).
+x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr (the track pair only). Its work, the jump
+of m x'^2 / 2 plus the elastic energy of a contact it ends, is the last quadrature
+(``transfer_work``), so the balance closes across transfers too.
+
+The initial tangential speed ``initial.vy`` is relative to the slot: the state holds the
+ground-frame y' = initial.vy + r_c omega(0) (:func:`braidsim.model.build_model`).
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from braidsim.core.interfaces import (
     contact_force_rates,
     contact_forces,
     contact_onset_step,
+    contact_potential,
     derivatives,
     describe_model,
     dissipation_index,
@@ -77,6 +83,7 @@ CARRIER_COLUMNS = (
     "track_position",
     "slot_position",
     "omega",
+    "transfer_work",
     "kind",
 )
 # Energy quadratures of the xy carrier in state order (after x, vx, y, vy); the x-only
@@ -90,8 +97,9 @@ XY_QUADS = (
     "track_work",
     "load_work_y",
     "slot_work",
+    "transfer_work",
 )
-X_QUADS = ("track_dissipated", "friction_work_x", "load_work_x", "track_work")
+X_QUADS = ("track_dissipated", "friction_work_x", "load_work_x", "track_work", "transfer_work")
 
 
 class CarrierX(NamedTuple):
@@ -131,12 +139,12 @@ describe_model(CarrierXY, CARRIER_COLUMNS, XY_QUADS)
 
 @model_size.register(CarrierX)
 def _size_x(model):
-    return 1, 1, 4
+    return 1, 1, 5
 
 
 @model_size.register(CarrierXY)
 def _size_xy(model):
-    return 2, 2, 8
+    return 2, 2, 9
 
 
 @inline_helper
@@ -197,6 +205,7 @@ def _derivs_x(model, t, y, modes, v0s, n_state, out):
         out[3] = fx * y[1]
         out[4] = -load_x * y[1]
         out[5] = -mt * nt * hd
+        out[6] = 0.0  # transfers change the energy at an instant (apply_transfer)
 
 
 @derivatives.register(CarrierXY)
@@ -222,6 +231,7 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
         out[9] = -mt * nt * hd
         out[10] = model.load_y * y[3]
         out[11] = -ms * ns * model.horn_gear.turning_radius * om
+        out[12] = 0.0  # transfers change the energy at an instant (apply_transfer)
 
 
 @pair_gaps.register(CarrierX)
@@ -289,12 +299,19 @@ def _transfer(model, t, y):
     hh, hd, _ = wall_motion(model.track, t)
     xr = y[0] - hh
     eps = model.track_clearance
+    # the carrier's energy m x'^2 / 2 + (elastic energy in either wall) before the jump
+    p = max(0.0, -xr, xr - eps)
+    before = 0.5 * model.mass * y[1] * y[1] + contact_potential(model.track_law, p)
     if xr < 0.0:
         xr = 0.0
     if xr > eps:
         xr = eps
     y[0] = hh + eps - xr
     y[1] = 2.0 * hd - y[1] + model.transfer_speed
+    n_coords, _, n_quads = model_size(model)
+    if y.shape[0] == 2 * n_coords + n_quads:
+        # the work of the transfer: the jump of that energy (the carrier lands in the gap)
+        y[y.shape[0] - 1] += 0.5 * model.mass * y[1] * y[1] - before
     return 1  # the contacts of the first pair (the track) start anew
 
 
@@ -362,6 +379,7 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
         row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
         for i in range(8):
             row[15 + i] = y[4 + i] if n_state > 4 else math.nan
+        row[26] = y[12] if n_state > 4 else math.nan
     else:
         for i in (3, 4, 9, 10, 11, 12, 14):
             row[i] = 0.0
@@ -375,7 +393,8 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
         row[20] = y[5] if energy else math.nan
         row[21] = 0.0 if energy else math.nan
         row[22] = 0.0 if energy else math.nan
+        row[26] = y[6] if energy else math.nan
     row[23] = h
     row[24] = s
     row[25] = om
-    row[26] = kind
+    row[27] = kind

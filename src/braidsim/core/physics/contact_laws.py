@@ -20,7 +20,12 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import contact_force_rates, contact_forces, contact_onset_step
+from braidsim.core.interfaces import (
+    contact_force_rates,
+    contact_forces,
+    contact_onset_step,
+    contact_potential,
+)
 
 
 class PowerLawContact(NamedTuple):
@@ -43,6 +48,12 @@ def _forces(law, p, p_dot, v0):
     if nn < 0.0 and not law.allow_tension:
         nn = 0.0
     return fk, fc, nn
+
+
+@contact_potential.register(PowerLawContact)
+def _potential(law, p):
+    n1 = law.exponent + 1.0
+    return law.stiffness * p**n1 / n1
 
 
 @contact_force_rates.register(PowerLawContact)

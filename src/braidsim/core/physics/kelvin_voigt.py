@@ -23,7 +23,12 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import contact_force_rates, contact_forces, contact_onset_step
+from braidsim.core.interfaces import (
+    contact_force_rates,
+    contact_forces,
+    contact_onset_step,
+    contact_potential,
+)
 
 
 class KelvinVoigtContact(NamedTuple):
@@ -54,6 +59,11 @@ def _forces(law, p, p_dot, v0):
     if nn < 0.0 and not law.allow_tension:
         nn = 0.0
     return fk, fc, nn
+
+
+@contact_potential.register(KelvinVoigtContact)
+def _potential(law, p):
+    return 0.5 * law.stiffness * p * p
 
 
 @contact_force_rates.register(KelvinVoigtContact)
