@@ -21,6 +21,7 @@ from braidsim.core import (
     PowerLawContact,
     RegularizedFriction,
     TrackHarmonics,
+    horn_gear_state,
     state_size,
 )
 from braidsim.core.layout import SolverOptions
@@ -244,6 +245,9 @@ def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.
     y0[0] = sc["initial.x"]
     y0[1] = sc["initial.vx"]
     if xy:
+        # initial.y is measured from the rear slot wall (at s(0) = 0), initial.vy relative to
+        # the slot: 0 starts the carrier moving with it (the ground-frame y' = r_c omega(0))
         y0[2] = sc["initial.y"]
-        y0[3] = sc["initial.vy"]
+        omega_start, _ = horn_gear_state(record.horn_gear, 0.0)
+        y0[3] = sc["initial.vy"] + sc["carrier.turning_radius"] * omega_start
     return Model(sc, record, options, y0, tr, track, slot, dur)

@@ -248,7 +248,7 @@ def _rest_start(sc: Scenario) -> dict[str, float]:
     out = {"initial.x": float(h0 - delta), "initial.vx": float(hd0)}
     if sc["simulation.dof"] == "xy":
         out["initial.y"] = float(s0 + 0.5 * sc["slot.clearance"])
-        out["initial.vy"] = float(sc["carrier.turning_radius"] * om0)
+        out["initial.vy"] = 0.0  # moving with the slot (initial.vy is relative to it)
     return out
 
 
