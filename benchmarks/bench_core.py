@@ -98,9 +98,9 @@ def tolerances(rtol: float) -> dict[str, float]:
 
 
 def braidsim_call(sc: Scenario) -> Any:
-    """braidsim's public call with no sampled series: the one line to change when
-    ``simulate`` gets its own switch for that (today: no samples, no event rows)."""
-    return braidsim.simulate(sc, DURATION, sample_interval=0.0, record_events=False)
+    """braidsim's public call with no sampled series (the lean path: impacts, ranges,
+    summary and final state)."""
+    return braidsim.simulate(sc, DURATION, series=False)
 
 
 def peak_error(peaks: np.ndarray, walls: np.ndarray, ref: Any) -> float:

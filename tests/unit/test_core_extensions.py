@@ -17,6 +17,7 @@ from braidsim.core import (
     MeasuredTrack,
     TrackHarmonics,
     run,
+    state_size,
     wall_motion,
 )
 from braidsim.core import layout as L
@@ -74,7 +75,9 @@ def _free_carrier(friction: object, mu: float, v0: float) -> tuple[object, np.nd
         track_clearance=1.0,
         track=TrackHarmonics(np.zeros((0, 3))),
     )
-    return rec, np.array([0.5, v0, 0.0, 0.0, 0.0, 0.0])
+    y0 = np.zeros(state_size(rec, True))
+    y0[:2] = (0.5, v0)
+    return rec, y0
 
 
 def test_viscous_friction_decays_the_speed_exponentially() -> None:

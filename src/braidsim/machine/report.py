@@ -138,7 +138,7 @@ def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
             "integration_steps": run.steps,
             "elapsed_s": run.elapsed,
             "workers": run.workers,
-            "engine": "compiled kernel (braidsim.simulate.run_kernel) per carrier, "
+            "engine": "compiled core (braidsim.simulate.run_model) per carrier, "
             + ("in one process" if run.workers == 1 else f"over {run.workers} local processes"),
             "track_vibration_amplitude": sc["track.vibration_amplitude"],
             "transfer_contact_speed": sc["transfer.contact_speed"],

@@ -434,9 +434,9 @@ def run_machine(
             )
         worst_k = int(np.argmax(pk[1:]) + 1) if n_int > 1 else 0
         # the slot contact (two-DOF runs only): onsets of the carrier on a slot wall
-        s_on = (EP[:, _EP["pair"]] == 1.0) & (EP[:, _EP["initial"]] == 0.0)
-        s_vel = EP[s_on, _EP["velocity"]]
-        s_peak = EP[s_on, _EP["peak_force"]]
+        s_on = (EP["pair"] == 1.0) & (EP["initial"] == 0.0)
+        s_vel = EP["velocity"][s_on]
+        s_peak = EP["peak_force"][s_on]
         ca_rows.append(
             {
                 "carrier": p.carrier,
