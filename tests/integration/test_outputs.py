@@ -266,9 +266,7 @@ def test_slow_json_outputs_carry_the_version(capsys, tmp_path, verb) -> None:
 
 def test_run_out_refuses_an_unrelated_folder(capsys, tmp_path) -> None:
     (tmp_path / "notes.txt").write_text("mine")
-    code, _, err = run_cli(
-        capsys, "run", "paper-3.2", "--duration", "0.01", "--out", str(tmp_path)
-    )
+    code, _, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01", "--out", str(tmp_path))
     assert code == 2 and "--out" in err and "not empty" in err and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
     # an earlier run output is replaced; CSV series only with --csv
@@ -351,3 +349,22 @@ def test_analyze_default_discards_a_transient(capsys) -> None:
     short = analyze("paper-3.3", duration=0.5)
     assert short.window[0] == pytest.approx(0.25, abs=T)  # half of a short run
     assert short.steady is not None and short.steady.regime.label == "irregular"
+
+
+# ------------------------------------------------------------------ xy mode
+
+
+def test_run_shows_both_pairs_in_xy_mode(capsys, tmp_path) -> None:
+    xy = tmp_path / "xy"
+    code, out, err = run_cli(
+        capsys, "run", "paper-3.1", "--set", "simulation.dof=xy", "--duration", "0.03",
+        "--out", str(xy),
+    )  # fmt: skip
+    assert code == 0, err
+    assert "slot (y) min" in out and "track (x) min" in out
+    for name in ("x.png", "y.png", "slot_stiffness_force.png", "slot_depth.png"):
+        assert (xy / name).stat().st_size > 0, name
+    x_only = tmp_path / "x"
+    code, out, err = run_cli(capsys, "run", "paper-3.1", "--duration", "0.03", "--out", str(x_only))
+    assert code == 0, err
+    assert "slot (y)" not in out and not (x_only / "y.png").exists()
