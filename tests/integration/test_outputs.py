@@ -368,3 +368,86 @@ def test_run_shows_both_pairs_in_xy_mode(capsys, tmp_path) -> None:
     code, out, err = run_cli(capsys, "run", "paper-3.1", "--duration", "0.03", "--out", str(x_only))
     assert code == 0, err
     assert "slot (y)" not in out and not (x_only / "y.png").exists()
+
+
+# ------------------------------------------------------------------ progress and signals
+
+
+def test_progress_is_off_under_json_and_without_a_terminal(capsys) -> None:
+    from braidsim.cli.progress import enabled
+
+    assert not enabled(quiet=True)
+    assert not enabled()  # pytest captures stderr: not a terminal
+    code, out, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01", "--json")
+    assert code == 0 and err == "" and json.loads(out)
+
+
+def test_first_compile_is_detected() -> None:
+    """With an empty numba cache the integrator's first call compiles (and the progress note
+    says so); here, after runs, it does not."""
+    import subprocess
+    import sys
+    import tempfile
+
+    from braidsim.cli.progress import kernel_needs_compile
+
+    braidsim.simulate("paper-3.2", duration=0.001)
+    assert not kernel_needs_compile()
+    with tempfile.TemporaryDirectory() as cache:
+        code = "from braidsim.cli.progress import kernel_needs_compile as k; print(k())"
+        env = {**__import__("os").environ, "NUMBA_CACHE_DIR": cache}
+        out = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        )
+    assert out.stdout.strip() == "True"
+
+
+def _descendants(pid: int) -> set[int]:
+    """Process ids below ``pid`` (Linux /proc)."""
+    children: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            ppid = int(stat.rsplit(")", 1)[1].split()[1])
+            children.setdefault(ppid, []).append(int(d.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigterm_stops_the_worker_processes(tmp_path) -> None:
+    import subprocess
+    import sys
+    import time
+
+    cmd = [
+        sys.executable, "-m", "braidsim", "bifurcation", "paper-3.3", "--param",
+        "track.vibration_amplitude", "--from", "0.1 mm", "--to", "0.2 mm", "--points", "4",
+        "--transient-cycles", "5000", "--cycles", "50", "--workers", "2", "--json",
+    ]  # fmt: skip
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        kids: set[int] = set()
+        while time.monotonic() < deadline and len(kids) < 2:
+            time.sleep(0.2)
+            kids = _descendants(p.pid)
+        assert len(kids) >= 2, "the workers did not start"
+        p.terminate()  # SIGTERM to the parent only, as `kill PID` does
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    time.sleep(0.5)
+    alive = {k for k in kids if Path(f"/proc/{k}").exists()}
+    # a killed worker may linger as a zombie for a moment only if nobody reaps it
+    states = {k: Path(f"/proc/{k}/stat").read_text().split(") ")[1][0] for k in alive}
+    assert all(s == "Z" for s in states.values()), states

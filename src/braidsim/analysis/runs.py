@@ -152,12 +152,14 @@ def run_steady_states(
 
 
 def _stop(pool: Any) -> None:
-    """Cancel what has not started and terminate the worker processes now (not after they
-    finish their current chunk, which is what ``shutdown`` alone waits for)."""
+    """Cancel what has not started and end the worker processes now (not after they
+    finish their current chunk, which is what ``shutdown`` alone waits for). SIGKILL: a
+    worker holds nothing to save, and a forked worker would turn SIGTERM into a
+    KeyboardInterrupt traceback of its own (it inherits the command line's handler)."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         if p.is_alive():
-            p.terminate()
+            p.kill()
     for p in procs:
         p.join(5.0)
