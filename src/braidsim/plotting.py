@@ -139,7 +139,7 @@ def plot_quantity(
             names = ("inner wall $h(t)$", r"outer wall $h(t)+\varepsilon_g$")
         else:
             eps = result.model.scenario["slot.clearance"]
-            wall = np.zeros(int(np.count_nonzero(sel)) if window else t.size)
+            wall = np.zeros(tt.size)
             names = ("rear slot wall", r"front slot wall, $\varepsilon_h$")
         tw, hw = envelope(tt, wall, bins) if bins else (tt, wall)
         ax.plot(tw, hw, color="0.45", lw=0.7, label=names[0])
