@@ -613,7 +613,7 @@ def markdown_report(report: PaperReport) -> str:
             L.append("")
         figs = report.figures.get(sec, [])
         for f in figs:
-            L.append(f"![{Path(f).stem}]({f})")
+            L.append(f"![{_alt(f, report)}]({f})")
             L.append("")
         if sec == "3.5":
             L.append(table1_markdown(table1_rows(report)))
@@ -643,7 +643,7 @@ def markdown_report(report: PaperReport) -> str:
     L.append("## Added figures")
     L.append("")
     for f in report.figures.get("added", []):
-        L.append(f"![{Path(f).stem}]({f})")
+        L.append(f"![{_alt(f, report)}]({f})")
         L.append("")
     return "\n".join(L)
 
@@ -751,7 +751,7 @@ def html_report(report: PaperReport, root: Path) -> str:
         if sec == "3.5":
             H.append(_table1_html(table1_rows(report)))
         for f in report.figures.get(sec, []):
-            H.append(_img(root / f, Path(f).stem))
+            H.append(_img(root / f, _alt(f, report)))
     H.append("<h2>Consistency of the paper's own numbers</h2>")
     H.append(f"<p>Eq. (4): F_kg = K |delta|^1.5 with K = {fmt(report.evidence['K'])} N/m^1.5.</p>")
     H.append(
@@ -774,14 +774,21 @@ def html_report(report: PaperReport, root: Path) -> str:
         )
     H.append("</table><h2>Added figures</h2>")
     for f in report.figures.get("added", []):
-        H.append(_img(root / f, Path(f).stem))
+        H.append(_img(root / f, _alt(f, report)))
     H.append("</body></html>")
     return "\n".join(H)
 
 
+def _alt(rel: str, report: PaperReport) -> str:
+    """Alt text of a report figure (what it shows, in words)."""
+    from braidsim.paper.figures import alt_text
+
+    return alt_text(rel, report.values.runs)
+
+
 def _img(path: Path, alt: str) -> str:
     data = base64.b64encode(path.read_bytes()).decode("ascii")
-    return f"<p><img alt='{html.escape(alt)}' src='data:image/png;base64,{data}'></p>"
+    return f"<p><img alt=\"{html.escape(alt)}\" src='data:image/png;base64,{data}'></p>"
 
 
 def _table1_html(rows: list[dict[str, Any]]) -> str:
