@@ -77,7 +77,8 @@ def test_report_images_have_alt_text(report, tmp_path) -> None:
     alts = re.findall(r"!\[([^\]]*)\]\(figures/", md)
     assert len(alts) == 3 and all(len(a) > 60 for a in alts), alts
     assert "Figure 16 of the paper" in alts[0]
-    html_alts = re.findall(r"<img alt=\"([^\"]*)\"", page)
+    html_alts = re.findall(r'<img [^>]*alt="([^"]*)"', page)
+    assert page.count("data:image/png;base64,") == 3  # embedded: the page stands alone
     assert len(html_alts) == 3 and all(len(a) > 60 for a in html_alts)
 
 
@@ -125,3 +126,12 @@ def test_machine_figures_share_colours_and_start_at_zero() -> None:
     for ax in fig2.axes:
         y0, y1 = ax.get_ylim()
         assert y0 == 0.0 and y1 > ax.dataLim.y1
+
+
+def test_paper_report_files_carry_the_version_and_date(report) -> None:
+    import braidsim
+    from braidsim.paper.report import markdown_report
+
+    data = report.to_json()
+    assert data["braidsim_version"] == braidsim.__version__ and data["created"][:2] == "20"
+    assert f"braidsim {braidsim.__version__}, 20" in markdown_report(report)

@@ -112,9 +112,13 @@ def kinematics_summary(spec: MachineSpec) -> dict[str, Any]:
 
 def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
     """The JSON object of ``braidsim machine --json`` (SI units)."""
+    from braidsim.provenance import utc_now, version
+
     spec = run.spec
     sc = spec.scenario
     return {
+        "braidsim_version": version(),
+        "created": utc_now(),
         "name": spec.name,
         "description": spec.description,
         "spec": str(spec.path) if spec.path else None,
@@ -152,6 +156,20 @@ def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
 # ----------------------------------------------------------------------------------------
 # figures
 # ----------------------------------------------------------------------------------------
+
+
+#: alt text of the report's figures: what each shows, for readers who cannot see it
+FIGURE_ALT = {
+    "peak_force_per_transfer.png": "Peak contact force and number of impacts of every transfer "
+    "of every carrier against the transfer time, coloured by carrier group",
+    "carrier_distribution.png": "Distribution over the carriers: peak force per transfer as a "
+    "box per carrier, impacts per second as bars and impact energy per second as black marks",
+    "machine_layout.png": "Layout of the machine: horn gears, carrier paths of both groups and "
+    "the crossings where carriers transfer",
+    "machine.gif": "Animation of the carriers moving round the machine, coloured by their "
+    "contact force",
+    "machine_frame.png": "One frame of the animation: carrier positions coloured by contact force",
+}
 
 
 def _from_zero(ax: Any) -> None:
@@ -428,7 +446,7 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
     else:
         lines.append("No transfer in the run.")
     lines += ["", "## Figures", ""]
-    lines += [f"![{f}]({f})" for f in figures]
+    lines += [f"![{FIGURE_ALT.get(f, f)}]({f})" for f in figures]
     lines += [
         "",
         "## What the model assumes",
