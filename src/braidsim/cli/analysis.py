@@ -449,9 +449,18 @@ def analyze(
         ),
     ],
     set_: SetOpt = None,
-    duration: Annotated[float | None, typer.Option(help="Simulated time [s].")] = None,
+    duration: Annotated[
+        float | None,
+        typer.Option(
+            help="Simulated time [s] (default: the scenario's, at least 150 excitation periods)."
+        ),
+    ] = None,
     transient: Annotated[
-        float | None, typer.Option(help="Start of the steady-state window [s] (default: half).")
+        float | None,
+        typer.Option(
+            help="Start of the steady-state window [s] (default: after 100 excitation periods, "
+            "at least half the run, leaving 50 periods)."
+        ),
     ] = None,
     out: OutOpt = None,
     json_: JsonOpt = False,
