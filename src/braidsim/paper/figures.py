@@ -96,10 +96,17 @@ def first_impacts_end(result: Result, t_max: float, share: float = 0.05) -> floa
 
 
 def _fit_ylim(ax: Axes, values: Sequence[float], pad: float = 0.06) -> None:
-    """Widen the y-limits of ``ax`` so that ``values`` (the paper's) fit inside, with margin."""
+    """Widen the y-limits of ``ax`` so that the paper's ``values`` fit inside, with margin.
+
+    A value more than half the plotted span beyond it (a paper value that deviates by an
+    order of magnitude) is left out, so that it does not flatten our trace: it is named as
+    "off scale" on the figure instead.
+    """
     lo, hi = ax.get_ylim()
-    if values:
-        lo, hi = min(lo, *values), max(hi, *values)
+    span0 = hi - lo
+    near = [v for v in values if lo - 0.5 * span0 <= v <= hi + 0.5 * span0]
+    if near:
+        lo, hi = min(lo, *near), max(hi, *near)
     span = hi - lo
     if span > 0:
         ax.set_ylim(lo - pad * span, hi + pad * span)
