@@ -135,3 +135,15 @@ def test_paper_report_files_carry_the_version_and_date(report) -> None:
     data = report.to_json()
     assert data["braidsim_version"] == braidsim.__version__ and data["created"][:2] == "20"
     assert f"braidsim {braidsim.__version__}, 20" in markdown_report(report)
+
+
+def test_a_far_off_paper_value_does_not_flatten_the_trace(report) -> None:
+    """Fig. 21: the paper's F_cg max 338954 N is 40 times ours; it is named, not plotted."""
+    from braidsim.paper.figures import paper_figure
+
+    spec = report.values.runs["3.4b"]
+    res = report.results[("3.4b", "calibrated")]
+    fig = paper_figure(res, spec, "damping_force", 21, _outcomes(report, "3.4b"))
+    ax = fig.axes[0]
+    assert ax.get_ylim()[1] < 50_000
+    assert any("338954" in t.get_text() and "off scale" in t.get_text() for t in ax.texts)
