@@ -28,21 +28,51 @@ def enabled(quiet: bool = False) -> bool:
         return False
 
 
-def kernel_needs_compile() -> bool:
-    """True when the compiled integrator has no usable cache entry and no compiled version in
-    this process, i.e. its next call compiles it (numba, ~20 s on 2 cores).
+#: the compiled entry point of the integrator: (file under braidsim/, function name); the
+#: first that exists is checked (the core has moved before; the check must not import it)
+ENTRY_POINTS = (("core/solver/loop.py", "integrate"), ("integrate/kernel.py", "integrate"))
 
-    Reads numba's cache index the way numba does (an index whose source stamp no longer
-    matches ``kernel.py`` counts as absent). Any surprise in numba's internals gives False:
-    the note is then simply not shown.
+
+def kernel_needs_compile() -> bool:
+    """True when numba's cache holds no usable compiled integrator, i.e. the first run will
+    compile it (~20 s on 2 cores).
+
+    Reads numba's cache index of the integrator's entry point (:data:`ENTRY_POINTS`) from
+    the file system, as numba does: in ``NUMBA_CACHE_DIR`` when set, else in ``__pycache__``
+    beside the source; an index whose source stamp no longer matches the file, or of another
+    numba version, counts as absent. The compiled modules are not imported for this. Any
+    surprise in numba's cache format gives False: the note is then simply not shown.
     """
     try:
-        from braidsim.integrate import kernel as K
+        import pickle
+        from pathlib import Path
 
-        disp: Any = K.integrate
-        if disp.signatures:
+        import numba
+        from numba.core import caching, config
+
+        import braidsim
+
+        root = Path(braidsim.__file__).parent
+        found = [(root / rel, fn) for rel, fn in ENTRY_POINTS if (root / rel).is_file()]
+        if not found:
             return False
-        return not disp._cache._cache_file._load_index()
+        src, fn = found[0]
+        cache_dir = getattr(config, "CACHE_DIR", "")
+        if cache_dir:
+            sub = caching.UserProvidedCacheLocator.get_suitable_cache_subpath(str(src))
+            cache = Path(cache_dir) / sub
+        else:
+            cache = src.parent / "__pycache__"
+        st = src.stat()
+        stamp = caching._hash_source_file(str(src), st.st_mtime, st.st_size)
+        for index in cache.glob(f"{src.stem}.{fn}-*.nbi"):
+            with open(index, "rb") as f:
+                if pickle.load(f) != numba.__version__:
+                    continue
+                saved, overloads = pickle.loads(f.read())
+            if saved == stamp and overloads:
+                return False
+        return True
     except Exception:
         return False
 
