@@ -1,6 +1,6 @@
 """The immutable result of one simulation: series, impact table, window ranges, summary.
 
-Signs follow the paper (MODEL_NOTES section 3): the depth, the stiffness-related force F_kg,
+Signs follow the paper (docs/model.md §3): the depth, the stiffness-related force F_kg,
 the damping-related force F_cg and the total contact force carry the sign of the wall,
 negative on the inner (rear) wall and positive on the outer (front) wall.
 """
@@ -220,7 +220,7 @@ class Result:
 
     # ------------------------------------------------------------------ summary
     def summary(self, window: tuple[float, float] | None = None) -> dict[str, Any]:
-        """The JSON object of ``braidsim run --json`` (CONTRACT.md), SI units.
+        """The JSON object of ``braidsim run --json``, SI units (keys in docs/cli.md).
 
         With ``window`` the ranges and the impact list cover only [t0, t1].
         """
