@@ -296,7 +296,7 @@ class SteadyState:
     parameters : dict
         The overrides of this run (as given), for sweeps; ``{}`` for a single run.
     window : (float, float)
-        [t0, t1] [s], whole excitation cycles after the transient.
+        Window (t0, t1) [s], whole excitation cycles after the transient.
     period : float
         Sampling period of the stroboscopic samples [s] (T_h, or :func:`reference_period`).
     strobe_t, strobe_x, strobe_vx, strobe_u : np.ndarray
