@@ -32,6 +32,11 @@ def _default(value: Any) -> str:
     return str(value)
 
 
+def _is_argument(param: Any) -> bool:
+    # Typer's parameters subclass those of the click it bundles, so test the kind by name
+    return getattr(param, "param_type_name", "") == "argument"
+
+
 def commands_markdown() -> str:
     """One section per ``braidsim`` command: usage line, help text, parameters table."""
     import click
@@ -46,7 +51,7 @@ def commands_markdown() -> str:
     out: list[str] = []
     for name in sorted(group.list_commands(ctx)):  # type: ignore[attr-defined]
         cmd = group.get_command(ctx, name)  # type: ignore[attr-defined]
-        args = [p.name.upper() for p in cmd.params if isinstance(p, click.Argument) and p.name]
+        args = [p.name.upper() for p in cmd.params if _is_argument(p) and p.name]
         usage = " ".join(["[OPTIONS]", *args])
         out.append(f"### braidsim {name}\n")
         out.append(f"```\nbraidsim {name} {usage}\n```\n")
@@ -56,7 +61,7 @@ def commands_markdown() -> str:
             if p.name == "help":
                 continue
             names = ", ".join(f"`{o}`" for o in (*p.opts, *p.secondary_opts))
-            if isinstance(p, click.Argument):
+            if _is_argument(p):
                 names = f"`{p.name.upper()}`" if p.name else names
             helptext = getattr(p, "help", None) or ""
             default = "" if p.required else _default(p.default)

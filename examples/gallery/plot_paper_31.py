@@ -9,8 +9,10 @@ row of its Table 1; `braidsim paper` compares every number, this example shows t
 
 # %%
 # Run the built-in scenario for 0.2 s: the bounces are over by 0.13 s.
+import matplotlib.pyplot as plt
+
 import braidsim
-from braidsim.plotting import plot_impacts, plot_quantity
+from braidsim.plotting import plot_quantity
 
 res = braidsim.simulate("paper-3.1", duration=0.2)
 summary = res.summary()
@@ -28,11 +30,18 @@ print(imp[["t", "wall", "velocity", "rebound_velocity", "peak_force", "max_depth
 print("rebound / approach:", (imp["rebound_velocity"] / imp["velocity"]).round(3).tolist()[:4])
 
 # %%
-# The displacement with the moving walls (here fixed: no vibration), and the
-# stiffness-related force F_kg, signed as in the paper (negative on the inner wall).
-plot_quantity(res, "x")
-plot_quantity(res, "stiffness_force")
+# The displacement with the walls (fixed here: no vibration), and the stiffness-related force
+# F_kg, signed as in the paper (negative on the inner wall), drawn by `braidsim.plotting`.
+fig, (ax_x, ax_f) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True, layout="constrained")
+plot_quantity(res, "x", ax=ax_x)
+plot_quantity(res, "stiffness_force", ax=ax_f)
 
 # %%
-# The impact sequence: approach speed and peak force of each impact.
-plot_impacts(res)
+# The impact sequence: the peak force of each impact falls with its approach speed.
+fig, ax = plt.subplots(figsize=(6.4, 3.6), layout="constrained")
+for wall, marker in (("outer", "^"), ("inner", "o")):
+    rows = imp[imp["wall"] == wall]
+    ax.plot(rows["velocity"], rows["peak_force"], marker, ls="none", label=f"{wall} wall")
+ax.set_xlabel("approach speed v0 [m/s]")
+ax.set_ylabel("peak contact force [N]")
+ax.legend()

@@ -27,6 +27,7 @@ ax.set_xlabel("nominal coefficient of restitution c_r [-]")
 ax.set_ylabel("effective restitution e [-]")
 ax.legend(fontsize=7)
 ax.set_title("One impact: effective against nominal restitution")
+fig.tight_layout()
 
 # %%
 # A simulated impact of the paper's carrier (1.2 kg at 0.5 m/s on the calibrated track
