@@ -44,8 +44,13 @@ def machine(
         raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
     s = load_machine_spec(spec)
     check_output_directory(out, REPORT_KIND)  # fail before the run, not after it
-    run = run_machine(s, duration=duration, workers=workers, frames=frames)
-    data = write_report(run, out, animation=frames != 0)
+    from braidsim.cli.progress import progress_status
+
+    with progress_status(f"simulating every carrier of {s.name}", quiet=json_):
+        run = run_machine(s, duration=duration, workers=workers, frames=frames)
+    what = "tables, figures and the animation (machine.gif)" if frames != 0 else "the report"
+    with progress_status(f"writing {what} into {out}", quiet=json_):
+        data = write_report(run, out, animation=frames != 0)
     if json_:
         print_json(data)
         return
