@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -155,7 +156,10 @@ def test_design_command_on_the_example_with_a_tiny_budget(
     summary = json.loads((out / "summary.json").read_text())
     assert summary["reduction"] == data["reduction"]
     md = (out / "report.md").read_text()
-    assert "## Result" in md and "![design_summary.png](design_summary.png)" in md
+    assert "## Result" in md and "(design_summary.png)" in md
+    # every figure carries alt text that says what it shows, not its file name
+    alts = re.findall(r"!\[([^\]]*)\]\(([^)]*\.png)\)", md)
+    assert alts and all(len(alt) > 40 and alt != name for alt, name in alts), alts
     # the optimised machine spec runs with `braidsim machine` and gives the reported transfers
     ms = load_machine_spec(out / "optimised_machine.toml")
     run = run_machine(ms, workers=1, frames=0)

@@ -57,6 +57,21 @@ REPORT_KIND = "design report"
 # ----------------------------------------------------------------------------------------
 
 
+# alt text of each figure of the report (what it shows, for readers who cannot see it)
+FIGURE_ALT = {
+    "design_summary.png": "Design summary: horn-gear speed and drive torque over the transfer "
+    "cycle, a carrier through its hardest transfer, the change of every figure of the track "
+    "and slot contacts, and the improvement distributions of the profile and the other levers",
+    "profile.png": "The optimised horn-gear speed, acceleration and jerk over one cycle, with "
+    "the drive's limits",
+    "peak_force_per_transfer.png": "Peak contact force and impact count of every transfer, "
+    "at constant speed and with the optimised profile",
+    "sensitivity.png": "One-at-a-time swings and Morris mu* of each lever on the objective",
+    "speed_limits.png": "Transfer speed limit and chatter speed against each lever",
+    "convergence.png": "Best objective value of the optimiser per generation",
+}
+
+
 def _kinematics(res: DesignResult) -> dict[str, Any]:
     from braidsim.machine.report import kinematics_summary
 
@@ -1075,7 +1090,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             "",
         ]
     lines += ["## Figures", ""]
-    lines += [f"![{f}]({f})" for f in figures]
+    lines += [f"![{FIGURE_ALT.get(f, f)}]({f})" for f in figures]
     lines += [
         "",
         "## What the study assumes",
