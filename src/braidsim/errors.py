@@ -6,6 +6,8 @@ Two kinds of failure reach a user, and the command line maps them to exit codes:
   names the parameter and the allowed range or the closest known name.
 * :class:`SimulationError` (exit code 1): the numbers went wrong. The message says what
   failed, at what simulated time, and what to change.
+* :class:`StoreError` (exit code 1): stored data cannot be read back as written (a checksum
+  fails, a file is damaged). The message names the path and how to recover.
 """
 
 from __future__ import annotations
@@ -31,3 +33,7 @@ class SimulationError(BraidsimError, RuntimeError):
     def __init__(self, message: str, time: float = float("nan")) -> None:
         super().__init__(message)
         self.time = time
+
+
+class StoreError(BraidsimError, RuntimeError):
+    """Stored data is damaged or unreadable (a checksum fails); the message names the path."""

@@ -34,6 +34,53 @@ def expect_table(where: str, value: Any) -> Mapping[str, Any]:
     return value
 
 
+#: largest spec or scenario file read (a spec is a few kilobytes)
+MAX_FILE_BYTES = 10_000_000
+
+
+def read_text(path: str | Path, what: str = "SPEC") -> str:
+    """The UTF-8 text of a spec or scenario file, with one-line errors naming the path.
+
+    Raises
+    ------
+    InputError
+        Not a file, unreadable, larger than :data:`MAX_FILE_BYTES`, or not UTF-8 (TOML files
+        are UTF-8 by definition).
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"{what}: {str(p)!r} is not a file; allowed a TOML file")
+    try:
+        size = p.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise InputError(
+                f"{p}: {size} bytes is too large for a TOML spec; allowed <= {MAX_FILE_BYTES}"
+            )
+        data = p.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            f"{p}: not UTF-8 text (byte {data[exc.start]:#04x} at offset {exc.start}); "
+            "allowed a UTF-8 TOML file (save it as UTF-8)"
+        ) from None
+
+
+def parse_toml(text: str, origin: str) -> dict[str, Any]:
+    """Parse TOML text; an :class:`InputError` naming ``origin`` for malformed or too deeply
+    nested input (the standard parser recurses once per level of nesting)."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(f"{origin}: malformed TOML ({exc})") from None
+    except RecursionError:
+        raise InputError(
+            f"{origin}: arrays or tables nested too deeply; allowed a few levels"
+        ) from None
+
+
 def read_toml_file(path: str | Path, kind: str) -> dict[str, Any]:
     """The table of a spec file; an :class:`InputError` for a missing file or bad TOML.
 
@@ -42,7 +89,7 @@ def read_toml_file(path: str | Path, kind: str) -> dict[str, Any]:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"SPEC: {str(p)!r} is not a file; allowed a {kind} TOML file")
-    try:
-        return tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: malformed TOML ({exc})") from None
+    table = parse_toml(read_text(p), str(p))
+    if not table:
+        raise InputError(f"{p}: the {kind} is empty; allowed a {kind} TOML file with its keys")
+    return table

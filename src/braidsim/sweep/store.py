@@ -18,12 +18,21 @@ chunk without its flag is simply computed and written again on resume. Runs are
 deterministic, so the rewritten bytes equal the ones an uninterrupted sweep writes. The
 store is created whole under a temporary name and renamed into place, and it holds no
 timestamps, so a resumed store equals an uninterrupted one.
+
+Integrity: every chunk file ends with a CRC-32C checksum (zarr's ``crc32c`` codec after the
+``zstd`` compressor), so a file changed after it was written (a flipped bit, a truncated
+copy) is detected when it is read: :func:`open_sweep` checks every chunk marked done and
+``--resume`` recomputes the chunks that fail. One process writes a store at a time: the
+writer holds an exclusive lock (``flock``) on ``_sweep/.lock`` for as long as it runs, the
+operating system releases it when the process ends (also after SIGKILL), and a second writer
+is refused with a message instead of deleting the first one's files in flight.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import uuid
 from collections.abc import Mapping
@@ -33,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.batch import METRICS, REGIME_FAILED, REGIMES
-from braidsim.errors import InputError
+from braidsim.errors import InputError, StoreError
 from braidsim.params import SCHEMA
 from braidsim.result import UNITS as SERIES_UNITS
 from braidsim.sweep.spec import RUN_DIM, TIME_DIM, SweepSpec
@@ -42,7 +51,10 @@ if TYPE_CHECKING:
     import xarray as xr
     import zarr
 
-STORE_FORMAT = "braidsim-sweep/1"
+STORE_FORMAT = "braidsim-sweep/2"
+#: formats this version reads (format 1 stores have no checksums)
+READ_FORMATS = ("braidsim-sweep/1", STORE_FORMAT)
+LOCK = "_sweep/.lock"
 _METRIC = {m.name: m for m in METRICS}
 
 
@@ -50,6 +62,72 @@ def _zarr() -> Any:
     import zarr
 
     return zarr
+
+
+def _codecs() -> dict[str, Any]:
+    """zstd compression, then a CRC-32C checksum of every chunk file."""
+    from zarr.codecs import Crc32cCodec, ZstdCodec
+
+    return {"compressors": [ZstdCodec(level=0), Crc32cCodec()]}
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_temporaries(final: Path) -> int:
+    """Remove the hidden folders ``.NAME.creating-PID-*`` that a killed process left beside
+    the store ``NAME`` (only those whose process is gone); return how many."""
+    n = 0
+    pat = re.compile(re.escape(f".{final.name}.creating-") + r"(\d+)-[0-9a-f]+")
+    if not final.parent.is_dir():
+        return 0
+    for p in final.parent.iterdir():
+        m = pat.fullmatch(p.name)
+        if m and not _pid_alive(int(m.group(1))):
+            shutil.rmtree(p, ignore_errors=True)
+            n += 1
+    return n
+
+
+class StoreLock:
+    """An exclusive lock on a store for the life of one writer (``flock`` on ``_sweep/.lock``).
+
+    Raises
+    ------
+    InputError
+        Another process holds the lock (it is writing the store now).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        import fcntl
+
+        self.path = Path(path)
+        lock = self.path / LOCK
+        try:
+            self.fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644 & ~0o022)
+        except OSError as exc:
+            raise StoreError(f"{lock}: cannot open the lock file ({exc.strerror})") from None
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            raise InputError(
+                f"--out: {self.path} is being written by another braidsim sweep now; wait for "
+                "it to finish (or stop it), then --resume"
+            ) from None
+
+    def release(self) -> None:
+        """Release the lock."""
+        if self.fd >= 0:
+            os.close(self.fd)  # closing the descriptor releases the flock
+            self.fd = -1
 
 
 def _coord_dtype(values: tuple[Any, ...]) -> Any:
@@ -104,7 +182,8 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             f"--out: {final} exists; pass --resume to finish it, or choose another path"
         )
     final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = final.parent / f".{final.name}.creating-{uuid.uuid4().hex[:8]}"
+    remove_stale_temporaries(final)
+    tmp = final.parent / f".{final.name}.creating-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
         g = zarr.open_group(str(tmp), mode="w", zarr_format=3, attributes=_root_attrs(spec))
         dims = spec.dims
@@ -170,6 +249,7 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
                 fill_value=m.fill,
                 dimension_names=list(dims),
                 attributes=attrs,
+                **_codecs(),
             )
         g.create_array(
             "failure",
@@ -179,6 +259,7 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             fill_value="",
             dimension_names=list(dims),
             attributes={"description": "why a run failed (empty: it finished)", **extra},
+            **_codecs(),
         )
         o = spec.options
         if o.series:
@@ -205,6 +286,7 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
                         "description": f"sampled {name}",
                         **extra,
                     },
+                    **_codecs(),
                 )
         sub = g.create_group(
             "_sweep", attributes={"description": "progress of the sweep (chunks done)"}
@@ -216,8 +298,18 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             dtype=np.int8,
             fill_value=0,
             dimension_names=["chunk"],
+            **_codecs(),
         )
-        os.rename(tmp, final)
+        (tmp / LOCK).touch()
+        try:
+            os.rename(tmp, final)
+        except OSError:
+            if final.exists():  # another sweep created it between our check and now
+                raise InputError(
+                    f"--out: {final} was just created by another process; choose another "
+                    "path, or --resume once that sweep is done"
+                ) from None
+            raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -236,8 +328,14 @@ def store_attrs(path: str | Path) -> Mapping[str, Any]:
     p = Path(path)
     if not (p / "zarr.json").is_file():
         raise InputError(f"STORE: {p} is not a sweep store (no zarr.json)")
-    attrs = dict(zarr.open_group(str(p), mode="r").attrs)
-    if attrs.get("format") != STORE_FORMAT:
+    try:
+        attrs = dict(zarr.open_group(str(p), mode="r").attrs)
+    except (ValueError, KeyError, TypeError, OSError) as exc:
+        raise StoreError(
+            f"STORE: {p}/zarr.json cannot be read ({exc.__class__.__name__}); the store is "
+            "damaged: run the sweep again into a new store"
+        ) from None
+    if attrs.get("format") not in READ_FORMATS:
         raise InputError(
             f"STORE: {p} is not a braidsim sweep store (format {attrs.get('format')!r})"
         )
@@ -254,10 +352,72 @@ def remove_partial_files(path: str | Path) -> int:
 
 
 def done_chunks(path: str | Path) -> np.ndarray:
-    """Boolean array: which chunks are complete."""
+    """Boolean array: which chunks are complete (a flag whose file fails its checksum counts
+    as not done)."""
     zarr = _zarr()
     g = zarr.open_group(str(path), mode="r")
-    return np.asarray(g["_sweep/done"][:]) == 1
+    arr = g["_sweep/done"]
+    try:
+        return np.asarray(arr[:]) == 1
+    except ValueError:
+        out = np.zeros(arr.shape[0], dtype=bool)
+        for c in range(arr.shape[0]):
+            try:
+                out[c] = int(arr[c]) == 1
+            except ValueError:
+                out[c] = False
+        return out
+
+
+def _data_arrays(group: Any) -> list[str]:
+    attrs = group.attrs
+    dims = list(attrs.get("dims", []))
+    names = []
+    for name, arr in group.arrays():
+        if list(arr.metadata.dimension_names or [])[: len(dims)] == dims and dims:
+            names.append(name)
+    return sorted(names)
+
+
+def corrupt_chunks(path: str | Path) -> dict[int, str]:
+    """Chunks marked done whose files fail their checksum: ``{chunk: array name}``.
+
+    Reads every done chunk of every data array (metrics, failure, series). Stores of format
+    1 have no checksums and report nothing.
+    """
+    zarr = _zarr()
+    p = Path(path)
+    g = zarr.open_group(str(p), mode="r")
+    if g.attrs.get("format") != STORE_FORMAT:
+        return {}
+    done = done_chunks(p)
+    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
+    names = _data_arrays(g)
+    bad: dict[int, str] = {}
+    if not names:
+        return bad
+    shape = g[names[0]].shape[: len(chunk_shape)]
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    for c in np.flatnonzero(done):
+        idx = np.unravel_index(int(c), grid)
+        region = tuple(
+            slice(int(i) * k, min((int(i) + 1) * k, s))
+            for i, k, s in zip(idx, chunk_shape, shape, strict=True)
+        )
+        for name in names:
+            try:
+                g[name][region]
+            except ValueError:
+                bad[int(c)] = name
+                break
+    return bad
+
+
+def mark_undone(path: str | Path, chunks: list[int]) -> None:
+    """Clear the done flag of ``chunks`` (they are computed again)."""
+    g = _zarr().open_group(str(path), mode="r+")
+    for c in chunks:
+        g["_sweep/done"][c] = 0
 
 
 class StoreWriter:
@@ -294,6 +454,14 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     import xarray as xr
 
     store_attrs(path)
+    bad = corrupt_chunks(path)
+    if bad:
+        c, name = next(iter(bad.items()))
+        raise StoreError(
+            f"STORE: {path}: chunk {c} of {name!r} fails its checksum ({len(bad)} chunk(s) "
+            "damaged after they were written); recompute them with `braidsim sweep SPEC "
+            f"--out {path} --resume`"
+        )
     return xr.open_zarr(str(path), consolidated=False, chunks=None)
 
 
