@@ -289,6 +289,7 @@ SCHEMA_LIST: list[ParamSpec] = [
         5_000_000,
         "budget of integration steps before a run is declared stuck",
         low=1,
+        high=2**62,  # a 64-bit step counter
     ),
     ParamSpec("transfer.times", "floats", "s", (), "times of transfers to the next horn gear [s]"),
     _nonneg(
@@ -321,8 +322,9 @@ def _closest(key: str) -> str:
 
 
 def _unknown(key: str) -> InputError:
+    shown = key if key.isprintable() and len(key) <= 80 else repr(key[:80])
     return InputError(
-        f"{key}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all"
+        f"{shown}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all"
     )
 
 
@@ -659,7 +661,9 @@ def parse_set_value(key: str, value: str) -> Any:
     """Interpret the text of ``--set KEY=VALUE`` (TOML literal if it parses, else a string)."""
     import tomllib
 
+    from braidsim.specfile import toml_float
+
     try:
-        return tomllib.loads(f"v = {value}")["v"]
-    except (tomllib.TOMLDecodeError, RecursionError):
+        return tomllib.loads(f"v = {value}", parse_float=toml_float)["v"]
+    except (ValueError, RecursionError):  # TOMLDecodeError, or an integer of 4300+ digits
         return value

@@ -4,6 +4,7 @@ the key, the closest known key and the allowed ones."""
 from __future__ import annotations
 
 import difflib
+import math
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -68,17 +69,28 @@ def read_text(path: str | Path, what: str = "SPEC") -> str:
         ) from None
 
 
+def toml_float(text: str) -> float:
+    """``parse_float`` of the TOML reader: a finite literal too large for a 64-bit float
+    (``1e400``) is an error instead of a silent infinity."""
+    value = float(text)
+    if math.isinf(value) and "inf" not in text:
+        raise ValueError(f"{text} is too large for a 64-bit float (|x| < 1.8e308)")
+    return value
+
+
 def parse_toml(text: str, origin: str) -> dict[str, Any]:
     """Parse TOML text; an :class:`InputError` naming ``origin`` for malformed or too deeply
     nested input (the standard parser recurses once per level of nesting)."""
     try:
-        return tomllib.loads(text)
+        return tomllib.loads(text, parse_float=toml_float)
     except tomllib.TOMLDecodeError as exc:
         raise InputError(f"{origin}: malformed TOML ({exc})") from None
     except RecursionError:
         raise InputError(
             f"{origin}: arrays or tables nested too deeply; allowed a few levels"
         ) from None
+    except ValueError as exc:  # e.g. an integer literal of more than 4300 digits
+        raise InputError(f"{origin}: malformed TOML ({str(exc)[:80]})") from None
 
 
 def read_toml_file(path: str | Path, kind: str) -> dict[str, Any]:

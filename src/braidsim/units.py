@@ -4,12 +4,13 @@ Inside braidsim every quantity is a plain float in SI units. This module is the 
 where unit strings ("3 mm", "200 GPa", "120 rpm", "60 Hz", "30 deg") are read.
 
 A quantity string is read by a small grammar, never by evaluating it: a decimal number
-(``3``, ``-2.5e-3``, ``inf``) followed by an optional unit expression made of unit names,
-``*``, ``/``, parentheses and small constant exponents (``^1.5`` or ``**2``, at most
-:data:`MAX_EXPONENT` in size). Anything else (``9**9**9 m``, ``1 m == 0.002``,
-``10**400 m``) is refused with a message naming the parameter, before pint sees it, so no
-input can make braidsim compute a huge number or run code. Only the unit expression is handed
-to pint, which looks its names up in its registry.
+(``3``, ``-2.5e-3``, ``inf``, or a ratio such as ``5/9``) followed by an optional unit
+expression made of unit names (``pi`` included), ``*``, ``/``, parentheses, small constant
+exponents (``^1.5`` or ``**2``, at most :data:`MAX_EXPONENT` in size) and small divisors
+(``pi/6 rad``). Anything else (``9**9**9 m``, ``1 m == 0.002``, ``10**400 m``) is refused
+with a message naming the parameter before pint sees it, so no input can make braidsim
+compute a huge number or run code. Only the checked unit expression is handed to pint, which
+looks its names up in its registry.
 
 Angular frequencies need care: pint treats ``Hz`` as ``1/s``, so "60 Hz" converted to
 ``rad/s`` would give 60. For keys whose unit is ``rad/s`` a pure frequency (Hz, 1/s, 1/min)
@@ -107,6 +108,13 @@ def _check_unit_text(key: str, value: str, text: str) -> str:
                 raise InputError(f"{key}: cannot read {value!r}: a power needs a unit before it")
             out.append("**")
             prev = "pow"
+        elif (
+            m.group("num") is not None
+            and prev == "/"
+            and re.fullmatch(r"\d{1,8}(?:\.\d{1,8})?", m.group("num"))
+        ):
+            out.append(m.group("num"))  # a small divisor, as in "pi/6 rad"
+            prev = "name"
         elif m.group("num") is not None:
             if prev != "pow":
                 raise InputError(
@@ -145,6 +153,8 @@ def parse_unit(key: str, text: str) -> Any:
     if not isinstance(text, str) or not text.strip() or len(text) > MAX_LENGTH:
         raise InputError(f"{key}: {str(text)[:40]!r} is not a unit; allowed e.g. 'mm', 'kN'")
     unit_text = _check_unit_text(key, text, text.strip())
+    if any(ch.isdigit() for ch in unit_text.replace("**", "").split("(")[0]) and "/" in text:
+        raise InputError(f"{key}: {text!r} is not a unit; allowed e.g. 'mm', 'kN'")
     try:
         return registry().parse_units(unit_text)
     except Exception as exc:  # pint raises several exception types for unknown names
@@ -174,28 +184,39 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
     text = value.strip()
     m = _NUMBER.match(text)
     if m is None:
-        raise InputError(
-            f"{key}: cannot read {value!r} as a quantity; allowed a number followed by a unit "
-            f"in {unit or 'no unit'}, e.g. '3 mm'"
-        )
-    mag = _float(key, m.group(0).replace("_", ""))
-    if math.isinf(mag) and "inf" not in m.group(0).lower():
-        raise InputError(
-            f"{key}: {m.group(0)} cannot be represented as a 64-bit float; "
-            "allowed |value| < 1.8e308"
-        )
-    rest = text[m.end() :].strip()
+        if not re.match(r"[^\W\d]", text):  # not even a unit name ("pi/6 rad", "mm")
+            raise InputError(
+                f"{key}: cannot read {value!r} as a quantity; allowed a number followed by a "
+                f"unit in {unit or 'no unit'}, e.g. '3 mm'"
+            )
+        mag, rest = 1.0, text
+    else:
+        mag = _float(key, m.group(0).replace("_", ""))
+        if math.isinf(mag) and "inf" not in m.group(0).lower():
+            raise InputError(
+                f"{key}: {m.group(0)} cannot be represented as a 64-bit float; "
+                "allowed |value| < 1.8e308"
+            )
+        rest = text[m.end() :].strip()
+    frac = re.match(r"/\s*(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)(?![\w.])", rest)
+    if frac is not None:  # a ratio of two numbers, like "5/9"
+        denom = float(frac.group(1))
+        if denom == 0.0:
+            raise InputError(f"{key}: {value!r} divides by zero; allowed a finite value")
+        mag = mag / denom
+        rest = rest[frac.end() :].strip()
     if not rest:
         return mag, True
     ureg = registry()
     unit_text = _check_unit_text(key, value, rest)
     try:
-        u: Any = ureg.parse_units(unit_text) if unit_text != "1" else ureg.dimensionless
+        # the text passed the grammar: unit names, small exponents and divisors only
+        u: Any = ureg.parse_expression(unit_text)
     except Exception as exc:  # pint raises several exception types for unknown names
         raise InputError(
             f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
         ) from None
-    q = ureg.Quantity(mag, u)
+    q = mag * (u if isinstance(u, pint.Quantity) else ureg.Quantity(float(u), ""))
     target = ureg.Unit(unit) if unit else ureg.dimensionless
     try:
         if unit == "rad/s" and q.dimensionality == ureg.Unit("1/s").dimensionality:

@@ -366,13 +366,12 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         or not AXIS_NAME.fullmatch(name)
         or name in RESERVED_NAMES
         or name in METRIC_NAMES
-        or name in SERIES_VARIABLES
         or (name in SCHEMA and name != key)
     ):
         raise InputError(
             f"{where}name: {str(name)[:40]!r} is not allowed; allowed a name of letters, digits "
             "and underscores (dots between words) starting with a letter, other than "
-            f"{', '.join(RESERVED_NAMES)}, the metric and series names and other keys"
+            f"{', '.join(RESERVED_NAMES)}, the metric names and other keys"
         )
     has_range = any(k in t for k in ("start", "stop", "num", "spacing"))
     if "values" in t and has_range:
@@ -679,6 +678,11 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     series_times = None
     if "series" in data:
         series_names, series_times = _series(data["series"], durations)
+    for a in axes:
+        if a.name in series_names:
+            raise InputError(
+                f"axes: name {a.name!r} is also a series variable kept; allowed another name"
+            )
     try:
         opts = check_options(durations, window, series_names, series_times)
     except InputError as exc:
