@@ -388,3 +388,64 @@ def test_dask_worker_killed_mid_sweep(spec_path, reference, tmp_path):
     finally:
         client.close()
         cluster.close()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_signal_stops_the_workers_of_an_analysis_verb(sig, tmp_path):
+    """`bifurcation --workers 2` (a process pool of the analysis layer): one line, the
+    signal's exit code, no worker left, no output written."""
+    out = tmp_path / "bif"
+    cmd = [
+        sys.executable,
+        "-m",
+        "braidsim",
+        "bifurcation",
+        "paper-3.3",
+        "--param",
+        "track.vibration_amplitude",
+        "--from",
+        "0.05 mm",
+        "--to",
+        "0.3 mm",
+        "--points",
+        "40",
+        "--workers",
+        "2",
+        "--out",
+        str(out),
+    ]
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
+        deadline = time.monotonic() + 120
+        workers: list[int] = []
+        while time.monotonic() < deadline and len(workers) < 2 and proc.poll() is None:
+            workers = _children(proc.pid)
+            time.sleep(0.05)
+        assert len(workers) >= 2, "no worker processes seen"
+        time.sleep(0.3)
+        proc.send_signal(sig)
+        o, e = proc.communicate(timeout=60)
+    why = judge(proc.returncode, o.decode(), e.decode(), (128 + int(sig),), ("interrupted",))
+    RECORD.add(f"bifurcation-{signal.Signals(sig).name}", why)
+    assert why is None, why
+    assert _gone(workers), "worker processes outlived the command"
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_two_new_sweeps_racing_to_one_path(spec_path, tmp_path, monkeypatch):
+    """The sweep that loses the final rename of a new store is refused with a message."""
+    import braidsim.sweep.store as store_mod
+    from braidsim.errors import InputError
+
+    target = tmp_path / "race.zarr"
+    real = os.rename
+
+    def other_sweep_wins(src, dst):
+        Path(dst).mkdir()
+        (Path(dst) / "zarr.json").write_text("{}")
+        real(src, dst)
+
+    monkeypatch.setattr(store_mod.os, "rename", other_sweep_wins)
+    with pytest.raises(InputError, match="another process"):
+        run_sweep(load_spec(spec_path), target, processes=1, progress=False)
+    assert [p.name for p in tmp_path.iterdir()] == ["race.zarr"]  # no temporary left
+    RECORD.add("two-new-sweeps-race", None)
