@@ -493,9 +493,16 @@ class Scenario:
         self, overrides: Mapping[str, Any] | None = None, name: str | None = None
     ) -> Scenario:
         """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied."""
+        if overrides is not None and not isinstance(overrides, Mapping):
+            raise InputError(
+                f"overrides: expected a mapping {{dotted key: value}}, got "
+                f"{type(overrides).__name__}"
+            )
         raw: dict[str, Any] = dict(self.values)
         explicit = set(self.explicit)
         for key, value in (overrides or {}).items():
+            if not isinstance(key, str):
+                raise InputError(f"{key!r}: a parameter key must be a string")
             if key not in SCHEMA:
                 raise _unknown(key)
             raw[key] = convert(SCHEMA[key], value)
@@ -626,6 +633,11 @@ def load_scenario(
     if isinstance(scenario, Mapping):
         meta: dict[str, str] = {}
         name, raw = "custom", flatten(scenario)
+    elif not isinstance(scenario, str | Path):
+        raise InputError(
+            f"scenario: expected a built-in name, a TOML path or a mapping, got "
+            f"{type(scenario).__name__}"
+        )
     else:
         name, raw, meta = _raw_scenario(scenario)
     values: dict[str, Any] = {k: s.default for k, s in SCHEMA.items()}

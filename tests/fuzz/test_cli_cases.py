@@ -823,6 +823,92 @@ def test_cli_case(case_id, argv, codes, names, fx, store, corrupt, tmp_path) -> 
     assert why is None, why
 
 
+# -------------------------------------------------------------------- damaged stores
+
+
+def _damage(store: Path, how: str) -> None:
+    import json
+    import shutil
+
+    if how == "root-garbage":
+        (store / "zarr.json").write_text("{not json")
+    elif how == "root-missing":
+        (store / "zarr.json").unlink()
+    elif how == "root-format":
+        meta = json.loads((store / "zarr.json").read_text())
+        meta["attributes"]["format"] = "something-else/9"
+        (store / "zarr.json").write_text(json.dumps(meta))
+    elif how == "array-missing":
+        shutil.rmtree(store / "regime")
+    elif how == "array-meta-garbage":
+        (store / "regime" / "zarr.json").write_text("[]")
+    elif how == "chunk-truncated":
+        p = store / "regime" / "c" / "0"
+        p.write_bytes(p.read_bytes()[:3])
+    elif how == "chunk-is-dir":
+        p = store / "track_max_contact_force" / "c" / "1"
+        p.unlink()
+        p.mkdir()
+    elif how == "done-missing":
+        shutil.rmtree(store / "_sweep" / "done")
+    elif how == "done-garbage":
+        (store / "_sweep" / "done" / "c" / "0").write_bytes(b"xx")
+    else:
+        raise AssertionError(how)
+
+
+DAMAGES = [
+    "root-garbage",
+    "root-missing",
+    "root-format",
+    "array-missing",
+    "array-meta-garbage",
+    "chunk-truncated",
+    "chunk-is-dir",
+    "done-missing",
+    "done-garbage",
+]
+
+
+@pytest.mark.parametrize("how", DAMAGES)
+@pytest.mark.parametrize("verb", ["sweep-plot", "resume"])
+def test_damaged_store(how, verb, store, fx, tmp_path) -> None:
+    """A damaged store: reading it is refused in one line naming it (exit 2 when it is not a
+    sweep store, 1 when a sweep store's data is damaged); --resume either repairs it (the
+    damaged chunks computed again) or refuses it in one line."""
+    import shutil
+
+    from braidsim.sweep import open_sweep
+
+    s = tmp_path / "s.zarr"
+    shutil.copytree(store, s)
+    _damage(s, how)
+    if verb == "sweep-plot":
+        argv = ["sweep-plot", str(s), "--metric", "regime", "--x", "h_a", "--out"]
+        argv.append(str(tmp_path / "p.png"))
+        why = check_refused(f"store-{how}-plot", argv, EITHER, (str(s),))
+        assert why is None, why
+        assert not (tmp_path / "p.png").exists()
+        return
+    from fuzz.harness import RECORD, judge, run_cli
+
+    code, out, err = run_cli(
+        ["sweep", str(fx / "good_sweep.toml"), "--out", str(s), "--resume", "--no-progress"]
+    )
+    if code == 0:
+        ds = open_sweep(s)  # repaired: reads back whole and equal to the good store
+        ref = open_sweep(store)
+        ok = all(ds[v].equals(ref[v]) for v in ref.data_vars) and set(ds.data_vars) == set(
+            ref.data_vars
+        )
+        RECORD.add(f"store-{how}-resume", None if ok else "repaired store differs")
+        assert ok
+        return
+    why = judge(code, out, err, EITHER, (str(s),))
+    RECORD.add(f"store-{how}-resume", why)
+    assert why is None, why
+
+
 # -------------------------------------------------------------------- --set over every key
 
 

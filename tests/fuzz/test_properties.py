@@ -313,3 +313,17 @@ def test_the_harness_flags_what_it_must():
     assert judge(2, "", "braidsim: error: internal error: X\n", (2,), ()) is not None
     assert judge(2, "", "braidsim: error: x: bad\n", (2,), ("y",)) is not None
     assert judge(2, "", "braidsim: error: x: bad\n", (2,), ("x",)) is None
+
+
+@pytest.mark.parametrize(
+    ("scenario", "overrides", "fragment"),
+    [
+        (123, None, "scenario"),
+        (None, None, "scenario"),
+        ("paper-3.1", [("track.clearance", 1)], "overrides"),
+        ("paper-3.1", {1: 2}, "1"),
+    ],
+)
+def test_wrong_argument_types_are_input_errors(scenario, overrides, fragment):
+    with pytest.raises(InputError, match=fragment):
+        braidsim.load_scenario(scenario, overrides=overrides)

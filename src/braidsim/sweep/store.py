@@ -65,10 +65,19 @@ def _zarr() -> Any:
 
 
 def _codecs() -> dict[str, Any]:
-    """zstd compression, then a CRC-32C checksum of every chunk file."""
+    """zstd compression, then a CRC-32C checksum of every chunk file. (:class:`StoreWriter`
+    writes every chunk as a file, even one of fill values only, so a missing file of a
+    finished chunk is damage.)"""
     from zarr.codecs import Crc32cCodec, ZstdCodec
 
     return {"compressors": [ZstdCodec(level=0), Crc32cCodec()]}
+
+
+def _damaged(path: str | Path, what: str) -> StoreError:
+    return StoreError(
+        f"STORE: {path} is damaged ({what}); recompute its damaged chunks with `braidsim "
+        f"sweep SPEC --out {path} --resume`, or run the sweep again into a new store"
+    )
 
 
 def _pid_alive(pid: int) -> bool:
@@ -160,6 +169,7 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
             {str(REGIME_FAILED): "failed", **{str(i): r for i, r in enumerate(REGIMES)}}
         ),
         "dims": list(spec.dims),
+        "arrays": [*spec.metrics, "failure", *o.series],
         "chunk_shape": list(spec.chunk_shape),
         "n_runs": spec.n_runs,
         "n_chunks": spec.n_chunks,
@@ -330,7 +340,7 @@ def store_attrs(path: str | Path) -> Mapping[str, Any]:
         raise InputError(f"STORE: {p} is not a sweep store (no zarr.json)")
     try:
         attrs = dict(zarr.open_group(str(p), mode="r").attrs)
-    except (ValueError, KeyError, TypeError, OSError) as exc:
+    except Exception as exc:  # zarr raises several types for damaged metadata
         raise StoreError(
             f"STORE: {p}/zarr.json cannot be read ({exc.__class__.__name__}); the store is "
             "damaged: run the sweep again into a new store"
@@ -351,15 +361,42 @@ def remove_partial_files(path: str | Path) -> int:
     return n
 
 
-def done_chunks(path: str | Path) -> np.ndarray:
-    """Boolean array: which chunks are complete (a flag whose file fails its checksum counts
-    as not done)."""
+def check_store(path: str | Path) -> Any:
+    """Open a sweep store and check its structure: the progress array and every data array
+    the store was created with are present and readable. Returns the zarr group.
+
+    Raises
+    ------
+    StoreError
+        A part of the store is missing or its metadata cannot be read.
+    """
+    attrs = store_attrs(path)
     zarr = _zarr()
-    g = zarr.open_group(str(path), mode="r")
+    try:
+        g = zarr.open_group(str(path), mode="r")
+    except Exception as exc:  # zarr raises several types for damaged metadata
+        raise _damaged(path, f"root: {exc.__class__.__name__}") from None
+    for name in ["_sweep/done", *attrs.get("arrays", [])]:
+        try:
+            g[name]
+        except Exception as exc:  # a missing array (KeyError) or damaged metadata
+            raise _damaged(path, f"array {name!r}: {exc.__class__.__name__}") from None
+    return g
+
+
+def done_chunks(path: str | Path, strict: bool = False) -> np.ndarray:
+    """Boolean array: which chunks are complete.
+
+    A flag whose file fails its checksum counts as not done (the chunk is computed again on
+    resume); with ``strict`` it is a :class:`StoreError` instead (reading a store).
+    """
+    g = check_store(path)
     arr = g["_sweep/done"]
     try:
         return np.asarray(arr[:]) == 1
     except ValueError:
+        if strict:
+            raise _damaged(path, "a chunk's done flag fails its checksum") from None
         out = np.zeros(arr.shape[0], dtype=bool)
         for c in range(arr.shape[0]):
             try:
@@ -370,27 +407,22 @@ def done_chunks(path: str | Path) -> np.ndarray:
 
 
 def _data_arrays(group: Any) -> list[str]:
-    attrs = group.attrs
-    dims = list(attrs.get("dims", []))
-    names = []
-    for name, arr in group.arrays():
-        if list(arr.metadata.dimension_names or [])[: len(dims)] == dims and dims:
-            names.append(name)
-    return sorted(names)
+    """The arrays chunked like the work (metrics, failure, series), as the store lists them."""
+    return [str(n) for n in group.attrs.get("arrays", [])]
 
 
-def corrupt_chunks(path: str | Path) -> dict[int, str]:
-    """Chunks marked done whose files fail their checksum: ``{chunk: array name}``.
+def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
+    """Chunks marked done whose files are missing or fail their checksum:
+    ``{chunk: array name}``.
 
     Reads every done chunk of every data array (metrics, failure, series). Stores of format
     1 have no checksums and report nothing.
     """
-    zarr = _zarr()
     p = Path(path)
-    g = zarr.open_group(str(p), mode="r")
+    g = check_store(p)
     if g.attrs.get("format") != STORE_FORMAT:
         return {}
-    done = done_chunks(p)
+    done = done_chunks(p, strict=strict)
     chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
     names = _data_arrays(g)
     bad: dict[int, str] = {}
@@ -404,7 +436,14 @@ def corrupt_chunks(path: str | Path) -> dict[int, str]:
             slice(int(i) * k, min((int(i) + 1) * k, s))
             for i, k, s in zip(idx, chunk_shape, shape, strict=True)
         )
+        key = "/".join(str(int(i)) for i in idx)
         for name in names:
+            f = p / name / "c" / key
+            if g[name].ndim > len(chunk_shape):
+                f = f / "0"  # the series' time dimension is one chunk
+            if not f.is_file():
+                bad[int(c)] = name
+                break
             try:
                 g[name][region]
             except ValueError:
@@ -414,10 +453,25 @@ def corrupt_chunks(path: str | Path) -> dict[int, str]:
 
 
 def mark_undone(path: str | Path, chunks: list[int]) -> None:
-    """Clear the done flag of ``chunks`` (they are computed again)."""
-    g = _zarr().open_group(str(path), mode="r+")
+    """Clear the done flag of ``chunks`` and remove their (damaged) files: they are computed
+    and written again."""
+    p = Path(path)
+    g = _zarr().open_group(str(p), mode="r+")
+    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
+    names = _data_arrays(g)
+    shape = g[names[0]].shape[: len(chunk_shape)] if names else ()
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
     for c in chunks:
         g["_sweep/done"][c] = 0
+        key = "/".join(str(int(i)) for i in np.unravel_index(int(c), grid))
+        for name in names:
+            f = p / name / "c" / key
+            if f.is_dir() and g[name].ndim > len(chunk_shape):
+                f = f / "0"
+            if f.is_dir() and not f.is_symlink():
+                shutil.rmtree(f)
+            elif f.exists() or f.is_symlink():
+                f.unlink()
 
 
 class StoreWriter:
@@ -425,11 +479,14 @@ class StoreWriter:
 
     def __init__(self, path: str | Path, spec: SweepSpec) -> None:
         self.spec = spec
-        self.group: zarr.Group = _zarr().open_group(str(path), mode="r+")
-        self.arrays = {
-            name: self.group[name] for name in (*spec.metrics, "failure", *spec.options.series)
-        }
-        self.done = self.group["_sweep/done"]
+        zr = _zarr()
+        # every chunk is written as a file, even one of fill values only (see _codecs)
+        with zr.config.set({"array.write_empty_chunks": True}):
+            self.group: zarr.Group = zr.open_group(str(path), mode="r+")
+            self.arrays = {
+                name: self.group[name] for name in (*spec.metrics, "failure", *spec.options.series)
+            }
+            self.done = self.group["_sweep/done"]
 
     def write_chunk(
         self,
@@ -453,14 +510,13 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     fill values: NaN, -1 or "")."""
     import xarray as xr
 
-    store_attrs(path)
-    bad = corrupt_chunks(path)
+    bad = corrupt_chunks(path, strict=True)
     if bad:
         c, name = next(iter(bad.items()))
         raise StoreError(
-            f"STORE: {path}: chunk {c} of {name!r} fails its checksum ({len(bad)} chunk(s) "
-            "damaged after they were written); recompute them with `braidsim sweep SPEC "
-            f"--out {path} --resume`"
+            f"STORE: {path}: chunk {c} of {name!r} is missing or fails its checksum "
+            f"({len(bad)} chunk(s) damaged after they were written); recompute them with "
+            f"`braidsim sweep SPEC --out {path} --resume`"
         )
     return xr.open_zarr(str(path), consolidated=False, chunks=None)
 
