@@ -24,8 +24,8 @@ def test_bare_set_value_is_si_with_a_notice_and_json_stays_clean():
     assert data["parameters"]["track.clearance"] == 0.004
     notes = err.strip().splitlines()
     assert notes == [
-        "braidsim: note: --set track.clearance=0.004: bare numbers taken in SI (m); "
-        "write e.g. '3 mm'"
+        "braidsim: note: --set track.clearance=0.004: a bare number is taken in SI (m); "
+        "write the unit, e.g. '0.004 m'"
     ]
 
 

@@ -222,7 +222,11 @@ def parse_sets(sets: list[str] | None) -> dict[str, Any]:
         parsed = parse_set_value(key, value)
         unit = SCHEMA[key].unit
         if unit and SCHEMA[key].kind != "choice" and _has_bare_number(parsed):
-            notice(f"--set {key}={value}: bare numbers taken in SI ({unit}); write e.g. '3 mm'")
+            example = value if isinstance(parsed, int | float) else "VALUE"
+            notice(
+                f"--set {key}={value}: a bare number is taken in SI ({unit}); "
+                f"write the unit, e.g. '{example} {unit}'"
+            )
         out[key] = parsed
     return out
 
