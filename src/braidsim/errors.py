@@ -18,7 +18,17 @@ class BraidsimError(Exception):
 
 
 class InputError(BraidsimError, ValueError):
-    """Bad input: unknown key, wrong unit, value out of range, malformed file."""
+    """Bad input: unknown key, wrong unit, value out of range, malformed file.
+
+    The message is kept to one line: line breaks and tabs that a quoted user value brings in
+    are turned into spaces.
+    """
+
+    def __init__(self, message: object = "") -> None:
+        text = str(message)
+        if any(c in text for c in "\n\r\t\v\f"):
+            text = " ".join(text.split())
+        super().__init__(text)
 
 
 class SimulationError(BraidsimError, RuntimeError):
