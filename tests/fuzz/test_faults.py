@@ -449,3 +449,36 @@ def test_two_new_sweeps_racing_to_one_path(spec_path, tmp_path, monkeypatch):
         run_sweep(load_spec(spec_path), target, processes=1, progress=False)
     assert [p.name for p in tmp_path.iterdir()] == ["race.zarr"]  # no temporary left
     RECORD.add("two-new-sweeps-race", None)
+
+
+def _crash_on_first_try(marker_dir: str, task_chunk_ids: tuple[int, ...], base, task):
+    """compute_chunk, except that the worker running one of the given chunks dies (as the
+    out-of-memory killer would leave it) the first time."""
+    from braidsim.sweep import compute_chunk
+
+    marker = Path(marker_dir) / f"crashed-{task.chunk}"
+    if task.chunk in task_chunk_ids and not marker.exists():
+        marker.write_text("x")
+        os._exit(1)
+    return compute_chunk(base, task)
+
+
+@pytest.mark.parametrize(
+    "attempt", [0, pytest.param(1, marks=pytest.mark.slow), pytest.param(2, marks=pytest.mark.slow)]
+)
+def test_dead_pool_workers_are_replaced_every_time(attempt, spec_path, reference, tmp_path):
+    """Workers dying at different moments (also while the next chunk is being submitted to
+    the broken pool) never abort the sweep: the chunks are run again on a new pool."""
+    import functools
+
+    from braidsim.sweep import LocalProcesses
+
+    crash = ((1, 6), (0, 11), (4, 5))[attempt]
+    ex = LocalProcesses(
+        2, retries=3, task=functools.partial(_crash_on_first_try, str(tmp_path), crash)
+    )
+    store = tmp_path / "pool.zarr"
+    run_sweep(load_spec(spec_path), store, executor=ex, progress=False)
+    assert all((tmp_path / f"crashed-{c}").exists() for c in crash)
+    assert files(store) == files(reference)
+    RECORD.add(f"dead-pool-workers-{attempt}", None)
