@@ -80,8 +80,9 @@ if slow:
         time.sleep(slow)
         return real(base, task)
     ex.compute_chunk = slow_chunk
-from braidsim.cli import main
-main(sys.argv[1:])
+if __name__ == "__main__":  # Dask's nannies spawn: the main module is imported again
+    from braidsim.cli import main
+    main(sys.argv[1:])
 """
 
 
@@ -482,3 +483,33 @@ def test_dead_pool_workers_are_replaced_every_time(attempt, spec_path, reference
     assert all((tmp_path / f"crashed-{c}").exists() for c in crash)
     assert files(store) == files(reference)
     RECORD.add(f"dead-pool-workers-{attempt}", None)
+
+
+@pytest.mark.slow
+def test_sigterm_of_a_sweep_on_a_local_dask_cluster(spec_path, reference, tmp_path):
+    """SIGTERM to `sweep --workers 2` (a local Dask cluster): one line, exit code 143, no
+    nanny or worker process left, and the store resumes to the uninterrupted bytes."""
+    store = tmp_path / "dask.zarr"
+    env = {**os.environ, "SLOW_CHUNK_S": "0.5"}
+    with subprocess.Popen(
+        sweep_cmd(spec_path, store, "--workers", "2"),
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    ) as proc:
+        flags = store / "_sweep" / "done" / "c"
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None:
+            if flags.is_dir() and len(list(flags.iterdir())) >= 1:
+                break
+            time.sleep(0.05)
+        workers = _children(proc.pid)
+        assert workers
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=120)
+    why = judge(proc.returncode, out.decode(), err.decode(), (143,), ("--resume",))
+    RECORD.add("dask-sweep-SIGTERM", why)
+    assert why is None, why
+    assert _gone(workers)
+    run_sweep(load_spec(spec_path), store, resume=True, processes=1, progress=False)
+    assert files(store) == files(reference)
