@@ -13,7 +13,7 @@ Printed:
 
 1. braidsim in this process (``simulate_batch(workers=1)``): runs/s, and where the time of a
    run goes: building the model (``with_overrides`` + ``build_model``), the compiled kernel
-   alone (``run_kernel`` without samples), and the metrics (the samples at the window's ends
+   alone (``run_samples`` without samples), and the metrics (the samples at the window's ends
    and the reductions in Python), as medians over the runs;
 2. braidsim over ``--workers`` cores: ``simulate_batch(workers=N)`` on threads (the default)
    and on processes, and a whole ``run_sweep`` of ``--sweep-runs`` runs over that many local
@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from braidsim.batch import RunOptions, run_kernel_samples, run_metrics, simulate_batch
+from braidsim.batch import RunOptions, run_metrics, run_samples, simulate_batch
 from braidsim.integrate.scipy_backend import simulate_scipy
 from braidsim.model import build_model
 from braidsim.params import load_scenario
@@ -95,7 +95,7 @@ def main() -> None:
         t0 = time.perf_counter()
         model = build_model(sc.with_overrides(ov), DURATION)
         t1 = time.perf_counter()
-        run_kernel_samples(model, np.zeros(0), W)
+        run_samples(model, np.zeros(0), W)
         t2 = time.perf_counter()
         run_metrics(model, RunOptions())
         t3 = time.perf_counter()

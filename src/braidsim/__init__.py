@@ -10,8 +10,9 @@ The public API is small::
     res.to_xarray()    # time series with units in attrs
 
 Data path: scenario (TOML, units) -> :mod:`braidsim.params` (validated SI) ->
-:mod:`braidsim.model` (arrays) -> :mod:`braidsim.integrate.kernel` (compiled RK with contact
-events) -> :class:`braidsim.result.Result` -> analysis, plots, reports.
+:mod:`braidsim.model` (the core's records) -> :mod:`braidsim.core` (compiled physics and an
+event-exact solver generic over models) -> :class:`braidsim.result.Result` -> analysis,
+plots, reports.
 """
 
 from braidsim.contact import effective_restitution, get_law, law_names

@@ -2,7 +2,7 @@
 
 :func:`simulate_batch` takes a base scenario and a list of parameter sets (``{dotted key:
 value}`` overrides), validates every set before any run starts, integrates each run with the
-compiled kernel (:func:`braidsim.simulate.run_kernel` with no event rows) and reduces it to the
+compiled core (:func:`braidsim.simulate.run_model` with no event rows) and reduces it to the
 scalar metrics of :data:`METRICS`. Runs are independent and deterministic: a run's metrics
 are the same bits whatever batch, chunk, process or order it runs in, and equal those computed
 from :func:`braidsim.simulate` with the same parameters (``tests/unit/test_batch.py``).
@@ -63,8 +63,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from braidsim.core import CARRIER_COLUMNS, RawRun
 from braidsim.errors import InputError, SimulationError
-from braidsim.integrate import kernel as K
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
 from braidsim.result import UNITS as SERIES_UNITS
@@ -183,10 +183,10 @@ METRICS: tuple[Metric, ...] = (
 )
 METRIC_NAMES: tuple[str, ...] = tuple(m.name for m in METRICS)
 METRIC_INDEX: Mapping[str, int] = MappingProxyType({m.name: i for i, m in enumerate(METRICS)})
-SERIES_VARIABLES: tuple[str, ...] = tuple(c for c in K.COLUMNS if c not in ("t", "kind"))
-"""Columns of the kernel's series that can be sampled per run (units in ``result.UNITS``)."""
+SERIES_VARIABLES: tuple[str, ...] = tuple(c for c in CARRIER_COLUMNS if c not in ("t", "kind"))
+"""Columns of the carrier's series that can be sampled per run (units in ``result.UNITS``)."""
 
-_COL = {name: i for i, name in enumerate(K.COLUMNS)}
+_COL = {name: i for i, name in enumerate(CARRIER_COLUMNS)}
 
 
 # ----------------------------------------------------------------------------------------
@@ -249,13 +249,15 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
     values = np.full(len(METRICS), math.nan)
     series = np.full((len(opts.series), opts.series_times.size), math.nan) if opts.series else None
     try:
-        rows, EP, R, xsq, stats, y, _ = run_kernel_samples(model, st, W)
+        raw = run_samples(model, st, W)
     except SimulationError as exc:
         values[METRIC_INDEX["regime"]] = REGIME_FAILED
         return values, series, str(exc)
+    rows, EP, R, xsq, y = raw.series, raw.episodes, raw.ranges, raw.xsq, raw.y
+    assert rows is not None and xsq is not None
     if rows.shape[0] != st.size or not np.array_equal(rows[:, 0], st):
-        # without event rows the kernel writes exactly the samples asked for, in order
-        raise AssertionError("kernel returned a series that does not match the sample times")
+        # without event rows the solver writes exactly the samples asked for, in order
+        raise AssertionError("solver returned a series that does not match the sample times")
     _episode_metrics(EP, t0, t1, values)
     i0 = int(np.searchsorted(st, t0))
     i1 = int(np.searchsorted(st, t1))
@@ -273,10 +275,12 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
         force = R[1, ip, 3]
         values[METRIC_INDEX[f"{pair}_max_depth"]] = max(0.0, -depth[0], depth[1])
         values[METRIC_INDEX[f"{pair}_max_contact_force"]] = max(0.0, -force[0], force[1])
-    for k, name in enumerate(("final_x", "final_vx", "final_y", "final_vy")):
-        values[METRIC_INDEX[name]] = y[k]
-    values[METRIC_INDEX["steps"]] = stats[0]
-    values[METRIC_INDEX["rhs_evaluations"]] = stats[3]
+    values[METRIC_INDEX["final_x"]] = y[0]
+    values[METRIC_INDEX["final_vx"]] = y[1]
+    values[METRIC_INDEX["final_y"]] = y[2] if model.two_dof else model.scenario["initial.y"]
+    values[METRIC_INDEX["final_vy"]] = y[3] if model.two_dof else model.scenario["initial.vy"]
+    values[METRIC_INDEX["steps"]] = raw.stats[0]["steps"]
+    values[METRIC_INDEX["rhs_evaluations"]] = raw.stats[0]["rhs_evaluations"]
     if series is not None:
         isr = np.searchsorted(st, opts.series_times)
         for k, name in enumerate(opts.series):
@@ -284,23 +288,20 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
     return values, series, ""
 
 
-def run_kernel_samples(
-    model: Model, sample_times: np.ndarray, windows: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """:func:`braidsim.simulate.run_kernel` with samples only (no event rows): the fast path."""
-    from braidsim.simulate import run_kernel
+def run_samples(model: Model, sample_times: np.ndarray, windows: np.ndarray) -> RawRun:
+    """:func:`braidsim.simulate.run_model` with samples only (no event rows): the fast path."""
+    from braidsim.simulate import run_model
 
-    return run_kernel(model, sample_times, windows, record_events=False)
+    return run_model(model, sample_times=sample_times, windows=windows, record_events=False)
 
 
 def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -> None:
     """Impacts, approach speeds, contact fractions and the regime from the episode table."""
-    c = {name: i for i, name in enumerate(K.EPISODE_COLUMNS)}
-    t_on = EP[:, c["t"]]
-    t_off = EP[:, c["t_end"]]
-    pair = EP[:, c["pair"]]
-    wall = EP[:, c["wall"]]
-    onset = (EP[:, c["initial"]] == 0.0) & (t_on >= t0) & (t_on <= t1)
+    t_on = EP["t"]
+    t_off = EP["t_end"]
+    pair = EP["pair"]
+    wall = EP["wall"]
+    onset = (EP["initial"] == 0.0) & (t_on >= t0) & (t_on <= t1)
     overlap = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
     counts = {}
     for ip, (pname, walls) in enumerate(
@@ -311,7 +312,7 @@ def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -
             n = int(np.count_nonzero(onset & mine & (wall == side)))
             counts[(pname, wname)] = n
             values[METRIC_INDEX[f"{pname}_{wname}_impacts"]] = n
-        v = EP[onset & mine, c["velocity"]]
+        v = EP["velocity"][onset & mine]
         values[METRIC_INDEX[f"{pname}_max_approach_speed"]] = float(v.max()) if v.size else 0.0
         values[METRIC_INDEX[f"{pname}_contact_fraction"]] = float(overlap[mine].sum()) / (t1 - t0)
     inner, outer = counts[("track", "inner")], counts[("track", "outer")]

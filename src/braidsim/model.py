@@ -1,4 +1,4 @@
-"""From a validated Scenario to the plain arrays the compiled kernel integrates.
+"""From a validated Scenario to the records the compiled core integrates.
 
 :func:`build_model` computes every derived quantity once (stiffness from Eq. 4, damping
 factors D(c_r), the constant loads, the excitation tables, the default maximum step) and
@@ -9,14 +9,25 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from braidsim import contact
-from braidsim.integrate import kernel as K
+from braidsim.core import (
+    CarrierX,
+    CarrierXY,
+    HornGear,
+    PowerLawContact,
+    RegularizedFriction,
+    TrackHarmonics,
+    horn_gear_state,
+    state_size,
+)
+from braidsim.core.layout import SolverOptions
+from braidsim.core.physics.friction import FRICTION_CODES
 from braidsim.params import Scenario
 
-FRICTION_CODES = {"arctan": 0, "tanh": 1, "stribeck": 2, "none": 3}
 PAIR_BODIES = {"track": ("guide_pad", "track"), "slot": ("carrier", "horn_gear")}
 
 
@@ -53,26 +64,49 @@ class PairModel:
 
 @dataclass(frozen=True)
 class Model:
-    """Arrays for :func:`braidsim.integrate.kernel.integrate` plus the resolved contact laws."""
+    """A scenario resolved for the compiled core: the model record, the solver options, the
+    initial state, the transfer times and the resolved contact laws.
+
+    Attributes
+    ----------
+    scenario : Scenario
+    record : CarrierX or CarrierXY
+        The core's model record (physics records inside), SI units.
+    options : SolverOptions
+        Tolerances, step limits and budget; ``t_end`` is the end of a run from t = 0.
+    y0 : np.ndarray
+        Initial state in the record's layout (coordinates, speeds, energy quadratures).
+    transfer_times : np.ndarray
+        Transfers to the next horn gear [s].
+    track, slot : PairModel
+    duration : float
+        [s]
+    """
 
     scenario: Scenario
-    P: np.ndarray
-    track_harmonics: np.ndarray
-    speed_harmonics: np.ndarray
-    profile_times: np.ndarray
-    profile_speeds: np.ndarray
-    profile_integral: np.ndarray
-    transfer_times: np.ndarray
+    record: Any
+    options: SolverOptions
     y0: np.ndarray
-    excitation: np.ndarray
+    transfer_times: np.ndarray
     track: PairModel
     slot: PairModel
     duration: float
 
     @property
+    def horn_gear(self) -> HornGear:
+        """The horn gear's speed record (omega(t), s(t))."""
+        return self.record.horn_gear
+
+    @property
     def constant_load(self) -> float:
         """T1 cos(phi) + m r_c omega0^2 [N], pushing the carrier onto the inner wall."""
-        return float(self.P[K.P_LOAD_X] + self.P[K.P_MRC] * self.P[K.P_OMEGA0] ** 2)
+        r = self.record
+        return float(r.load_x + r.mass_radius * r.horn_gear.omega0**2)
+
+    @property
+    def two_dof(self) -> bool:
+        """Whether the carrier moves tangentially too (``simulation.dof = "xy"``)."""
+        return isinstance(self.record, CarrierXY)
 
 
 def pair_model(sc: Scenario, pair: str) -> PairModel:
@@ -127,7 +161,7 @@ def default_max_step(sc: Scenario) -> float:
 
 
 def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.0) -> Model:
-    """Derive the kernel's arrays from a validated scenario.
+    """Derive the core's records from a validated scenario.
 
     Parameters
     ----------
@@ -147,38 +181,7 @@ def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.
     dur = float(duration if duration is not None else sc["simulation.duration"])
     prof_t, prof_w, prof_i = _profile_arrays(sc)
     omega0 = 0.0 if prof_t.size else sc["horn_gear.angular_velocity"]
-    P = np.zeros(K.P_SIZE)
-    P[K.P_MASS] = m
-    P[K.P_LOAD_X] = t1 * math.cos(phi)
-    P[K.P_MRC] = m * sc["carrier.turning_radius"]
-    P[K.P_T_Y] = t1 * math.sin(phi)
-    P[K.P_EPS_G] = sc["track.clearance"]
-    P[K.P_EPS_H] = sc["slot.clearance"]
-    P[K.P_K_T], P[K.P_N_T], P[K.P_D_T] = track.stiffness, track.exponent, track.damping_factor
-    P[K.P_K_S], P[K.P_N_S], P[K.P_D_S] = slot.stiffness, slot.exponent, slot.damping_factor
-    P[K.P_FRIC_LAW] = FRICTION_CODES[sc["friction.law"]]
-    P[K.P_MU1] = sc["friction.carrier_horn_gear"]
-    P[K.P_MU2] = sc["friction.pad_track"]
-    P[K.P_NX] = abs(m * sc["gravity"] - sc["yarn.tension_vertical"])
-    P[K.P_VHAT] = sc["friction.regularization_velocity"]
-    P[K.P_MUS_RATIO] = sc["friction.static_ratio"]
-    P[K.P_VSTRIBECK] = sc["friction.stribeck_velocity"]
-    P[K.P_VMIN] = sc["contact.min_impact_velocity"]
-    vinit = sc["contact.initial_impact_velocity"]
-    P[K.P_VINIT] = -1.0 if vinit is None else vinit
-    P[K.P_ALLOW_TENSION] = 1.0 if sc["contact.allow_tension"] else 0.0
-    P[K.P_DOF] = 2.0 if sc["simulation.dof"] == "xy" else 1.0
-    P[K.P_RC] = sc["carrier.turning_radius"]
-    P[K.P_RTOL] = sc["simulation.rtol"]
-    P[K.P_ATOL_X] = sc["simulation.atol_position"]
-    P[K.P_ATOL_V] = sc["simulation.atol_velocity"]
-    hmax = sc["simulation.max_step"]
-    P[K.P_HMAX] = default_max_step(sc) if hmax is None else hmax
-    P[K.P_MAXSTEPS] = sc["simulation.max_steps"]
-    P[K.P_T_END] = dur
-    P[K.P_TRANSFER_SPEED] = sc["transfer.contact_speed"]
-    P[K.P_OMEGA0] = omega0
-
+    allow = bool(sc["contact.allow_tension"])
     th = [
         (
             sc["track.vibration_amplitude"],
@@ -191,6 +194,43 @@ def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.
     speed_harm = np.array(
         [] if prof_t.size else list(sc["horn_gear.speed_harmonics"]), dtype=float
     ).reshape(-1, 3)
+    vinit = sc["contact.initial_impact_velocity"]
+    xy = sc["simulation.dof"] == "xy"
+    record = (CarrierXY if xy else CarrierX)(
+        mass=m,
+        load_x=t1 * math.cos(phi),
+        mass_radius=m * sc["carrier.turning_radius"],
+        load_y=t1 * math.sin(phi),
+        track_clearance=sc["track.clearance"],
+        slot_clearance=sc["slot.clearance"],
+        track_law=PowerLawContact(track.stiffness, track.exponent, track.damping_factor, allow),
+        slot_law=PowerLawContact(slot.stiffness, slot.exponent, slot.damping_factor, allow),
+        friction=RegularizedFriction(
+            FRICTION_CODES[sc["friction.law"]],
+            sc["friction.regularization_velocity"],
+            sc["friction.static_ratio"],
+            sc["friction.stribeck_velocity"],
+        ),
+        mu_x=sc["friction.carrier_horn_gear"],
+        normal_x=abs(m * sc["gravity"] - sc["yarn.tension_vertical"]),
+        mu_y=sc["friction.pad_track"],
+        track=TrackHarmonics(track_harm),
+        horn_gear=HornGear(
+            sc["carrier.turning_radius"], float(omega0), speed_harm, prof_t, prof_w, prof_i
+        ),
+        transfer_speed=sc["transfer.contact_speed"],
+        min_impact_velocity=sc["contact.min_impact_velocity"],
+        initial_impact_velocity=-1.0 if vinit is None else vinit,
+    )
+    hmax = sc["simulation.max_step"]
+    options = SolverOptions(
+        rtol=sc["simulation.rtol"],
+        atol_position=sc["simulation.atol_position"],
+        atol_velocity=sc["simulation.atol_velocity"],
+        max_step=default_max_step(sc) if hmax is None else hmax,
+        max_steps=int(sc["simulation.max_steps"]),
+        t_end=dur,
+    )
 
     transfers = set(sc["transfer.times"])
     period = sc["transfer.period"]
@@ -201,12 +241,13 @@ def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.
             k += 1
     tr = np.array(sorted(t for t in transfers if t_start < t < t_start + dur), dtype=float)
 
-    y0 = np.zeros(K.NY)
+    y0 = np.zeros(state_size(record, energy=True))
     y0[0] = sc["initial.x"]
     y0[1] = sc["initial.vx"]
-    y0[2] = sc["initial.y"]
-    y0[3] = sc["initial.vy"]
-    ex = K.pack_excitation(track_harm, speed_harm, prof_t, prof_w, prof_i)
-    return Model(
-        sc, P, track_harm, speed_harm, prof_t, prof_w, prof_i, tr, y0, ex, track, slot, dur
-    )
+    if xy:
+        # initial.y is measured from the rear slot wall (at s(0) = 0), initial.vy relative to
+        # the slot: 0 starts the carrier moving with it (the ground-frame y' = r_c omega(0))
+        y0[2] = sc["initial.y"]
+        omega_start, _ = horn_gear_state(record.horn_gear, 0.0)
+        y0[3] = sc["initial.vy"] + sc["carrier.turning_radius"] * omega_start
+    return Model(sc, record, options, y0, tr, track, slot, dur)

@@ -261,7 +261,12 @@ SCHEMA_LIST: list[ParamSpec] = [
     _f("initial.x", "m", 0.0, "x0 [m] (the inner track wall is at x = h(t))"),
     _f("initial.vx", "m/s", 0.0, "dx0/dt [m/s]"),
     _f("initial.y", "m", 0.0, "y0 [m] (the rear slot wall is at y = s(t), s(0) = 0)"),
-    _f("initial.vy", "m/s", 0.0, "dy0/dt [m/s]"),
+    _f(
+        "initial.vy",
+        "m/s",
+        0.0,
+        "dy0/dt relative to the slot [m/s] (0: moving with the slot at r_c omega(0))",
+    ),
     _nonneg("gravity", "m/s**2", 9.81, "g [m/s^2]"),
     _positive("simulation.duration", "s", 0.5, "simulated time [s]"),
     ParamSpec(

@@ -26,6 +26,18 @@ QUANTITIES: dict[str, tuple[str, float, str]] = {
     "damping_force": ("track_damping_force", 1.0, "damping-related force $F_{cg}$ / N"),
     "depth": ("track_depth", 1e3, r"contact depth $\delta_x$ / mm"),
     "contact_force": ("track_contact_force", 1.0, "contact force $F_g$ / N"),
+    # the tangential pair (carrier against the horn-gear slot), shown when simulation.dof = xy
+    # y is drawn relative to the moving slot (the slot travels r_c omega t, metres in a run)
+    "y": ("y", 1e3, "position in the slot $y - s(t)$ / mm"),
+    "slot_stiffness_force": ("slot_stiffness_force", 1.0, "slot stiffness-related force / N"),
+    "slot_damping_force": ("slot_damping_force", 1.0, "slot damping-related force / N"),
+    "slot_depth": ("slot_depth", 1e3, r"slot contact depth $\delta_y$ / mm"),
+    "slot_contact_force": ("slot_contact_force", 1.0, "slot contact force / N"),
+}
+#: the quantities of the run figures per pair: x is the paper's, y the tangential pair's
+PAIR_QUANTITIES = {
+    "x": ("x", "stiffness_force", "damping_force", "depth"),
+    "y": ("y", "slot_stiffness_force", "slot_damping_force", "slot_depth"),
 }
 
 
@@ -120,14 +132,21 @@ def plot_quantity(
     else:
         fig = ax.figure
     tt = t[sel]
-    if quantity == "x":
-        eps = result.model.scenario["track.clearance"]
-        wall = s["track_position"][sel] * scale
+    if quantity in ("x", "y"):
+        if quantity == "x":
+            eps = result.model.scenario["track.clearance"]
+            wall = s["track_position"][sel] * scale
+            names = ("inner wall $h(t)$", r"outer wall $h(t)+\varepsilon_g$")
+        else:
+            eps = result.model.scenario["slot.clearance"]
+            wall = np.zeros(tt.size)
+            names = ("rear slot wall", r"front slot wall, $\varepsilon_h$")
         tw, hw = envelope(tt, wall, bins) if bins else (tt, wall)
-        ax.plot(tw, hw, color="0.45", lw=0.7, label="inner wall $h(t)$")
-        outer = r"outer wall $h(t)+\varepsilon_g$"
-        ax.plot(tw, hw + eps * scale, color="0.45", lw=0.7, ls="--", label=outer)
+        ax.plot(tw, hw, color="0.45", lw=0.7, label=names[0])
+        ax.plot(tw, hw + eps * scale, color="0.45", lw=0.7, ls="--", label=names[1])
     yy = s[col][sel] * scale
+    if quantity == "y":
+        yy = yy - s["slot_position"][sel] * scale
     tp, yp = envelope(tt, yy, bins) if bins else (tt, yy)
     ax.plot(tp, yp, color=color, lw=0.8, label=label or axis_label.split(" /")[0])
     ax.set_xlabel("time $t$ / s")
@@ -135,7 +154,7 @@ def plot_quantity(
     ax.grid(True, lw=0.3, alpha=0.6)
     if len(tt):
         ax.set_xlim(float(tt[0]), float(tt[-1]))
-    if quantity == "x":
+    if quantity in ("x", "y"):
         ax.legend(loc="best", fontsize=8, frameon=False)
     if title:
         ax.set_title(title, fontsize=10)
@@ -272,12 +291,16 @@ def save(fig: Figure, path: str | Path) -> Path:
 
 
 def run_figures(result: Result, directory: str | Path) -> list[Path]:
-    """The paper-style plots of one run (x, F_kg, F_cg, depth, impacts, phase) as PNG files."""
+    """The paper-style plots of one run (x, F_kg, F_cg, depth, impacts, phase) as PNG files;
+    with both degrees of freedom (``simulation.dof = "xy"``) also those of the tangential
+    pair (``y.png``, ``slot_stiffness_force.png``, ...)."""
     d = Path(directory)
     name = result.model.scenario.name
     paths = []
-    for q in ("x", "stiffness_force", "damping_force", "depth"):
-        paths.append(save(plot_quantity(result, q, title=name), d / f"{q}.png"))
+    pairs = ("x", "y") if result.model.scenario["simulation.dof"] == "xy" else ("x",)
+    for pair in pairs:
+        for q in PAIR_QUANTITIES[pair]:
+            paths.append(save(plot_quantity(result, q, title=name), d / f"{q}.png"))
     paths.append(save(plot_impacts(result, title=name), d / "impacts.png"))
     paths.append(save(plot_phase(result, title=name), d / "phase.png"))
     return paths

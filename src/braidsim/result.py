@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from braidsim.integrate import kernel as K
+from braidsim.core.layout import EPISODE_COLUMNS, KIND_NAMES
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -50,9 +50,9 @@ UNITS = {
     "track_position": "m",
     "slot_position": "m",
     "omega": "rad/s",
+    "transfer_work": "J",
     "kind": "",
 }
-KIND_NAMES = ("sample", "onset", "exit", "peak", "transfer", "start", "end")
 RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")
 PAIRS = ("track", "slot")
 WALLS = {("track", -1): "inner", ("track", 1): "outer", ("slot", -1): "rear", ("slot", 1): "front"}
@@ -74,10 +74,10 @@ IMPACT_UNITS = {
 
 
 def impacts_frame(episodes: np.ndarray) -> pd.DataFrame:
-    """The impact table of a raw episode array (columns of ``kernel.EPISODE_COLUMNS``)."""
+    """The impact table of the solver's episode records (``EPISODE_DTYPE`` rows)."""
     import pandas as pd
 
-    c = {name: episodes[:, i] for i, name in enumerate(K.EPISODE_COLUMNS)}
+    c = {name: episodes[name] for name in EPISODE_COLUMNS}
     pairs = [PAIRS[int(p)] for p in c["pair"]]
     walls = [WALLS[(pr, int(w))] for pr, w in zip(pairs, c["wall"], strict=True)]
     return pd.DataFrame(
@@ -126,11 +126,18 @@ class State:
     t : float
         Time [s].
     y : tuple of float
-        The kernel's state vector (x, vx, y, vy [SI] and the energy quadratures [J]).
+        The model's state vector: x, vx (and y, vy in the xy mode) [SI], then the energy
+        quadratures [J] (see :mod:`braidsim.core.models.carrier`).
     track_mode, slot_mode : int
         -1 inner/rear wall, +1 outer/front wall, 0 free.
     track_v0, slot_v0 : float
         Latched approach speeds of the contacts in progress [m/s].
+    step : float
+        The next step size of the step control [s] (0: chosen afresh).
+    err_old : float
+        The step control's memory of the last error norm.
+    onset_q : float
+        Error exponent of a pending first contact step (0: none).
     """
 
     t: float
@@ -139,6 +146,9 @@ class State:
     slot_mode: int = 0
     track_v0: float = 1.0
     slot_v0: float = 1.0
+    step: float = 0.0
+    err_old: float = 1e-4
+    onset_q: float = 0.0
 
 
 def _json_float(v: float) -> float | None:
@@ -155,10 +165,10 @@ class Result:
     model : Model
         The resolved model (parameters, stiffnesses, damping factors).
     series : Mapping[str, np.ndarray]
-        Columns of :data:`braidsim.integrate.kernel.COLUMNS`, sorted by time: the samples
+        Columns of :data:`braidsim.core.CARRIER_COLUMNS`, sorted by time: the samples
         asked for plus the exact states at contact onset, exit, peaks and transfers.
     episodes : np.ndarray
-        Raw contact episodes, columns :data:`braidsim.integrate.kernel.EPISODE_COLUMNS`.
+        Contact episodes, records of :data:`braidsim.core.layout.EPISODE_DTYPE`.
     windows : np.ndarray
         (n, 2) windows of ``ranges``; window 0 is the whole run.
     ranges : np.ndarray
@@ -218,11 +228,86 @@ class Result:
             f"window [{t0}, {t1}] was not computed; pass windows=[({t0}, {t1})] to simulate"
         )
 
+    # ------------------------------------------------------------------ provenance
+    def provenance(self) -> dict[str, Any]:
+        """Where this result comes from, as written into every output made of it.
+
+        ``{"braidsim_version", "created", "scenario", "t_start", "duration", "backend",
+        "parameters"}``: the package version; ``created``, the UTC time (ISO 8601) of the
+        first call (kept, so that every output of one result carries the same one); the
+        scenario's name; the start time and the simulated time actually used [s] (the
+        ``duration`` argument of :func:`braidsim.simulate` when given, not the scenario's
+        default); the integrator; and the resolved scenario, every parameter in SI, with
+        ``simulation.duration`` set to the duration actually used.
+        """
+        if "provenance" not in self._cache:
+            from datetime import UTC, datetime
+
+            from braidsim import __version__
+
+            params = self.model.scenario.to_dict()
+            params["simulation.duration"] = float(self.model.duration)
+            self._cache["provenance"] = {
+                "braidsim_version": __version__,
+                "created": datetime.now(UTC).isoformat(timespec="seconds"),
+                "scenario": self.model.scenario.name,
+                "t_start": float(self.windows[0, 0]),
+                "duration": float(self.model.duration),
+                "backend": self.backend,
+                "parameters": params,
+            }
+        prov = dict(self._cache["provenance"])
+        prov["parameters"] = dict(prov["parameters"])
+        return prov
+
+    # ------------------------------------------------------------------ display
+    def __repr__(self) -> str:
+        """One line: scenario, time span, sizes, impacts and peak track force."""
+        t0, t1 = float(self.windows[0, 0]), float(self.windows[0, 1])
+        n = len(self.series["t"]) if "t" in self.series else 0
+        lo, hi = self.ranges_dict("track")["contact_force"]
+        return (
+            f"<braidsim.Result {self.model.scenario.name!r}: t = {t0:g}-{t1:g} s, "
+            f"{n} rows, {self.episodes.shape[0]} contacts, "
+            f"track contact force {lo:.4g} to {hi:.4g} N, backend {self.backend}>"
+        )
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: the run and the exact ranges of both pairs."""
+        import html
+
+        t0, t1 = float(self.windows[0, 0]), float(self.windows[0, 1])
+        e = html.escape
+        rows = []
+        for pair, sym in (("track", "x"), ("slot", "y")):
+            r = self.ranges_dict(pair)
+            for q in RANGE_QUANTITIES:
+                unit = "mm" if q == "depth" else "N"
+                f = 1e3 if q == "depth" else 1.0
+                rows.append(
+                    f"<tr><td>{e(pair)} ({sym})</td><td>{e(q)} [{unit}]</td>"
+                    f"<td>{r[q][0] * f:.6g}</td><td>{r[q][1] * f:.6g}</td></tr>"
+                )
+        imp = self.impacts
+        counts = ", ".join(
+            f"{e(str(w))} {int(c)}" for w, c in imp["wall"].value_counts().sort_index().items()
+        )
+        return (
+            f"<div><b>braidsim.Result</b> {e(self.model.scenario.name)}: "
+            f"t = {t0:g}-{t1:g} s, {len(self.series['t'])} rows, backend {e(self.backend)}; "
+            f"{len(imp)} contacts ({counts or 'none'})"
+            "<table><thead><tr><th>pair</th><th>quantity</th><th>min</th><th>max</th></tr>"
+            f"</thead><tbody>{''.join(rows)}</tbody></table></div>"
+        )
+
     # ------------------------------------------------------------------ summary
     def summary(self, window: tuple[float, float] | None = None) -> dict[str, Any]:
-        """The JSON object of ``braidsim run --json`` (CONTRACT.md), SI units.
+        """The JSON object of ``braidsim run --json``, SI units.
 
-        With ``window`` the ranges and the impact list cover only [t0, t1].
+        It starts with the provenance of :meth:`provenance` (``braidsim_version``,
+        ``created``, ``scenario``, ``simulation`` with the start time, the duration actually
+        simulated and the backend, and ``parameters``, the resolved scenario). With
+        ``window`` the ranges and the impact list cover only [t0, t1].
         """
         iw = 0 if window is None else self.window_index(*window)
         imp = self.impacts
@@ -245,9 +330,17 @@ class Result:
             }
             for r in imp.itertuples()
         ]
+        prov = self.provenance()
         return {
-            "scenario": self.model.scenario.name,
-            "parameters": self.model.scenario.to_dict(),
+            "braidsim_version": prov["braidsim_version"],
+            "created": prov["created"],
+            "scenario": prov["scenario"],
+            "simulation": {
+                "t_start": prov["t_start"],
+                "duration": prov["duration"],
+                "backend": prov["backend"],
+            },
+            "parameters": prov["parameters"],
             "window": [float(self.windows[iw, 0]), float(self.windows[iw, 1])],
             "x": self.ranges_dict("track", iw),
             "y": self.ranges_dict("slot", iw),
@@ -258,29 +351,64 @@ class Result:
 
     # ------------------------------------------------------------------ exports
     def to_xarray(self) -> xr.Dataset:
-        """The series as an xarray Dataset on a ``t`` dimension, units in ``attrs``."""
+        """The series as an xarray Dataset with a unique, increasing time index.
+
+        Layout
+        ------
+        * Dimension ``t`` [s]: every row of :attr:`series` at a distinct time, strictly
+          increasing, so that ``ds.sel(t=0.1, method="nearest")`` and ``ds.interp(t=...)``
+          work. The exact event states (contact onset, exit, force and depth peaks) stay on
+          this axis, so ``ds.track_contact_force.max()`` is the exact extreme. Where two rows
+          share one instant (the start and end rows repeat a sample time; a transfer's state
+          map gives the state before and after at the same time) the *last* one is kept: the
+          state after the jump. ``kind`` says what each kept row is (0 sample, 1 onset,
+          2 exit, 3 peak, 4 transfer, 5 start, 6 end).
+        * Dimension ``event``: every event row (``kind`` != 0) and every row left out of
+          ``t`` by the rule above, in time order, with its own coordinate ``event_t`` [s],
+          ``event_kind``, and each quantity as ``event_<name>`` (e.g. ``event_x``,
+          ``event_track_contact_force``). Nothing of :attr:`series` is lost between the two.
+
+        ``attrs`` carry the provenance: ``braidsim_version``, ``created`` (UTC, ISO 8601),
+        ``scenario``, ``duration`` [s] (the simulated time actually used), ``t_start`` [s],
+        and ``parameters_json``, the resolved scenario (every parameter in SI) as JSON.
+        """
+        import json
+
         import xarray as xr
 
-        t = self.series["t"]
-        data_vars = {}
+        t = np.asarray(self.series["t"], dtype=float)
+        order = np.argsort(t, kind="stable")  # the series is sorted; this is a safeguard
+        t = t[order]
+        kind = np.asarray(self.series["kind"])[order].astype(np.int8)
+        # keep the last row of every run of equal times
+        keep = np.ones(t.size, dtype=bool)
+        keep[:-1] = t[1:] != t[:-1]
+        event = (kind != 0) | ~keep
+        kind_doc = "row kind: " + ", ".join(f"{i} {n}" for i, n in enumerate(KIND_NAMES))
+        data_vars: dict[str, Any] = {}
+        event_vars: dict[str, Any] = {}
         for name, values in self.series.items():
             if name == "t":
                 continue
+            v = np.asarray(values)[order]
             if name == "kind":
-                data_vars[name] = (
-                    "t",
-                    values.astype(np.int8),
-                    {
-                        "description": "row kind: "
-                        + ", ".join(f"{i} {n}" for i, n in enumerate(KIND_NAMES))
-                    },
-                )
+                data_vars["kind"] = ("t", kind[keep], {"description": kind_doc})
+                event_vars["event_kind"] = ("event", kind[event], {"description": kind_doc})
             else:
-                data_vars[name] = ("t", values, {"units": UNITS[name]})
-        ds = xr.Dataset(data_vars, coords={"t": ("t", t, {"units": "s"})})
+                attrs = {"units": UNITS[name]}
+                data_vars[name] = ("t", v[keep], attrs)
+                event_vars[f"event_{name}"] = ("event", v[event], attrs)
+        ds = xr.Dataset(
+            {**data_vars, **event_vars},
+            coords={
+                "t": ("t", t[keep], {"units": "s", "long_name": "time"}),
+                "event_t": ("event", t[event], {"units": "s", "long_name": "time of the event"}),
+            },
+        )
         ds.attrs.update(
             {
-                "scenario": self.model.scenario.name,
+                **{k: v for k, v in self.provenance().items() if k != "parameters"},
+                "parameters_json": json.dumps(self.provenance()["parameters"]),
                 "track_stiffness_N_per_m_n": self.model.track.stiffness,
                 "track_law": self.model.track.law,
                 "slot_law": self.model.slot.law,

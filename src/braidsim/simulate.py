@@ -9,8 +9,11 @@ from typing import Any
 
 import numpy as np
 
+from braidsim.core import CARRIER_COLUMNS, RawRun, state_size
+from braidsim.core import layout as L
+from braidsim.core import run as core_run
+from braidsim.core.driver import SeriesSink
 from braidsim.errors import InputError, SimulationError
-from braidsim.integrate import kernel as K
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
 from braidsim.result import Result, State
@@ -30,9 +33,10 @@ def _windows(
     return np.array(W, dtype=float)
 
 
-def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> str:
-    """What failed, when, and what to change, for a kernel status code."""
+def failure_message(status: int, t: float, model: Model, stats: Mapping[str, float]) -> str:
+    """What failed, when, and what to change, for a solver status code."""
     sc = model.scenario
+    rec = model.record
     m = sc["carrier.mass"]
     # The two rates that can make the explicit integrator crawl: the friction regularisation,
     # d f_x / d vx = (2/pi) mu1 N / (m x_hat), and the contact damping at rest under the
@@ -40,11 +44,7 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
     fric_rate = 0.0
     if sc["friction.law"] != "none":
         fric_rate = (
-            2
-            / math.pi
-            * model.P[K.P_MU1]
-            * model.P[K.P_NX]
-            / (m * sc["friction.regularization_velocity"])
+            2 / math.pi * rec.mu_x * rec.normal_x / (m * sc["friction.regularization_velocity"])
         )
     damp_rate = (
         model.constant_load * model.track.damping_factor / (sc["contact.min_impact_velocity"] * m)
@@ -59,22 +59,22 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
             "raise contact.min_impact_velocity (tiny latched impact speeds make the damping "
             f"stiff: rate ~ {damp_rate:.3g} 1/s)"
         )
-    if status == K.ST_STEP_COLLAPSE:
+    if status == L.ST_STEP_COLLAPSE:
         return f"step size collapsed below 1e-14 s at t = {t:.9g} s; {hint}"
-    if status == K.ST_NONFINITE:
+    if status == L.ST_NONFINITE:
         return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
-    if status == K.ST_MAX_STEPS:
+    if status == L.ST_MAX_STEPS:
         return (
-            f"step budget simulation.max_steps = {int(model.P[K.P_MAXSTEPS])} exhausted "
+            f"step budget simulation.max_steps = {model.options.max_steps} exhausted "
             f"at t = {t:.9g} s "
-            f"(smallest step {stats[5]:.3g} s); {hint}, or raise simulation.max_steps"
+            f"(smallest step {stats['min_step']:.3g} s); {hint}, or raise simulation.max_steps"
         )
-    if status == K.ST_STIFF:
+    if status == L.ST_STIFF:
         return (
-            f"the equations became stiff at t = {t:.9g} s (step {stats[5]:.3g} s held by stability "
-            f"for {K.STIFF_LIMIT} steps); {hint}"
+            f"the equations became stiff at t = {t:.9g} s (step {stats['min_step']:.3g} s held "
+            f"by stability for {L.STIFF_LIMIT} steps); {hint}"
         )
-    if status == K.ST_ZENO:
+    if status == L.ST_ZENO:
         return (
             f"more than 50 contact events at the same instant t = {t:.9g} s (grazing contact); "
             "raise contact.min_impact_velocity or change the initial state"
@@ -82,74 +82,90 @@ def failure_message(status: int, t: float, model: Model, stats: np.ndarray) -> s
     return f"integrator status {status} at t = {t:.9g} s"
 
 
-def run_kernel(
+def stats_dict(raw: RawRun) -> dict[str, Any]:
+    """The solver's statistics by name (``steps``, ``rejected_steps``, ``events``,
+    ``rhs_evaluations``, ``transfers``, ``min_step``, ``max_step``)."""
+    rec = raw.stats[0]
+    out: dict[str, Any] = {
+        name: int(rec[name]) for name in ("steps", "rejected_steps", "events", "rhs_evaluations")
+    }
+    out["transfers"] = int(rec["transfers"])
+    out["min_step"] = float(rec["min_step"]) if math.isfinite(rec["min_step"]) else None
+    out["max_step"] = float(rec["max_step"])
+    return out
+
+
+def final_state(raw: RawRun) -> State:
+    """Where a run ended, with its contacts and step control: a run started from it
+    (``simulate(..., start=state)``) continues it."""
+    r = raw.restart[0]
+    return State(
+        t=float(r["t"]),
+        y=tuple(float(v) for v in raw.y),
+        track_mode=int(r["mode_0"]),
+        slot_mode=int(r["mode_1"]),
+        track_v0=float(r["v0_0"]),
+        slot_v0=float(r["v0_1"]),
+        step=float(r["h"]),
+        err_old=float(r["err_old"]),
+        onset_q=float(r["onset_q"]),
+    )
+
+
+def run_model(
     model: Model,
-    sample_times: np.ndarray,
-    windows: np.ndarray,
+    *,
+    sample_times: np.ndarray | None = None,
+    windows: np.ndarray | None = None,
+    series: bool | SeriesSink = True,
     record_events: bool = True,
+    energy: bool = True,
     start: State | None = None,
-    episode_capacity: int = 256,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Run the compiled kernel, growing the output arrays until they fit.
+) -> RawRun:
+    """Run one model through the compiled core: the one way from a :class:`Model` to its
+    results, for :func:`simulate`, the batches, the machine and the analyses.
 
-    ``start`` continues from a :class:`State` (its time, state vector, contact modes and
-    latched speeds) instead of t = 0 and the scenario's initial conditions; the run then ends
-    at ``start.t + model.duration``. ``episode_capacity`` is the first size of the episode
-    table: a run with more contact episodes is repeated with a larger one, so a caller that
-    expects many (a long run with many transfers) saves that repetition by asking for enough.
-
-    Returns (rows, episodes, ranges, integrals of x^2 dt over the windows, stats, final state
-    vector, status). Raises :class:`SimulationError` on a numerical failure.
+    ``start`` continues from a :class:`State` (its time, state vector, contacts, latched
+    speeds and step control) instead of t = 0 and the scenario's initial conditions; the run
+    then ends at ``start.t + model.duration``. ``series``: keep the rows (True), none
+    (False: the lean path), or stream them to a callable. Raises :class:`SimulationError` on
+    a numerical failure.
     """
-    P = model.P.copy()
-    P[K.P_RECORD_EVENTS] = 1.0 if record_events else 0.0
-    y_init = model.y0
+    opts = model.options._replace(record_events=record_events, energy=energy)
+    y0 = model.y0 if energy else model.y0[: state_size(model.record, False)]
+    restart = None
     if start is not None:
-        y_init = np.asarray(start.y, dtype=float)
-        if y_init.shape != (K.NY,):
-            raise InputError(f"start: the state vector needs {K.NY} entries, got {y_init.shape}")
-        P[K.P_T_START] = start.t
-        P[K.P_T_END] = start.t + model.duration
-        P[K.P_INIT_GIVEN] = 1.0
-        P[K.P_INIT_MODE_T] = start.track_mode
-        P[K.P_INIT_MODE_S] = start.slot_mode
-        P[K.P_INIT_V0_T] = start.track_v0
-        P[K.P_INIT_V0_S] = start.slot_v0
-    row_cap = sample_times.size + 256
-    ep_cap = max(16, int(episode_capacity))
-    while True:
-        rows = np.empty((row_cap, K.NCOL))
-        EP = np.empty((ep_cap, K.NEP))
-        R = np.empty((windows.shape[0], 2, 4, 2))
-        R[..., 0] = np.inf
-        R[..., 1] = -np.inf
-        xsq = np.empty(windows.shape[0])
-        stats = np.zeros(K.N_STATS)
-        y = y_init.copy()
-        status, nrow, nep = K.integrate(
-            y,
-            P,
-            model.excitation,
-            model.transfer_times,
-            windows,
-            sample_times,
-            rows,
-            EP,
-            R,
-            xsq,
-            stats,
-        )
-        if status == K.ST_CAPACITY_ROWS:
-            row_cap = max(2 * row_cap, nrow + 16)
-            continue
-        if status == K.ST_CAPACITY_EPISODES:
-            ep_cap = max(2 * ep_cap, nep + 16)
-            continue
-        if status != K.ST_OK:
-            raise SimulationError(
-                failure_message(status, float(stats[7]), model, stats), float(stats[7])
-            )
-        return rows[:nrow], EP[:nep], R, xsq, stats, y, status
+        y0 = np.asarray(start.y, dtype=float)
+        n = state_size(model.record, energy)
+        if y0.shape != (n,):
+            raise InputError(f"start: the state vector needs {n} entries, got {y0.shape}")
+        restart = L.new_restart()
+        r = restart[0]
+        r["started"] = L.CONTINUED
+        r["t"] = start.t
+        r["h"] = start.step
+        r["err_old"] = start.err_old
+        r["onset_q"] = start.onset_q
+        r["mode_0"], r["mode_1"] = start.track_mode, start.slot_mode
+        r["v0_0"], r["v0_1"] = start.track_v0, start.slot_v0
+        opts = opts._replace(t_end=start.t + model.duration)
+    raw = core_run(
+        model.record,
+        opts,
+        y0,
+        sample_times=sample_times,
+        transfer_times=model.transfer_times,
+        windows=windows,
+        series=series,
+        restart=restart,
+    )
+    if raw.status != L.ST_OK:
+        raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
+    return raw
+
+
+SERIES_MEMORY = 64 * 2**20
+"""Default memory budget of a series kept in memory [bytes] (``max_series_bytes``)."""
 
 
 def simulate(
@@ -162,6 +178,8 @@ def simulate(
     sample_times: Sequence[float] | np.ndarray | None = None,
     record_events: bool = True,
     start: State | None = None,
+    series: bool | SeriesSink = True,
+    max_series_bytes: int | None = SERIES_MEMORY,
 ) -> Result:
     """Simulate one carrier.
 
@@ -186,6 +204,17 @@ def simulate(
     start : State, optional
         Continue from this state (e.g. ``previous.final_state``) for ``duration`` more
         seconds; windows and sample times are then absolute times within the new span.
+    series : bool or callable
+        True (default): keep the sampled series in ``Result.series``. False: record none
+        (the lean path: impacts, ranges, summary and final state only). A callable: receive
+        the series in chunks of rows (arrays in the columns of
+        :data:`braidsim.core.CARRIER_COLUMNS`, in time order), keeping none in memory: for
+        runs of any length, streamed to a store or reduced on the fly.
+    max_series_bytes : int or None
+        Memory budget of the samples kept in memory (default 64 MiB, about 300,000 rows). A
+        ``sample_interval`` that would exceed it is widened to a multiple of itself that
+        fits (``Result.stats["sample_interval"]`` says which); explicit ``sample_times`` are
+        never thinned. None: no budget.
 
     Returns
     -------
@@ -199,7 +228,10 @@ def simulate(
     t_start = 0.0 if start is None else float(start.t)
     model = build_model(sc, duration, t_start=t_start)
     T = t_start + model.duration
-    if sample_times is not None:
+    dt_used: float | None = None
+    if series is False:
+        st = np.zeros(0)
+    elif sample_times is not None:
         st = np.sort(np.asarray(sample_times, dtype=float))
         if st.size and (st[0] < t_start or st[-1] > T or not np.all(np.isfinite(st))):
             raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
@@ -208,43 +240,56 @@ def simulate(
         if dt < 0 or not math.isfinite(dt):
             raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
         n = math.floor((T - t_start) / dt + 1e-9) + 1 if dt > 0 else 0
-        if n > 50_000_000:
-            raise InputError(
-                f"simulation.sample_interval: {dt:g} s gives {n} samples; "
-                f"allowed >= {T / 5e7:.3g} s"
-            )
+        row_bytes = 8 * len(CARRIER_COLUMNS)
+        if series is True and max_series_bytes is not None and n * row_bytes > max_series_bytes:
+            # keep every k-th sample: the widest interval that fits the budget
+            k = math.ceil(n * row_bytes / max_series_bytes)
+            dt *= k
+            n = math.floor((T - t_start) / dt + 1e-9) + 1
         st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
+        dt_used = dt
     W = _windows(t_start, T, windows)
-    rows, EP, R, xsq, stats, y, _ = run_kernel(model, st, W, record_events, start)
-    order = np.argsort(rows[:, 0], kind="stable")
-    rows = rows[order]
-    series = {name: np.ascontiguousarray(rows[:, i]) for i, name in enumerate(K.COLUMNS)}
-    st_dict = {
-        "steps": int(stats[0]),
-        "rejected_steps": int(stats[1]),
-        "events": int(stats[2]),
-        "rhs_evaluations": int(stats[3]),
-        "transfers": int(stats[4]),
-        "min_step": float(stats[5]) if math.isfinite(stats[5]) else None,
-        "max_step": float(stats[6]),
-        "track_stiffness": model.track.stiffness,
-        "track_damping_factor": model.track.damping_factor,
-        "track_effective_restitution": model.track.effective_restitution,
-    }
+    # a series kept in memory is collected column by column from the solver's chunks, so
+    # that it is held once (not as chunks and again as their concatenation)
+    columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS]
+
+    def keep(chunk: np.ndarray) -> None:
+        for i, col in enumerate(columns):
+            col.append(chunk[:, i].copy())
+
+    raw = run_model(
+        model,
+        sample_times=st,
+        windows=W,
+        series=keep if series is True else series,
+        record_events=record_events and series is not False,
+        start=start,
+    )
+    series_cols = {}
+    for i, name in enumerate(CARRIER_COLUMNS):
+        series_cols[name] = np.concatenate(columns[i]) if columns[i] else np.zeros(0)
+        columns[i] = []
+    if not model.two_dof:
+        # the x-only carrier does not move tangentially: y and y' stay at their start values
+        series_cols["y"][:] = sc["initial.y"]
+        series_cols["vy"][:] = sc["initial.vy"]
+    st_dict: dict[str, Any] = stats_dict(raw)
+    st_dict.update(
+        track_stiffness=model.track.stiffness,
+        track_damping_factor=model.track.damping_factor,
+        track_effective_restitution=model.track.effective_restitution,
+        sample_interval=dt_used,
+        series_rows=raw.rows_written,
+    )
+    fs = final_state(raw)
+    y = raw.y
     final = {
-        "t": float(stats[7]),
+        "t": fs.t,
         "x": float(y[0]),
         "vx": float(y[1]),
-        "y": float(y[2]),
-        "vy": float(y[3]),
+        "y": float(y[2]) if model.two_dof else float(sc["initial.y"]),
+        "vy": float(y[3]) if model.two_dof else float(sc["initial.vy"]),
     }
-    final_state = State(
-        t=float(stats[7]),
-        y=tuple(float(v) for v in y),
-        track_mode=int(stats[8]),
-        slot_mode=int(stats[9]),
-        track_v0=float(stats[10]),
-        slot_v0=float(stats[11]),
-    )
+    xsq = raw.xsq if raw.xsq is not None else np.full(W.shape[0], np.nan)
     rms_x = np.sqrt(xsq / (W[:, 1] - W[:, 0]))
-    return Result(model, series, EP, W, R, st_dict, final, final_state, rms_x=rms_x)
+    return Result(model, series_cols, raw.episodes, W, raw.ranges, st_dict, final, fs, rms_x=rms_x)

@@ -56,6 +56,9 @@ CASES: list[tuple[str, str, float, dict[str, Any], tuple[float, float]]] = [
             "simulation.dof": "xy",
             "friction.law": "stribeck",
             "horn_gear.speed_profile": {"times": [0, 0.01, 0.02], "speeds": [10, 14, 10]},
+            # at rest in the ground frame at t = 0 (initial.vy is relative to the slot,
+            # which moves at r_c omega(0) = 0.65 m/s)
+            "initial.vy": "-0.65 m/s",
             "contact.allow_tension": True,
             "contact.initial_impact_velocity": 0.5,
         },

@@ -161,12 +161,12 @@ def test_run_out_writes_plots_and_series(capsys, tmp_path) -> None:
         "stiffness_force.png",
         "damping_force.png",
         "depth.png",
-        "series.csv",
         "impacts.csv",
         "summary.json",
         "series.nc",
     ):
         assert (out_dir / name).stat().st_size > 0, name
+    assert not (out_dir / "series.csv").exists()  # CSV only on request (--csv)
     assert not list(out_dir.glob(".*tmp*"))
 
 

@@ -46,11 +46,16 @@ def tiny_example(tmp_path: Path, **design: Any) -> Path:
     d = data["design"]
     d["workers"] = 1
     d["optimizer"].update({"maxiter": 1, "popsize": 2, "cycles": 4})
+    d["robust"].update({"samples": 2, "check_samples": 3, "check_cycles": 4})
     d["proxy_check"] = {"profiles": 3, "seed": 1}
     d["sensitivity"].update(
-        {"levers": ["track.clearance", "contact.track.restitution"], "trajectories": 1}
+        {
+            "enabled": True,
+            "levers": ["track.clearance", "contact.track.restitution"],
+            "trajectories": 1,
+        }
     )
-    d["speed_limit"].update({"points": 2, "refine": 1})
+    d["speed_limit"].update({"enabled": True, "points": 2, "refine": 1})
     d.update(design)
     p = tmp_path / "design.toml"
     p.write_text(to_toml(data))
@@ -112,6 +117,26 @@ def test_design_command_on_the_example_with_a_tiny_budget(
     data = json.loads(stdout)
     for key in ("baseline", "optimised", "reduction", "production", "profile", "optimisation"):
         assert key in data
+    # the figures every design JSON carries
+    assert data["braidsim_version"] == braidsim.__version__
+    for side in ("baseline", "optimised"):
+        for pair in ("track", "slot"):
+            for k in ("peak_force", "impact_energy_rate", "impact_rate"):
+                assert data[side][pair][k] >= 0.0
+            assert data[side][pair]["impact_rate"] > 0.0
+        for k in ("peak_torque", "rms_torque", "peak_power", "max_acceleration"):
+            assert math.isfinite(data[side]["drive"][k])
+        rb = data[side]["robust"]
+        assert rb["samples"] == 3
+        assert -1e9 < rb["p5_improvement"] <= rb["median_improvement"]
+    assert data["robust"]["samples"] == 3
+    assert data["baseline"]["robust"]["median_improvement"] == 0.0
+    assert {lv["name"] for lv in data["levers"]} == {
+        "profile",
+        "restitution",
+        "vibration",
+        "clearance",
+    }
     for f in data["files"]:
         assert (out / f).is_file(), f
     assert (out / "design_summary.png").stat().st_size > 10_000
@@ -136,7 +161,9 @@ def test_design_command_on_the_example_with_a_tiny_budget(
     run = run_machine(ms, workers=1, frames=0)
     after = pd.read_csv(out / "transfers_after.csv")
     np.testing.assert_allclose(run.transfers["peak_force"], after["peak_force"], rtol=1e-12)
-    assert run.totals["max_peak_force"] == pytest.approx(data["optimised"]["peak_force"], rel=1e-12)
+    assert run.totals["max_peak_force"] == pytest.approx(
+        data["optimised"]["track"]["peak_force"], rel=1e-12
+    )
 
 
 def test_design_command_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -178,12 +205,22 @@ def test_report_is_whole_or_absent(tmp_path: Path, monkeypatch: pytest.MonkeyPat
 
 
 @pytest.mark.slow
-def test_the_example_reduces_peak_force_and_impact_energy_by_40_percent(tmp_path: Path) -> None:
-    """examples/design16.toml as shipped (a few minutes): the README's numbers."""
+def test_the_example_as_shipped(tmp_path: Path) -> None:
+    """examples/design16.toml as shipped (a few minutes): the README's study. The result is
+    never worse than constant speed on the optimiser's samples, stays within every limit,
+    keeps the production rate, and its improvement distribution is measured on 32 other
+    samples."""
     res = run_design(load_design_spec(EXAMPLE))
-    assert res.reductions["peak_force"] >= 0.40
-    assert res.reductions["impact_energy"] >= 0.40
+    opt = res.optimisation
+    assert opt.value <= opt.baseline_value == 1.0
+    assert all(v >= 0.0 for k, v in opt.margins.items() if k not in DIAGNOSTIC)
     assert res.production["after_mean_speed"] == pytest.approx(
         res.production["before_mean_speed"], rel=1e-12
     )
-    write_report(res, tmp_path / "design16")
+    assert res.robust is not None and res.robust.samples == 32
+    assert len(res.levers) == 4
+    data = write_report(res, tmp_path / "design16")
+    assert data["optimised"]["drive"]["peak_torque"] <= res.spec.drive.max_torque
+
+
+DIAGNOSTIC = ("speed_min", "speed_max", "acceleration_max", "jerk_max")

@@ -198,7 +198,7 @@ def test_dask_local_cluster_equals_local_run(tmp_path, local_store):
     distributed = pytest.importorskip("distributed")
     spec = load_spec(write(tmp_path, SPEC))
     with distributed.LocalCluster(
-        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=":0"
     ) as cluster:
         summary = run_sweep(
             spec, tmp_path / "dask.zarr", scheduler=cluster.scheduler_address, progress=False
@@ -223,7 +223,7 @@ def test_dask_retries_a_failing_chunk(tmp_path, local_store):
     spec = load_spec(write(tmp_path, SPEC))
     with (
         distributed.LocalCluster(
-            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=":0"
         ) as cluster,
         distributed.Client(cluster) as client,
     ):
@@ -445,6 +445,7 @@ def test_sampled_sweep_has_a_run_dimension(tmp_path):
             for i in range(4)
         ],
         0.02,
+        window=(0.01, 0.02),  # a sweep's default metrics window: the second half of the run
     )
     np.testing.assert_array_equal(
         ds["track_max_contact_force"].values, b.metrics["track_max_contact_force"]

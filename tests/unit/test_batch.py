@@ -16,7 +16,7 @@ from braidsim.batch import (
     _episode_metrics,
     simulate_batch,
 )
-from braidsim.integrate import kernel as K
+from braidsim.core.layout import EPISODE_DTYPE, KIND_SAMPLE
 from braidsim.model import build_model
 
 DURATION = 0.12
@@ -38,7 +38,7 @@ def metrics_from_simulate(overrides: dict, duration: float, window: tuple[float,
     res = braidsim.simulate(sc, duration=duration, windows=[window], sample_times=[t0, t1])
     imp = res.impacts
     s = res.series
-    sample = s["kind"] == K.KIND_SAMPLE
+    sample = s["kind"] == KIND_SAMPLE
     ts = s["t"][sample]
 
     def at(col: str, t: float) -> float:
@@ -86,7 +86,7 @@ def test_batch_equals_single_simulate_calls(batch):
             if isinstance(value, int):
                 assert got == value, (i, name)
             else:
-                # same kernel, same steps: the same bits up to the order of a sum
+                # same solver, same steps: the same bits up to the order of a sum
                 assert got == pytest.approx(value, rel=1e-12, abs=1e-300), (i, name)
     assert (batch.failure == "").all()
 
@@ -154,11 +154,11 @@ def test_rms_quadrature_equals_a_fine_trapezoidal_rule(overrides):
         "paper-3.3", DURATION, overrides=overrides, windows=[WINDOW], sample_interval=1e-6
     )
     s = res.series
-    inside = (s["kind"] == K.KIND_SAMPLE) & (s["t"] >= t0) & (s["t"] <= t1)
+    inside = (s["kind"] == KIND_SAMPLE) & (s["t"] >= t0) & (s["t"] <= t1)
     t, x = s["t"][inside], s["x"][inside]
     assert t[0] == pytest.approx(t0) and t[-1] == pytest.approx(t1)
     trap = math.sqrt(float(np.trapezoid(x * x, t)) / (t1 - t0))
-    sample = s["kind"] == K.KIND_SAMPLE
+    sample = s["kind"] == KIND_SAMPLE
     whole = math.sqrt(float(np.trapezoid(s["x"][sample] ** 2, s["t"][sample])) / DURATION)
     assert res.rms_x[res.window_index(t0, t1)] == pytest.approx(trap, rel=1e-9)
     assert res.rms_x[0] == pytest.approx(whole, rel=1e-9)
@@ -188,11 +188,10 @@ def test_bad_parameter_set_is_rejected_before_any_run():
 
 def _episodes(rows: list[tuple[float, float, int, int, float, int]]) -> np.ndarray:
     """Episode table from (t, t_end, pair, wall, velocity, initial) rows."""
-    c = {name: i for i, name in enumerate(K.EPISODE_COLUMNS)}
-    EP = np.zeros((len(rows), K.NEP))
+    EP = np.zeros(len(rows), dtype=EPISODE_DTYPE)
     for i, (t, te, pair, wall, v, init) in enumerate(rows):
-        EP[i, c["t"]], EP[i, c["t_end"]], EP[i, c["pair"]] = t, te, pair
-        EP[i, c["wall"]], EP[i, c["velocity"]], EP[i, c["initial"]] = wall, v, init
+        EP["t"][i], EP["t_end"][i], EP["pair"][i] = t, te, pair
+        EP["wall"][i], EP["velocity"][i], EP["initial"][i] = wall, v, init
     return EP
 
 

@@ -13,10 +13,28 @@ import numpy as np
 import pytest
 
 import braidsim
-from braidsim.design.evaluate import carrier_classes, evaluate, machine_for, spearman
-from braidsim.design.optimise import OptimizerOptions, optimise_profile
-from braidsim.design.profiles import Limits, ProfileFamily, limit_margins
+from braidsim.design.drive import Drive, DriveModel
+from braidsim.design.evaluate import (
+    carrier_classes,
+    evaluate,
+    machine_for,
+    objective_ratio,
+    spearman,
+)
+from braidsim.design.optimise import (
+    CONSTRAINTS,
+    OptimizerOptions,
+    ProfileConstraints,
+    optimise_profile,
+)
+from braidsim.design.profiles import Limits, ProfileFamily, SpeedProfile, limit_margins
 from braidsim.design.report import to_toml
+from braidsim.design.robust import (
+    DEFAULT_TOLERANCES,
+    RobustObjective,
+    draw_samples,
+    improvement,
+)
 from braidsim.design.sensitivity import (
     Lever,
     elementary_effects,
@@ -165,7 +183,8 @@ def test_mean_speed_is_held_and_transfers_stay_at_slot_meetings() -> None:
 
 def test_no_dip_returns_the_constant_speed_result() -> None:
     """level = 1 is the constant machine, bit for bit; a flat speed table through the kernel's
-    profile path gives the same impacts to 1e-9."""
+    profile path gives the same impacts to 1e-8 s (the two-DOF runs integrate the slot wall's
+    position from the table: rounding differences, no more)."""
     base = two_carriers(0.6)
     const = evaluate(base, None, None)
     flat = evaluate(base, None, ProfileFamily("dip").profile([1.0, -0.2, 0.3, 0.1, 0.1]))
@@ -182,8 +201,8 @@ def test_no_dip_returns_the_constant_speed_result() -> None:
     a = run.impacts
     b = const.run.impacts if const.run is not None else None
     assert b is not None and len(a) == len(b)
-    np.testing.assert_allclose(a["t"], b["t"], rtol=0, atol=1e-9)
-    np.testing.assert_allclose(a["peak_force"], b["peak_force"], rtol=1e-9)
+    np.testing.assert_allclose(a["t"], b["t"], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(a["peak_force"], b["peak_force"], rtol=1e-7, atol=1e-3)
 
 
 def test_carrier_classes_reproduce_the_full_machine_exactly() -> None:
@@ -343,14 +362,23 @@ def spec_table(**design: Any) -> dict[str, Any]:
 
 def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
     s = parse_design_spec(spec_table())
-    assert s.objective == "peak_force" and s.family.name == "dip"
+    assert s.objective == "score" and s.pair == "both" and s.family.name == "dip"
     assert s.limits == Limits()
     assert s.sensitivity.levers[0].key == "track.clearance"
     s = parse_design_spec(spec_table(limits={"max_acceleration": "2 krad/s^2"}))
     assert s.limits.max_acceleration == pytest.approx(2000.0)
     cases = [
         (spec_table(objectiv="peak_force"), "design.objectiv: unknown key"),
-        (spec_table(objective="noise"), "design.objective"),
+        (spec_table(objective="loudness"), "design.objective"),
+        (spec_table(pair="carrier"), "design.pair"),
+        (spec_table(drive={"max_torque": "-1 N m"}), "design.drive.max_torque"),
+        (spec_table(drive={"gear_inertia": "3 kg"}), "design.drive.gear_inertia"),
+        (spec_table(robust={"statistic": "median"}), "design.robust.statistic"),
+        (
+            spec_table(robust={"tolerances": {"contact.track.restitution": [0.5, 2.0]}}),
+            r"design\.robust\.tolerances\.contact\.track\.restitution: 1\.1",
+        ),
+        (spec_table(levers={"effort": {"paint": 1}}), "design.levers.effort.paint"),
         (spec_table(optimizer={"maxiter": -1}), "design.optimizer.maxiter"),
         (spec_table(limits={"max_jerk": "3 m"}), "design.limits.max_jerk"),
         (spec_table(speed_limit={"threshold": "3 W"}), "design.speed_limit.threshold"),
@@ -391,3 +419,199 @@ def test_toml_writer_round_trips() -> None:
         },
     }
     assert tomllib.loads(to_toml(t)) == t
+
+
+# ---------------------------------------------------------------------------- both pairs
+
+
+def test_objective_includes_the_slot_contact() -> None:
+    """The two-DOF runs reduce the slot contact too: the combined figures are the sums (the
+    peak the larger) of the pairs', a profile that drives the carriers through the slot walls
+    raises the slot figures, and the objective of the slot pair (or both) sees it where the
+    track pair alone would not."""
+    base = two_carriers(0.5, h_a=2e-5)
+    const = evaluate(base, None, None, cycles=8).metrics
+    dip = ProfileFamily("dip").profile([0.6, -0.3, 0.1, 0.3, 0.3])
+    m = evaluate(base, None, dip, cycles=8).metrics
+    for x in (const, m):
+        assert x["slot.impacts"] > 0 and x["slot.peak_force"] > 0
+        for k in ("impact_energy", "impacts", "noise"):
+            assert x[k] == pytest.approx(x[f"track.{k}"] + x[f"slot.{k}"], rel=1e-14)
+        assert x["peak_force"] == max(x["track.peak_force"], x["slot.peak_force"])
+    # the slot walls push the carrier through the speed changes: m r_c omega' on the slot
+    assert m["slot.impact_energy"] > 2.0 * const["slot.impact_energy"]
+    slot = objective_ratio(m, const, "impact_energy", "slot")
+    assert slot == pytest.approx(m["slot.impact_energy"] / const["slot.impact_energy"])
+    both = objective_ratio(m, const, "impact_energy", "both")
+    track = objective_ratio(m, const, "impact_energy", "track")
+    assert both != track
+    e_t, e_s = const["track.impact_energy"], const["slot.impact_energy"]
+    assert both == pytest.approx((track * e_t + slot * e_s) / (e_t + e_s), rel=1e-12)
+    score = objective_ratio(m, const, "score", "slot")
+    figs = ("peak_force", "impact_energy", "impacts", "noise")
+    assert score == pytest.approx(
+        np.mean([m[f"slot.{k}"] / const[f"slot.{k}"] for k in figs]), rel=1e-14
+    )
+    assert objective_ratio(const, const, "score", "both") == 1.0
+
+
+def test_noise_proxy_is_the_sum_of_squared_peak_forces() -> None:
+    """The noise figure of a run is sum F_peak^2 / T over its impact episodes, per pair,
+    recomputed here from the single-carrier run with the same transfers."""
+    import braidsim
+
+    base = two_carriers(0.4)
+    ev = evaluate(base, None, None, full=True)
+    spec = machine_for(base, None)
+    _, plans = plan_transfers(spec, 0.4)
+    tot = {"track": 0.0, "slot": 0.0}
+    for p in plans:
+        sc = spec.scenario.with_overrides({"transfer.times": [float(t) for t in p.times]})
+        r = braidsim.simulate(sc, duration=0.4, sample_interval=0.0)
+        ep = r.impacts
+        for pair in tot:
+            sel = ep[(ep["pair"] == pair) & ~ep["initial"].astype(bool)]
+            tot[pair] += float((sel["peak_force"] ** 2).sum())
+    for pair in tot:
+        assert tot[pair] > 0
+        assert ev.metrics[f"{pair}.noise"] == pytest.approx(tot[pair] / 0.4, rel=1e-9)
+
+
+# ---------------------------------------------------------------------------- the drive
+
+
+def drive_model(**kw: Any) -> DriveModel:
+    return DriveModel.build(Drive(**kw), 8, 0.065, 16, 1.2, 0.065, 4 * math.pi, 0.0625, 0.0)
+
+
+def test_drive_figures_match_closed_forms() -> None:
+    """Inertia: N rho pi t R^4 / 2 + n m r_c^2 + i^2 J_m. A harmonic profile f = 1 + a cos
+    has tau = -J omega a (2 pi / T_c) sin: peak J omega a 2 pi / T_c, RMS that / sqrt 2; a
+    dip's peak acceleration is 1.5 (H - L) / w (cubic ramp)."""
+    dm = drive_model()
+    R = 1.15 * 0.065
+    jg = 0.5 * 7850 * math.pi * 0.025 * R**4
+    assert dm.inertia["gears"] == pytest.approx(8 * jg, rel=1e-12)
+    assert dm.inertia["carriers"] == pytest.approx(16 * 1.2 * 0.065**2, rel=1e-12)
+    assert dm.inertia["motor"] == pytest.approx(100 * 2e-4, rel=1e-12)
+    J, w, Tc, a = dm.inertia["total"], 4 * math.pi, 0.0625, 0.1
+    fig = dm.figures(SpeedProfile("fourier", {"a1": a, "b1": 0.0}))
+    peak = J * w * a * 2 * math.pi / Tc
+    assert fig["peak_torque"] == pytest.approx(peak, rel=1e-6)
+    assert fig["rms_torque"] == pytest.approx(peak / math.sqrt(2), rel=1e-9)
+    assert fig["mean_power"] == pytest.approx(0.0, abs=1e-9 * peak * w)
+    assert fig["max_speed"] == pytest.approx(1.1 * w, rel=1e-9)
+    pr = SpeedProfile("dip", dict(level=0.7, start=-0.2, length=0.2, ramp_down=0.25, ramp_up=0.3))
+    H = pr.fast_level()
+    fig = dm.figures(pr)
+    acc = w * 1.5 * (H - 0.7) / 0.25 / Tc
+    assert fig["max_acceleration"] == pytest.approx(acc, rel=1e-9)
+    assert fig["peak_torque"] == pytest.approx(J * acc, rel=1e-9)
+    assert fig["yarn_tension_swing"] == pytest.approx(0.05 * 0.065 * (acc + (H * w) ** 2), rel=1e-9)
+    const = dm.figures(None)
+    assert const["peak_torque"] == 0.0 and const["yarn_tension_swing"] == pytest.approx(
+        0.05 * 0.065 * w * w
+    )
+
+
+def test_optimiser_respects_the_drive_limits() -> None:
+    """Every simulated candidate and the result lie within the torque, RMS torque, power,
+    acceleration and jerk limits; the constraints are active (a share of the population
+    breaks each limit and is never simulated)."""
+    limits = Limits(max_acceleration=600.0, max_jerk=1.2e5)
+    dm = DriveModel.build(
+        Drive(max_torque=60.0, max_rms_torque=25.0, max_power=700.0),
+        8,
+        0.065,
+        2,
+        1.2,
+        0.065,
+        4 * math.pi,
+        0.0625,
+        0.0,
+    )
+    fam = ProfileFamily("dip")
+    cons = ProfileConstraints(fam, limits, 4 * math.pi, 0.0625, dm)
+    rng = np.random.default_rng(3)
+    broken = np.zeros(len(CONSTRAINTS), dtype=bool)
+    for _ in range(400):
+        x = random_params(fam, rng)
+        broken |= cons(x) < 0.0
+    # each of the drive's limits is broken by some random profile (not vacuous)
+    for name in ("acceleration", "jerk", "torque", "rms_torque", "power"):
+        assert broken[CONSTRAINTS.index(name)], name
+    res = optimise_profile(
+        two_carriers(0.3),
+        None,
+        fam,
+        limits,
+        "impact_energy",
+        OptimizerOptions(maxiter=3, popsize=4, seed=2, cycles=3),
+        pair="track",
+        drive=dm,
+    )
+    assert res.candidates, "nothing simulated"
+    for x, _ in res.candidates:
+        pr = fam.profile(x)
+        assert np.all(cons(x) >= 0.0)
+        f = dm.figures(pr)
+        assert f["peak_torque"] <= 60.0 and f["rms_torque"] <= 25.0 and f["peak_power"] <= 700.0
+        mg = limit_margins(pr, limits, 4 * math.pi, 0.0625)
+        assert mg["acceleration_max"] <= 600.0 and mg["jerk_max"] <= 1.2e5
+    assert all(v >= 0.0 for k, v in res.margins.items() if k.startswith("drive_"))
+
+
+# ---------------------------------------------------------------------------- robust
+
+
+def test_robust_objective_is_reproducible_with_a_seed() -> None:
+    """The same seed draws the same parameter sets and gives the same robust objective, bit
+    for bit; another seed other sets. Latin hypercube: one draw in each of n strata of every
+    tolerance."""
+    base = two_carriers(0.3, h_a=2e-5)
+    sc = machine_for(base, None).scenario
+    a = draw_samples(sc, DEFAULT_TOLERANCES, 6, 11)
+    b = draw_samples(sc, DEFAULT_TOLERANCES, 6, 11)
+    c = draw_samples(sc, DEFAULT_TOLERANCES, 6, 12)
+    assert a == b and a != c
+    for t in DEFAULT_TOLERANCES:
+        v = np.array([s[t.key] for s in a])
+        nom = float(sc[t.key]) if t.relative else 1.0
+        u = (v / nom - t.low) / (t.high - t.low)
+        assert sorted(np.floor(u * 6).astype(int).tolist()) == list(range(6))
+    pr = ProfileFamily("dip").profile([0.8, -0.2, 0.2, 0.3, 0.3])
+    r1 = RobustObjective(base, None, "score", "both", 3, a, "quantile", 0.8)
+    r2 = RobustObjective(base, None, "score", "both", 3, b, "quantile", 0.8)
+    v1, v2 = r1.ratios(pr), r2.ratios(pr)
+    assert v1.tolist() == v2.tolist() and len(set(v1.tolist())) > 1
+    assert r1(pr) == r2(pr) == pytest.approx(np.quantile(v1, 0.8), rel=1e-15)
+    assert r1(None) == 1.0
+
+
+def test_flat_profile_is_the_constant_speed_result_everywhere() -> None:
+    """A profile with no dip (level 1, or zero harmonics) is constant speed: the same metrics,
+    bit for bit, a robust ratio of exactly 1, zero improvement on every set, the drive's
+    figures of constant speed; and an optimiser that finds nothing better returns it."""
+    base = two_carriers(0.3)
+    sets = draw_samples(machine_for(base, None).scenario, DEFAULT_TOLERANCES, 3, 5)
+    for pr in (
+        ProfileFamily("dip").profile([1.0, -0.3, 0.2, 0.2, 0.2]),
+        ProfileFamily("fourier", 2).profile([0.0, 0.0, 0.0, 0.0]),
+    ):
+        assert pr.is_constant
+        for s in sets:
+            assert evaluate(base, None, pr, s, cycles=3).metrics == (
+                evaluate(base, None, None, s, cycles=3).metrics
+            )
+        imp, _, _ = improvement(base, None, sets, "score", "both", 3, pr)
+        assert imp.values.tolist() == [0.0, 0.0, 0.0]
+        assert drive_model().figures(pr) == drive_model().figures(None)
+    res = optimise_profile(
+        base,
+        None,
+        ProfileFamily("dip"),
+        Limits(max_acceleration=1.0, max_jerk=10.0),  # no dip fits: constant speed only
+        "score",
+        OptimizerOptions(maxiter=1, popsize=2, seed=1, cycles=2),
+    )
+    assert res.profile.is_constant and res.value == res.baseline_value == 1.0

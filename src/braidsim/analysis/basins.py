@@ -23,7 +23,7 @@ of runs that start at different vibration phases are compared at the same wall p
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -218,6 +218,7 @@ def basins(
     max_period: int = DEFAULT_MAX_PERIOD,
     match_tol: float = DEFAULT_MATCH_TOL,
     workers: int = 1,
+    on_done: Callable[[int], None] | None = None,
 ) -> BasinMap:
     """Basins of attraction over a grid of two parameters (usually initial conditions).
 
@@ -238,6 +239,8 @@ def basins(
         Relative tolerance of the orbit comparison (module docstring).
     workers : int
         Local processes (1: this process; 0 or less: all cores).
+    on_done : callable, optional
+        Called with the number of runs just finished (progress displays).
     """
     if x_key == y_key:
         raise InputError(f"basins: x and y are both {x_key!r}; allowed two different parameters")
@@ -257,6 +260,7 @@ def basins(
         period_tol=period_tol,
         max_period=max_period,
         workers=workers,
+        on_done=on_done,
     )
     ids, attractors = group_attractors(states, match_tol)
     return BasinMap(

@@ -206,6 +206,7 @@ def bifurcation(
     period_tol: float = DEFAULT_PERIOD_TOL,
     max_period: int = DEFAULT_MAX_PERIOD,
     workers: int = 1,
+    on_done: Callable[[int], None] | None = None,
 ) -> BifurcationDiagram:
     """Bifurcation diagram of the stroboscopic samples against parameter ``key``.
 
@@ -225,6 +226,8 @@ def bifurcation(
         As in :func:`braidsim.analysis.regimes.steady_state`.
     workers : int
         Local processes (1: this process; 0 or less: all cores).
+    on_done : callable, optional
+        Called with the number of runs just finished (progress displays).
     """
     base = as_scenario(scenario, overrides)
     vals = np.array([to_si(key, v) for v in values], dtype=float)
@@ -239,6 +242,7 @@ def bifurcation(
         period_tol=period_tol,
         max_period=max_period,
         workers=workers,
+        on_done=on_done,
     )
     return BifurcationDiagram(base.name, key, vals, tuple(states))
 

@@ -174,6 +174,9 @@ class EnergyBalance:
         m v^2 / 2 and the elastic contact energy.
     load_work, track_work, slot_work : np.ndarray
         Work done on the carrier since the start by the constant loads and the moving walls.
+    transfer_work : np.ndarray
+        Energy given to the carrier by the transfers to the next horn gear (the jump of its
+        kinetic and elastic energy at each transfer).
     contact_dissipated, friction_dissipated : np.ndarray
         Losses since the start (>= 0).
     residual : np.ndarray
@@ -188,6 +191,7 @@ class EnergyBalance:
     load_work: np.ndarray
     track_work: np.ndarray
     slot_work: np.ndarray
+    transfer_work: np.ndarray
     contact_dissipated: np.ndarray
     friction_dissipated: np.ndarray
     residual: np.ndarray
@@ -211,6 +215,7 @@ class EnergyBalance:
             "load_work": d(self.load_work),
             "track_work": d(self.track_work),
             "slot_work": d(self.slot_work),
+            "transfer_work": d(self.transfer_work),
             "contact_dissipated": d(self.contact_dissipated),
             "friction_dissipated": d(self.friction_dissipated),
             "residual": d(self.residual),
@@ -224,7 +229,7 @@ class EnergyBalance:
             "exchanged": self.exchanged,
             "max_abs_residual": float(np.max(np.abs(self.residual))) if self.residual.size else 0.0,
             "closure": self.closure,
-            "equation": "dE_kinetic + dE_elastic = W_load + W_track + W_slot"
+            "equation": "dE_kinetic + dE_elastic = W_load + W_track + W_slot + W_transfer"
             " - Q_contact - Q_friction",
         }
 
@@ -254,11 +259,14 @@ def energy_balance(result: Result, window: tuple[float, float] | None = None) ->
     load = rel(s["load_work_x"][sel] + s["load_work_y"][sel])
     track = rel(s["track_work"][sel])
     slot = rel(s["slot_work"][sel])
+    transfer = rel(s["transfer_work"][sel])
     qc = rel(s["track_dissipated"][sel] + s["slot_dissipated"][sel])
     qf = rel(s["friction_work_x"][sel] + s["friction_work_y"][sel])
     energy = kinetic + elastic
-    residual = rel(energy) - (load + track + slot - qc - qf)
-    supplied = load + track + slot
+    residual = rel(energy) - (load + track + slot + transfer - qc - qf)
+    supplied = load + track + slot + transfer
     lost = qc + qf
     exchanged = float(np.max(np.abs(supplied)) + np.max(np.abs(lost))) if supplied.size else 0.0
-    return EnergyBalance(t[sel], kinetic, elastic, load, track, slot, qc, qf, residual, exchanged)
+    return EnergyBalance(
+        t[sel], kinetic, elastic, load, track, slot, transfer, qc, qf, residual, exchanged
+    )

@@ -50,8 +50,8 @@ from braidsim.analysis.regimes import (
     as_scenario,
     reference_period,
 )
+from braidsim.core import pair_gaps
 from braidsim.errors import InputError
-from braidsim.integrate import kernel as K
 from braidsim.params import Scenario
 from braidsim.result import State
 
@@ -184,19 +184,12 @@ class CarrierFlow:
 
     def advance(self, state: State, tau: float) -> State:
         """The state ``tau`` seconds later."""
-        from braidsim.simulate import run_kernel
+        from braidsim.simulate import final_state, run_model
 
         model = dataclasses.replace(self.full, duration=float(tau))
         W = np.array([[state.t, state.t + tau]])
-        _, _, _, _, stats, y, _ = run_kernel(model, np.zeros(0), W, False, state)
-        return State(
-            t=float(stats[7]),
-            y=tuple(float(v) for v in y),
-            track_mode=int(stats[8]),
-            slot_mode=int(stats[9]),
-            track_v0=float(stats[10]),
-            slot_v0=float(stats[11]),
-        )
+        raw = run_model(model, windows=W, series=False, record_events=False, start=state)
+        return final_state(raw)
 
     def _components(self) -> tuple[int, ...]:
         return (0, 1, 2, 3) if self.two_dof else (0, 1)
@@ -238,21 +231,20 @@ class CarrierFlow:
     def consistent(self, ref: State, st: State) -> State:
         """``st`` with each pair's contact mode set from its penetration (module docstring)."""
         Y = np.asarray(st.y, dtype=float)
-        P, EX = self.full.P, self.full.excitation
         modes = [st.track_mode, st.slot_mode]
         v0s = [st.track_v0, st.slot_v0]
         ref_modes = [ref.track_mode, ref.slot_mode]
         ref_v0s = [ref.track_v0, ref.slot_v0]
         for pair in range(2 if self.two_dof else 1):
-            u, ud, eps = K.pair_state(st.t, Y, pair, P, EX)
-            want = -1 if u < 0.0 else (1 if u > eps else 0)
+            g_in, g_out, rate = pair_gaps.py(self.full.record, pair, st.t, Y)
+            want = -1 if g_in < 0.0 else (1 if g_out < 0.0 else 0)
             if want == modes[pair]:
                 continue
             if want != 0:
                 if ref_modes[pair] == want:
                     v0s[pair] = ref_v0s[pair]
                 else:
-                    approach = -ud if want < 0 else ud
+                    approach = -rate if want < 0 else rate
                     v0s[pair] = max(approach, self.vmin)
             modes[pair] = want
         return dataclasses.replace(

@@ -472,11 +472,11 @@ def steady_state_from_result(
     ``strobe`` are the stroboscopic times; they must be among the run's sample times (pass
     them in ``sample_times`` to :func:`braidsim.simulate`).
     """
-    from braidsim.integrate import kernel as K
+    from braidsim.core.layout import KIND_SAMPLE
 
     sc = result.model.scenario
     s = result.series
-    samp = s["kind"] == K.KIND_SAMPLE
+    samp = s["kind"] == KIND_SAMPLE
     ts = s["t"][samp]
     idx = np.searchsorted(ts, strobe)
     idx = np.clip(idx, 0, max(ts.size - 1, 0))
@@ -487,18 +487,17 @@ def steady_state_from_result(
     u = x - s["track_position"][samp][idx]
     t0, t1 = window
     E = result.episodes
-    c = {name: i for i, name in enumerate(K.EPISODE_COLUMNS)}
-    track = E[:, c["pair"]] == 0.0
-    t_on = E[:, c["t"]]
-    t_off = np.where(np.isnan(E[:, c["t_end"]]), result.final["t"], E[:, c["t_end"]])
+    track = E["pair"] == 0.0
+    t_on = E["t"]
+    t_off = np.where(np.isnan(E["t_end"]), result.final["t"], E["t_end"])
     overlap = track & (t_off >= t0) & (t_on <= t1)
-    onset = track & (E[:, c["initial"]] == 0.0) & (t_on >= t0) & (t_on <= t1)
-    inner = int(np.count_nonzero(onset & (E[:, c["wall"]] < 0)))
-    outer = int(np.count_nonzero(onset & (E[:, c["wall"]] > 0)))
+    onset = track & (E["initial"] == 0.0) & (t_on >= t0) & (t_on <= t1)
+    inner = int(np.count_nonzero(onset & (E["wall"] < 0)))
+    outer = int(np.count_nonzero(onset & (E["wall"] > 0)))
     inside = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
     fraction = float(inside[track].sum()) / (t1 - t0)
     longest = float((t_off - t_on)[overlap].max()) if overlap.any() else 0.0
-    v = E[onset, c["velocity"]]
+    v = E["velocity"][onset]
     vmax = float(v.max()) if v.size else 0.0
     h_a = float(sc["track.vibration_amplitude"])
     ptp = float(np.ptp(u)) if u.size else 0.0

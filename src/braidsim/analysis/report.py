@@ -23,8 +23,10 @@ from braidsim.analysis.impacts import (
     impact_statistics,
 )
 from braidsim.analysis.regimes import (
+    DEFAULT_CYCLES,
     DEFAULT_MAX_PERIOD,
     DEFAULT_PERIOD_TOL,
+    DEFAULT_TRANSIENT_CYCLES,
     SteadyState,
     as_scenario,
     contact_loss_bound,
@@ -62,6 +64,8 @@ class RunAnalysis:
         :func:`braidsim.analysis.regimes.contact_loss_bound`.
     spectra : list of Spectrum
         Of x and the track contact force over the window.
+    window_rule : str
+        How the window was chosen, in words.
     """
 
     result: Result
@@ -72,6 +76,7 @@ class RunAnalysis:
     steady: SteadyState | None
     bound: dict[str, Any]
     spectra: list[Spectrum]
+    window_rule: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -80,6 +85,7 @@ class RunAnalysis:
             "scenario": sc.name,
             "duration": float(self.result.final["t"]),
             "window": list(self.window),
+            "window_rule": self.window_rule,
             "impacts": self.impacts.to_dict(sequence=True),
             "impacts_in_window": self.impacts_window.to_dict(sequence=False),
             "energy_balance": self.energy.to_dict(),
@@ -87,6 +93,21 @@ class RunAnalysis:
             "contact_loss_bound": self.bound,
             "spectra": [s.to_dict() for s in self.spectra],
         }
+
+
+def default_duration(sc: Scenario) -> float:
+    """max(simulation.duration, (100 + 50) T) [s]: the transient and the window of the
+    steady-state rule of :func:`analyze` (T the reference period)."""
+    T = reference_period(sc)
+    return max(float(sc["simulation.duration"]), (DEFAULT_TRANSIENT_CYCLES + DEFAULT_CYCLES) * T)
+
+
+def default_transient(duration: float, period: float) -> float:
+    """max(D / 2, min(100 T, D - 50 T)) [s]: the discarded start of a run of D seconds."""
+    return max(
+        0.5 * duration,
+        min(DEFAULT_TRANSIENT_CYCLES * period, duration - DEFAULT_CYCLES * period),
+    )
 
 
 def sample_grid(sc: Scenario, duration: float, per_cycle: int) -> np.ndarray:
@@ -122,9 +143,21 @@ def analyze(
     overrides : mapping, optional
         ``{key: value}`` on top of it.
     duration : float, optional
-        [s]; default ``simulation.duration``.
+        [s]; default :func:`default_duration`: long enough for the transient and the window
+        of the steady-state rule below.
     transient : float, optional
-        Start of the steady-state window [s]; default half the duration.
+        Start of the steady-state window [s]; default :func:`default_transient`.
+
+    Steady-state rule
+    -----------------
+    A run starts with a transient (the first impacts), and what it settles to is judged
+    after it, as in the other analysis verbs: with T the reference period
+    (:func:`braidsim.analysis.regimes.reference_period`, T_h = 2 pi / omega_h),
+    ``DEFAULT_TRANSIENT_CYCLES`` = 100 periods are discarded and ``DEFAULT_CYCLES`` = 50
+    periods are analysed. The default duration is max(simulation.duration, 150 T) and the
+    default transient max(D / 2, min(100 T, D - 50 T)) for a run of D seconds: 100 periods
+    when the run holds 150, never less than its first half. The window used is reported
+    (``window`` and ``window_rule`` of :meth:`RunAnalysis.to_dict`).
     per_cycle : int
         Samples per excitation period (>= 16).
     period_tol, max_period
@@ -133,15 +166,15 @@ def analyze(
     from braidsim.simulate import simulate
 
     sc = as_scenario(scenario, overrides)
-    T_run = float(sc["simulation.duration"] if duration is None else duration)
+    T = reference_period(sc)
+    T_run = default_duration(sc) if duration is None else float(duration)
     if not (math.isfinite(T_run) and T_run > 0):
         raise InputError(f"duration: {T_run!r} s is out of range; allowed > 0 s")
-    t_tr = 0.5 * T_run if transient is None else float(transient)
+    t_tr = default_transient(T_run, T) if transient is None else float(transient)
     if not (math.isfinite(t_tr) and 0 <= t_tr < T_run):
         raise InputError(f"transient: {t_tr!r} s is out of range; allowed 0 <= T < {T_run:g} s")
     if int(per_cycle) != per_cycle or per_cycle < 16:
         raise InputError(f"per_cycle: {per_cycle!r} is out of range; allowed an integer >= 16")
-    T = reference_period(sc)
     grid = sample_grid(sc, T_run, int(per_cycle))
     res = simulate(sc, duration=T_run, sample_times=grid)
     n_cyc = math.floor((T_run - t_tr) / T + 1e-9)
@@ -158,6 +191,16 @@ def analyze(
             window = (float(st[0]), float(st[-1]))
             steady = steady_state_from_result(res, window, st, None, period_tol, max_period)
     spectra = run_spectra(res, window)
+    how = (
+        f"given: transient {t_tr:g} s"
+        if transient is not None
+        else f"default: max(D/2, min({DEFAULT_TRANSIENT_CYCLES} T, D - {DEFAULT_CYCLES} T)) "
+        f"= {t_tr:.6g} s discarded"
+    )
+    rule = (
+        f"{how} of a {T_run:g} s run (T = {T:.6g} s, {T_run / T:.4g} periods); "
+        f"steady state over whole periods {window[0]:.6g}-{window[1]:.6g} s"
+    )
     return RunAnalysis(
         res,
         window,
@@ -167,4 +210,5 @@ def analyze(
         steady,
         contact_loss_bound(sc),
         spectra,
+        rule,
     )

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from braidsim.analysis.regimes import (
@@ -79,6 +79,7 @@ def run_steady_states(
     period_tol: float = DEFAULT_PERIOD_TOL,
     max_period: int = DEFAULT_MAX_PERIOD,
     workers: int = 1,
+    on_done: Callable[[int], None] | None = None,
 ) -> list[SteadyState]:
     """The :class:`~braidsim.analysis.regimes.SteadyState` of every parameter set.
 
@@ -95,6 +96,12 @@ def run_steady_states(
         As in :func:`braidsim.analysis.regimes.steady_state`.
     workers : int
         Local processes; 1 runs here, 0 or less uses all cores.
+    on_done : callable, optional
+        Called with the number of runs just finished (progress displays).
+
+    If the caller is interrupted (KeyboardInterrupt, e.g. Ctrl-C or a SIGTERM that the
+    command line turns into one), the worker processes are terminated before the exception
+    goes on: none is left running.
 
     Raises
     ------
@@ -113,9 +120,14 @@ def run_steady_states(
     opts = _options(transient_cycles, cycles, strobe_phase, period_tol, max_period)
     nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)
     nw = max(1, min(nw, len(sets)))
+    done = on_done or (lambda n: None)
     if nw == 1:
-        return [_run_one(base, ov, opts) for ov in sets]
-    from concurrent.futures import ProcessPoolExecutor
+        res = []
+        for ov in sets:
+            res.append(_run_one(base, ov, opts))
+            done(1)
+        return res
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from braidsim.batch import process_context, scenario_payload
 
@@ -123,9 +135,31 @@ def run_steady_states(
     k = min(n, 4 * nw)  # interleaved slices balance costs that vary along the sets
     payload = scenario_payload(base)
     out: list[SteadyState | None] = [None] * n
-    with ProcessPoolExecutor(max_workers=nw, mp_context=process_context()) as pool:
-        futs = [pool.submit(_run_chunk, payload, sets[j::k], opts) for j in range(k)]
-        for j, fut in enumerate(futs):
-            for i, st in zip(range(j, n, k), fut.result(), strict=True):
+    pool = ProcessPoolExecutor(max_workers=nw, mp_context=process_context())
+    try:
+        futs = {pool.submit(_run_chunk, payload, sets[j::k], opts): j for j in range(k)}
+        for fut in as_completed(futs):
+            j = futs[fut]
+            chunk = fut.result()
+            for i, st in zip(range(j, n, k), chunk, strict=True):
                 out[i] = st
+            done(len(chunk))
+    except BaseException:
+        _stop(pool)
+        raise
+    pool.shutdown()
     return [s for s in out if s is not None]
+
+
+def _stop(pool: Any) -> None:
+    """Cancel what has not started and end the worker processes now (not after they
+    finish their current chunk, which is what ``shutdown`` alone waits for). SIGKILL: a
+    worker holds nothing to save, and a forked worker would turn SIGTERM into a
+    KeyboardInterrupt traceback of its own (it inherits the command line's handler)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.kill()
+    for p in procs:
+        p.join(5.0)

@@ -154,11 +154,11 @@ def run_spectra(
     InputError
         Too few samples in the window, non-uniform samples, or an unknown quantity.
     """
-    from braidsim.integrate import kernel as K
+    from braidsim.core.layout import KIND_SAMPLE
     from braidsim.result import UNITS
 
     s = result.series
-    samp = s["kind"] == K.KIND_SAMPLE
+    samp = s["kind"] == KIND_SAMPLE
     t = s["t"][samp]
     if t.size < 4:
         raise InputError("spectrum: fewer than 4 samples; sample the run (sample_interval > 0)")

@@ -61,6 +61,46 @@ def _console() -> Any:
     return Console()
 
 
+def _with_provenance(
+    payload: dict[str, Any], scenario: Any, settings: dict[str, Any]
+) -> dict[str, Any]:
+    """``payload`` led by the provenance record: version, date, resolved scenario and the
+    settings actually used (:func:`braidsim.provenance.provenance`)."""
+    from braidsim.provenance import provenance
+
+    prov = provenance(scenario, settings)
+    out = {**prov, **payload}
+    if "scenario" in payload:  # the analysis' own name wins (e.g. a run folder's)
+        out["scenario"] = payload["scenario"]
+    return out
+
+
+def _steady_settings(sc: Any, transient_cycles: float, cycles: int) -> dict[str, Any]:
+    """The steady-state window rule of the stroboscopic verbs, in numbers and words."""
+    from braidsim.analysis.regimes import reference_period
+
+    T = reference_period(sc)
+    t0 = transient_cycles * T
+    return {
+        "transient_cycles": transient_cycles,
+        "cycles": cycles,
+        "period": T,
+        "window": [t0, t0 + cycles * T],
+        "window_rule": (
+            f"the first {transient_cycles:g} periods T = {T:.6g} s are discarded; the steady "
+            f"state is judged over the next {cycles} ({t0:.6g}-{t0 + cycles * T:.6g} s for "
+            "the base scenario; each run uses its own T)"
+        ),
+    }
+
+
+def _title(name: str, sets: dict[str, Any]) -> str:
+    """Scenario name with the --set overrides, for figure titles."""
+    if not sets:
+        return name
+    return name + " (" + ", ".join(f"{k} = {v}" for k, v in sets.items()) + ")"
+
+
 # ----------------------------------------------------------------------------------------
 # restitution
 # ----------------------------------------------------------------------------------------
@@ -106,13 +146,19 @@ def restitution(
         raise InputError(f"--velocity: {v!r} m/s is out of range; allowed > 0 m/s")
     if not m > 0:
         raise InputError(f"--mass: {m!r} kg is out of range; allowed > 0 kg")
-    table = restitution_table(
-        law,
-        np.linspace(c_min, c_max, points),
-        v,
-        m,
-    )
-    payload = table.to_dict()
+    from braidsim.cli.progress import progress_status
+
+    with progress_status("simulating the impacts of every law", quiet=json_):
+        table = restitution_table(law, np.linspace(c_min, c_max, points), v, m)
+    settings = {
+        "laws": list(table.laws),
+        "c_min": c_min,
+        "c_max": c_max,
+        "points": points,
+        "velocity": v,
+        "mass": m,
+    }
+    payload = _with_provenance(table.to_dict(), None, settings)
     if out is not None:
         from braidsim.analysis.plots import plot_restitution
 
@@ -178,6 +224,7 @@ def bifurcation(
     import braidsim
     from braidsim.analysis.bifurcation import bifurcation as run_bifurcation
     from braidsim.analysis.bifurcation import check_scalar_key, parameter_values
+    from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
     _check_out(out, "bifurcation")
     _check_grid(points, workers, "--points")
@@ -186,10 +233,28 @@ def bifurcation(
     values = parameter_values(
         param, _axis_value("--from", param, start), _axis_value("--to", param, stop), points
     )
-    diag = run_bifurcation(
-        sc, param, values, transient_cycles=transient_cycles, cycles=cycles, workers=workers
-    )
-    payload = diag.to_dict(samples=True)
+    with (
+        sigterm_as_interrupt(),
+        progress_bar(f"bifurcation of {sc.name}", len(values), quiet=json_) as advance,
+    ):
+        diag = run_bifurcation(
+            sc,
+            param,
+            values,
+            transient_cycles=transient_cycles,
+            cycles=cycles,
+            workers=workers,
+            on_done=advance,
+        )
+    settings = {
+        "param": param,
+        "from": start,
+        "to": stop,
+        "points": points,
+        "workers": workers,
+        **_steady_settings(sc, transient_cycles, cycles),
+    }
+    payload = _with_provenance(diag.to_dict(samples=True), sc, settings)
     if out is not None:
         from braidsim.analysis.plots import plot_bifurcation
 
@@ -207,6 +272,7 @@ def bifurcation(
         tab.add_row(f"{v:.6g}", r.label, str(r.period or "-"), f"{r.impacts_per_cycle:.3g}")
     con = _console()
     con.print(tab)
+    con.print(f"steady-state window: {settings['window_rule']}")
     for tr in diag.transitions():
         con.print(
             f"change between {tr['lower']:.6g} and {tr['upper']:.6g}: {tr['from']} -> {tr['to']}"
@@ -253,10 +319,36 @@ def basins(
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
     xs = parameter_values(x, _axis_value("--x-from", x, x_from), _axis_value("--x-to", x, x_to), nx)
     ys = parameter_values(y, _axis_value("--y-from", y, y_from), _axis_value("--y-to", y, y_to), ny)
-    bmap = run_basins(
-        sc, x, xs, y, ys, transient_cycles=transient_cycles, cycles=cycles, workers=workers
-    )
-    payload = bmap.to_dict()
+    from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
+
+    with (
+        sigterm_as_interrupt(),
+        progress_bar(f"basins of {sc.name}", len(xs) * len(ys), quiet=json_) as advance,
+    ):
+        bmap = run_basins(
+            sc,
+            x,
+            xs,
+            y,
+            ys,
+            transient_cycles=transient_cycles,
+            cycles=cycles,
+            workers=workers,
+            on_done=advance,
+        )
+    settings = {
+        "x": x,
+        "x_from": x_from,
+        "x_to": x_to,
+        "nx": nx,
+        "y": y,
+        "y_from": y_from,
+        "y_to": y_to,
+        "ny": ny,
+        "workers": workers,
+        **_steady_settings(sc, transient_cycles, cycles),
+    }
+    payload = _with_provenance(bmap.to_dict(), sc, settings)
     if out is not None:
         from braidsim.analysis.plots import plot_basins
 
@@ -271,6 +363,7 @@ def basins(
         tab.add_row(str(a.id), a.label, str(a.period or "-"), a.walls, str(a.count))
     con = _console()
     con.print(tab)
+    con.print(f"steady-state window: {settings['window_rule']}")
     failed = int((bmap.ids < 0).sum())
     if failed:
         con.print(f"{failed} runs failed numerically")
@@ -296,15 +389,25 @@ def lyapunov(
     d0: Annotated[
         str, typer.Option(help="Separation of the two trajectories [m], e.g. '1 nm'.")
     ] = "1 nm",
+    curve: Annotated[
+        bool,
+        typer.Option(
+            "--curve",
+            help="Print the running estimate (times, running) in the JSON too; "
+            "lyapunov.json of --out always has it.",
+        ),
+    ] = False,
     out: OutOpt = None,
     json_: JsonOpt = False,
 ) -> None:
     """Largest Lyapunov exponent of the settled motion (two nearby trajectories)."""
     import braidsim
     from braidsim.analysis.lyapunov import carrier_lyapunov
+    from braidsim.cli.progress import progress_status
 
     _check_out(out, "lyapunov")
-    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
+    sets = parse_sets(set_)
+    sc = braidsim.load_scenario(scenario, overrides=sets)
     d0_m = quantity_option("--d0", d0, "m")
     if not (0 < d0_m <= 1e-3):
         raise InputError(
@@ -312,20 +415,35 @@ def lyapunov(
             "e.g. '1 nm')"
         )
     tau = None if interval is None else quantity_option("--interval", interval, "s")
-    res = carrier_lyapunov(
-        sc, transient_cycles=transient_cycles, cycles=cycles, interval=tau, d0=d0_m
-    )
-    payload = res.to_dict(curve=True)
+    with progress_status(f"two trajectories of {sc.name}", quiet=json_):
+        res = carrier_lyapunov(
+            sc, transient_cycles=transient_cycles, cycles=cycles, interval=tau, d0=d0_m
+        )
+    settings = {
+        "transient_cycles": transient_cycles,
+        "cycles": cycles,
+        "interval": res.estimate.interval,
+        "d0": d0_m,
+        "transient": res.transient,
+        "window_rule": (
+            f"the first {transient_cycles:g} periods ({res.transient:.6g} s) are discarded; "
+            f"the exponent is measured over the next {cycles:g}"
+        ),
+    }
+    payload = _with_provenance(res.to_dict(curve=True), sc, settings)
     if out is not None:
         from braidsim.analysis.plots import plot_lyapunov
 
+        title = f"{_title(sc.name, sets)}: convergence"
         _write_outputs(
             out,
             "lyapunov",
             payload,
-            {"lyapunov.png": lambda: plot_lyapunov(res.estimate, f"{sc.name}: convergence")},
+            {"lyapunov.png": lambda: plot_lyapunov(res.estimate, title)},
         )
     if json_:
+        if not curve:
+            payload = {k: v for k, v in payload.items() if k not in ("times", "running")}
         print_json(payload)
         return
     con = _console()
@@ -388,15 +506,25 @@ def analyze(
         ),
     ],
     set_: SetOpt = None,
-    duration: Annotated[str | None, typer.Option(help="Simulated time [s].")] = None,
+    duration: Annotated[
+        str | None,
+        typer.Option(
+            help="Simulated time [s] (default: the scenario's, at least 150 excitation periods)."
+        ),
+    ] = None,
     transient: Annotated[
-        str | None, typer.Option(help="Start of the steady-state window [s] (default: half).")
+        str | None,
+        typer.Option(
+            help="Start of the steady-state window [s] (default: after 100 excitation periods, "
+            "at least half the run, leaving 50 periods)."
+        ),
     ] = None,
     out: OutOpt = None,
     json_: JsonOpt = False,
 ) -> None:
     """Impact statistics, energy balance, regime, contact-loss bound and spectra of a run."""
     from braidsim.analysis.report import analyze as run_analyze
+    from braidsim.cli.progress import progress_status
 
     _check_out(out, "analyze")
     sc, dur = _run_source(run)
@@ -406,8 +534,18 @@ def analyze(
     if duration is not None:
         dur = quantity_option("--duration", duration, "s")
     t0 = None if transient is None else quantity_option("--transient", transient, "s")
-    a = run_analyze(sc, duration=dur, transient=t0)
-    payload = a.to_dict()
+    with progress_status(f"simulating and analysing {sc.name}", quiet=json_):
+        a = run_analyze(sc, duration=dur, transient=t0)
+    settings = {
+        "duration": float(a.result.model.duration),
+        "transient": a.window[0] if t0 is None else t0,
+        "window": list(a.window),
+        "window_rule": a.window_rule,
+    }
+    prov_sc = a.result.model.scenario.with_overrides(
+        {"simulation.duration": float(a.result.model.duration)}
+    )
+    payload = _with_provenance(a.to_dict(), prov_sc, settings)
     if out is not None:
         from braidsim.analysis import plots
 
@@ -432,6 +570,7 @@ def _print_analysis(d: dict[str, Any], out: Path | None) -> None:
         f"[bold]{d['scenario']}[/bold]: {d['duration']:g} s, window {d['window'][0]:.4g}-"
         f"{d['window'][1]:.4g} s"
     )
+    con.print(f"steady-state window: {d['window_rule']}", markup=False)
     imp = d["impacts"]
     v = imp["approach_speed"]
     counts = ", ".join(f"{k} {n}" for k, n in imp["counts"].items()) or "-"

@@ -37,6 +37,27 @@ app = typer.Typer(
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def _show_version(value: bool) -> None:
+    if value:
+        from braidsim.provenance import version
+
+        sys.stdout.write(f"braidsim {version()}\n")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False,
+        "--version",
+        callback=_show_version,
+        is_eager=True,
+        help="Print the version and exit.",
+    ),
+) -> None:
+    """Carrier-track contact dynamics of maypole braiding machines."""
+
+
 def _clean(obj: Any) -> Any:
     """NaN and inf become null so that the output is strict JSON."""
     if isinstance(obj, float):
@@ -51,7 +72,11 @@ def _clean(obj: Any) -> Any:
 
 
 def print_json(obj: Any) -> None:
-    """One strict JSON object on stdout, nothing else."""
+    """One strict JSON object on stdout, nothing else; it starts with ``braidsim_version``."""
+    from braidsim.provenance import version
+
+    if isinstance(obj, dict):
+        obj = {"braidsim_version": version(), **obj}
     sys.stdout.write(json.dumps(_clean(obj), allow_nan=False) + "\n")
     sys.stdout.flush()
 

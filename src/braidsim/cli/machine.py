@@ -48,8 +48,13 @@ def machine(
     s = load_machine_spec(spec)
     check_output_directory(out, REPORT_KIND)  # fail before the run, not after it
     dur = None if duration is None else quantity_option("--duration", duration, "s")
-    run = run_machine(s, duration=dur, workers=workers, frames=frames)
-    data = write_report(run, out, animation=frames != 0)
+    from braidsim.cli.progress import progress_status
+
+    with progress_status(f"simulating every carrier of {s.name}", quiet=json_):
+        run = run_machine(s, duration=dur, workers=workers, frames=frames)
+    what = "tables, figures and the animation (machine.gif)" if frames != 0 else "the report"
+    with progress_status(f"writing {what} into {out}", quiet=json_):
+        data = write_report(run, out, animation=frames != 0)
     if json_:
         print_json(data)
         return

@@ -42,7 +42,10 @@ def paper(
         TimeElapsedColumn(),
         TextColumn("{task.description}"),
     )
-    with Progress(*columns, console=err, transient=False) as progress:
+    from braidsim.cli.progress import enabled
+
+    # progress only for a person watching: not under --json, not into a pipe or a log
+    with Progress(*columns, console=err, transient=False, disable=not enabled(json_)) as progress:
         task = progress.add_task("compiling the integrator", total=total_steps(load_paper_values()))
 
         def on_step(description: str, n: int) -> None:

@@ -23,15 +23,26 @@ def run(
     window: Annotated[
         tuple[str, str] | None, typer.Option(help="T0 T1: ranges over this window [s].")
     ] = None,
-    out: Annotated[Path | None, typer.Option(help="Write plots, series and summary here.")] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(
+            help="Write plots, series.nc (compressed netCDF4), impacts.csv and summary.json "
+            "into this new directory (or an earlier run output, replaced)."
+        ),
+    ] = None,
+    csv: Annotated[
+        bool, typer.Option("--csv", help="With --out, also write the series as series.csv.")
+    ] = False,
     json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Simulate one carrier and report depth and force ranges and the impacts."""
     import braidsim
-    from braidsim.io import atomic_directory, check_output_directory
+    from braidsim.cli.progress import progress_status
 
     if out is not None:
-        check_output_directory(out, "run")  # refuse before the run, not after it
+        from braidsim.io import check_output_directory
+
+        check_output_directory(out, "run")  # refuse before the run, not after
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
     dur = None if duration is None else quantity_option("--duration", duration, "s")
     win = (
@@ -43,53 +54,74 @@ def run(
         )
     )
     windows = [win] if win else None
-    res = braidsim.simulate(sc, duration=dur, windows=windows)
+    T = float(sc["simulation.duration"] if dur is None else dur)
+    with progress_status(f"simulating {sc.name}, {T:g} s", quiet=json_):
+        res = braidsim.simulate(sc, duration=dur, windows=windows)
     summary = res.summary(window=win)
     if out is not None:
-        import json
-
-        from braidsim.plotting import run_figures
-
-        # built aside and renamed into place: the folder is the new run whole, or the old
-        # one untouched (never new series beside an old summary.json)
-        with atomic_directory(out, kind="run") as tmp:
-            res.to_csv(tmp)
-            run_figures(res, tmp)
-            res.to_xarray().to_netcdf(tmp / "series.nc")
-            from braidsim.cli.common import _clean
-
-            (tmp / "summary.json").write_text(
-                json.dumps(_clean(summary), indent=1), encoding="utf-8"
-            )
+        with progress_status(f"writing {out}", quiet=json_):
+            _write_run(res, summary, out, csv)
     if json_:
         print_json(summary)
         return
     _print_summary(summary, out)
 
 
+def _write_run(res: Any, summary: dict[str, Any], out: Path, csv: bool) -> None:
+    """The files of ``run --out``, written as one directory (whole or absent)."""
+    import json
+
+    from braidsim.cli.common import _clean
+    from braidsim.export import write_series_netcdf
+    from braidsim.io import atomic_directory
+    from braidsim.plotting import run_figures
+
+    with atomic_directory(out, kind="run") as tmp:
+        if csv:
+            res.to_csv(tmp)
+        else:
+            (tmp / "impacts.csv").write_text(res.impacts.to_csv(index=False), encoding="utf-8")
+        run_figures(res, tmp)
+        write_series_netcdf(res, tmp / "series.nc")
+        (tmp / "summary.json").write_text(json.dumps(_clean(summary), indent=1), encoding="utf-8")
+
+
 def _print_summary(summary: dict, out: Path | None) -> None:
+    """The tables of ``run``: the ranges of the track pair (x), and of the slot pair (y) too
+    when the scenario has both degrees of freedom (``simulation.dof = "xy"``)."""
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
     con = Console()
+    sim = summary.get("simulation", {})
     con.print(
-        f"[bold]{summary['scenario']}[/bold]  "
+        f"[bold]{escape(summary['scenario'])}[/bold]  "
         f"window {summary['window'][0]:g}-{summary['window'][1]:g} s"
+        + (f"  (run of {sim['duration']:g} s)" if "duration" in sim else "")
     )
-    tab = Table("track (x)", "min", "max")
+    xy = summary["parameters"].get("simulation.dof") == "xy"
     scale = {
         "depth": (1e3, "mm"),
         "stiffness_force": (1, "N"),
         "damping_force": (1, "N"),
         "contact_force": (1, "N"),
     }
+    pairs = [("x", "track (x)")] + ([("y", "slot (y)")] if xy else [])
+    tab = Table("quantity", *(f"{h} {m}" for _, h in pairs for m in ("min", "max")))
     for k, (f, u) in scale.items():
-        lo, hi = summary["x"][k]
-        tab.add_row(escape(f"{k} [{u}]"), f"{lo * f:.6g}", f"{hi * f:.6g}")
+        cells = []
+        for key, _ in pairs:
+            lo, hi = summary[key][k]
+            cells += [f"{lo * f:.6g}", f"{hi * f:.6g}"]
+        tab.add_row(escape(f"{k} [{u}]"), *cells)
     con.print(tab)
     imp = summary["impacts"]
-    con.print(f"{len(imp)} impacts; final x = {summary['final']['x'] * 1e3:.6g} mm")
+    fin = summary["final"]
+    final = f"final x = {fin['x'] * 1e3:.6g} mm"
+    if xy:
+        final += f", y = {fin['y'] * 1e3:.6g} mm"
+    con.print(f"{len(imp)} impacts; {final}")
     if imp:
         t2 = Table(
             *(
@@ -107,11 +139,12 @@ def _print_summary(summary: dict, out: Path | None) -> None:
         )
         for r in imp[:12]:
             reb = r["rebound_velocity"]
+            vel = r["velocity"]
             t2.add_row(
                 f"{r['t']:.6f}",
                 r["pair"],
                 r["wall"],
-                f"{r['velocity']:.4g}",
+                "-" if vel is None else f"{vel:.4g}",
                 "-" if reb is None else f"{reb:.4g}",
                 f"{r['peak_force']:.5g}",
                 f"{r['max_depth'] * 1e3:.4g}",

@@ -132,3 +132,7 @@ def sweep_plot(
     path = save(fig, out)
     if json_:
         print_json({"figure": str(path), "metric": metric, "x": x, "y": y})
+        return
+    from rich.console import Console
+
+    Console().print(f"{metric} over {x}" + (f" and {y}" if y else "") + f" written to {path}")

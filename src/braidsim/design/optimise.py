@@ -27,19 +27,20 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from braidsim.design.drive import DriveModel
 from braidsim.design.evaluate import (
     METRIC_KEYS,
     Evaluation,
     check_objective,
+    check_pair,
     evaluate,
-    objective_value,
 )
 from braidsim.design.profiles import (
     Limits,
@@ -48,9 +49,19 @@ from braidsim.design.profiles import (
     feasible,
     limit_margins,
 )
+from braidsim.design.robust import RobustObjective
 from braidsim.errors import InputError
 
-CONSTRAINTS = ("fit", "min_speed", "max_speed", "acceleration", "jerk")
+CONSTRAINTS = (
+    "fit",
+    "min_speed",
+    "max_speed",
+    "acceleration",
+    "jerk",
+    "torque",
+    "rms_torque",
+    "power",
+)
 
 
 @dataclass(frozen=True)
@@ -135,43 +146,39 @@ class OptimizerOptions:
 
 
 class ProfileObjective:
-    """x -> proxy objective (picklable, so that a process pool can evaluate it)."""
+    """x -> robust objective of the profile (:class:`braidsim.design.robust.RobustObjective`);
+    picklable, so that a process pool can evaluate it."""
 
-    def __init__(
-        self,
-        base: Mapping[str, Any],
-        path: Path | None,
-        family: ProfileFamily,
-        objective: str,
-        cycles: float,
-    ) -> None:
-        self.base = dict(base)
-        self.path = path
+    def __init__(self, robust: RobustObjective, family: ProfileFamily) -> None:
+        self.robust = robust
         self.family = family
-        self.objective = check_objective(objective)
-        self.cycles = cycles
         self.log: list[tuple[np.ndarray, float]] = []
 
-    def evaluation(self, x: np.ndarray) -> Evaluation:
-        return evaluate(self.base, self.path, self.family.profile(x), cycles=self.cycles, workers=1)
-
     def __call__(self, x: np.ndarray) -> float:
-        v = objective_value(self.evaluation(x), self.objective)
+        v = self.robust(self.family.profile(x))
         # in this process only (a pool's workers keep their own copies)
         self.log.append((np.array(x, dtype=float), v))
         return v
 
 
 class ProfileConstraints:
-    """x -> normalised limit margins (>= 0 satisfied), in the order of :data:`CONSTRAINTS`."""
+    """x -> normalised limit margins (>= 0 satisfied), in the order of :data:`CONSTRAINTS`:
+    the motion limits (:func:`braidsim.design.profiles.limit_margins`) and, with a drive
+    model, the motor's torque, RMS torque and power (:meth:`DriveModel.margins`)."""
 
     def __init__(
-        self, family: ProfileFamily, limits: Limits, mean_speed: float, cycle_time: float
+        self,
+        family: ProfileFamily,
+        limits: Limits,
+        mean_speed: float,
+        cycle_time: float,
+        drive: DriveModel | None = None,
     ) -> None:
         self.family = family
         self.limits = limits
         self.mean_speed = mean_speed
         self.cycle_time = cycle_time
+        self.drive = drive
 
     def margins(self, x: np.ndarray) -> dict[str, float]:
         return limit_margins(self.family.profile(x), self.limits, self.mean_speed, self.cycle_time)
@@ -179,17 +186,21 @@ class ProfileConstraints:
     def __call__(self, x: np.ndarray) -> np.ndarray:
         m = self.margins(x)
         if m["fit"] < 0.0:
-            return np.array([m["fit"], -1.0, -1.0, -1.0, -1.0])
+            return np.array([m["fit"]] + [-1.0] * (len(CONSTRAINTS) - 1))
         L = self.limits
-        return np.array(
-            [
-                m["fit"],
-                m["min_speed"],
-                m["max_speed"],
-                m["acceleration"] / L.max_acceleration,
-                m["jerk"] / L.max_jerk,
-            ]
-        )
+        out = [
+            m["fit"],
+            m["min_speed"],
+            m["max_speed"],
+            m["acceleration"] / L.max_acceleration,
+            m["jerk"] / L.max_jerk,
+        ]
+        if self.drive is not None:
+            d = self.drive.margins(self.family.profile(x))
+            out += [d["torque"], d["rms_torque"], d["power"]]
+        else:
+            out += [1.0, 1.0, 1.0]
+        return np.array(out)
 
 
 @dataclass
@@ -207,11 +218,11 @@ class OptimizationResult:
     profile : SpeedProfile
         Best profile.
     value : float
-        Its proxy objective.
+        Its robust objective on the optimiser's parameter sets (a ratio to constant speed).
     baseline_value : float
-        The constant profile's proxy objective.
+        The constant profile's (1 by construction).
     margins : dict
-        Limit margins of the best profile (:func:`limit_margins`).
+        Limit margins of the best profile (:func:`limit_margins`), with the drive's.
     history : list of dict
         Per generation: best value, evaluations so far, population's feasible fraction.
     evaluations : int
@@ -229,6 +240,7 @@ class OptimizationResult:
     limits: Limits
     options: OptimizerOptions
     objective: str
+    pair: str
     x: np.ndarray
     profile: SpeedProfile
     value: float
@@ -243,13 +255,14 @@ class OptimizationResult:
     def to_dict(self) -> dict[str, Any]:
         return {
             "objective": self.objective,
+            "pair": self.pair,
             "family": self.family.to_dict(),
             "limits": self.limits.to_dict(),
             "options": self.options.to_dict(),
             "parameters": dict(zip(self.family.names, self.x.tolist(), strict=True)),
-            "proxy_value": self.value,
-            "proxy_baseline_value": self.baseline_value,
-            "proxy_reduction": 1.0 - self.value / self.baseline_value
+            "robust_value": self.value,
+            "robust_baseline_value": self.baseline_value,
+            "robust_improvement": 1.0 - self.value / self.baseline_value
             if self.baseline_value
             else math.nan,
             "margins": self.margins,
@@ -265,11 +278,17 @@ def optimise_profile(
     path: Path | None,
     family: ProfileFamily,
     limits: Limits,
-    objective: str = "peak_force",
+    objective: str = "score",
     options: OptimizerOptions | None = None,
     progress: Callable[[dict[str, float]], None] | None = None,
+    pair: str = "both",
+    drive: DriveModel | None = None,
+    samples: Sequence[Mapping[str, float]] = (),
+    statistic: str = "mean",
+    quantile: float = 0.9,
 ) -> OptimizationResult:
-    """Find the profile of ``family`` that minimises ``objective`` within ``limits``.
+    """Find the profile of ``family`` that minimises the robust ``objective`` within
+    ``limits`` and the drive's limits.
 
     Parameters
     ----------
@@ -279,17 +298,30 @@ def optimise_profile(
         Parametrisation.
     limits : Limits
         Motion limits (constraints).
-    objective : str
-        One of :data:`braidsim.design.evaluate.OBJECTIVES`.
+    objective, pair : str
+        See :func:`braidsim.design.evaluate.objective_ratio`.
     options : OptimizerOptions
         Budget, seed, proxy length, workers.
     progress : callable, optional
         Called after each generation with the history row.
+    drive : DriveModel, optional
+        Adds the motor's torque, RMS torque and power limits to the constraints.
+    samples : sequence of dict
+        Parameter sets (scenario overrides) of the robust objective; empty: the nominal
+        machine (:class:`braidsim.design.robust.RobustObjective`).
+    statistic, quantile
+        The robust statistic of the ratios.
 
     Raises
     ------
     InputError
-        A bad objective.
+        A bad objective or pair.
+
+    Notes
+    -----
+    The search is global only. A local refinement of the best candidate by the exact
+    sensitivities of the run (not available yet) would go after the global search, on the
+    same robust objective and constraints.
     """
     from scipy.optimize import NonlinearConstraint, differential_evolution
 
@@ -297,9 +329,11 @@ def optimise_profile(
 
     opt = options or OptimizerOptions()
     check_objective(objective)
+    check_pair(pair)
     spec = machine_for(base, path)
-    func = ProfileObjective(base, path, family, objective, opt.cycles)
-    cons = ProfileConstraints(family, limits, spec.mean_speed, spec.cycle_time)
+    robust = RobustObjective(base, path, objective, pair, opt.cycles, samples, statistic, quantile)
+    func = ProfileObjective(robust, family)
+    cons = ProfileConstraints(family, limits, spec.mean_speed, spec.cycle_time, drive)
     x0 = family.constant()
     baseline = func(x0)
     bounds = family.bounds(limits)
@@ -350,12 +384,14 @@ def optimise_profile(
             pool.shutdown()
     x = np.asarray(res.x, dtype=float)
     value = float(res.fun)
-    if not (value < baseline):
-        # nothing beat constant speed: keep it exactly (its parameters may differ from x0 only
-        # in the dip geometry, which has no effect at level 1)
+    if not (value < baseline) or not np.all(cons(x) >= 0.0):
+        # nothing feasible beat constant speed: keep it exactly (its parameters may differ
+        # from x0 only in the dip geometry, which has no effect at level 1)
         x, value = x0, baseline
     best = family.profile(x)
     margins = limit_margins(best, limits, spec.mean_speed, spec.cycle_time)
+    if drive is not None:
+        margins.update({f"drive_{k}": v for k, v in drive.margins(best).items()})
     if not feasible(margins):  # pragma: no cover - SciPy keeps feasible solutions first
         raise AssertionError(f"optimiser returned an infeasible profile: {margins}")
     return OptimizationResult(
@@ -363,6 +399,7 @@ def optimise_profile(
         limits,
         opt,
         objective,
+        pair,
         x,
         best,
         value,

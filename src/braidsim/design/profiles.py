@@ -84,12 +84,21 @@ class Limits:
         Largest |omega'| [rad/s^2].
     max_jerk : float
         Largest |omega''| [rad/s^3].
+
+    Defaults (engineering estimates for the horn-gear drive of a braider, not catalogue
+    values): the gears never drop below a quarter of the mean speed nor exceed twice it
+    (240 rpm for a machine rated 120 rpm: gear trains of this kind are built for about
+    that); ``max_acceleration = 1000 rad/s^2`` puts a tangential acceleration
+    ``r_c omega'`` of 65 m/s^2 (6.6 g) on a carrier of the paper's 65 mm turning radius, the
+    order of what a servo drive reaches on the machine's inertia within its peak torque
+    (:mod:`braidsim.design.drive`); ``max_jerk = 2e5 rad/s^3`` takes 5 ms to reach that
+    acceleration, gentle enough for a gear train with backlash.
     """
 
     min_speed: float = 0.25
-    max_speed: float = 2.5
-    max_acceleration: float = 3000.0
-    max_jerk: float = 3.0e6
+    max_speed: float = 2.0
+    max_acceleration: float = 1000.0
+    max_jerk: float = 2.0e5
 
     def __post_init__(self) -> None:
         if not (0.0 < self.min_speed < 1.0):
@@ -316,8 +325,11 @@ def limit_margins(
 
 
 def feasible(margins: dict[str, float]) -> bool:
-    """All margins >= 0."""
-    return all(margins[k] >= 0.0 for k in ("fit", "min_speed", "max_speed", "acceleration", "jerk"))
+    """All margins >= 0 (the motion limits, and the drive's ``drive_*`` margins when
+    present)."""
+    keys = ["fit", "min_speed", "max_speed", "acceleration", "jerk"]
+    keys += [k for k in margins if k.startswith("drive_")]
+    return all(margins[k] >= 0.0 for k in keys)
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,10 @@ place (:func:`braidsim.io.atomic_directory`): the report is complete or absent.
 ================================  ===========================================================
 ``summary.json``                  everything below as numbers (SI units)
 ``report.md``                     the report
-``design_summary.png``            main figure: speed over the cycle, a carrier through a
-                                  transfer, peak force of every transfer, before and after
+``design_summary.png``            main figure: speed and drive torque over the cycle, a
+                                  carrier through a transfer, the change of each figure of
+                                  both contact pairs, the improvement distributions of the
+                                  profile and the other levers over tolerance samples
 ``profile.png``                   speed, acceleration and jerk over the cycle with the limits
 ``peak_force_per_transfer.png``   peak force and impacts of every transfer, before and after
 ``sensitivity.png``               one-at-a-time swings and Morris mu* of the levers
@@ -32,7 +34,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from braidsim.design.evaluate import METRIC_KEYS, OBJECTIVES
+from braidsim.design.evaluate import (
+    FIGURES,
+    METRIC_KEYS,
+    OBJECTIVES,
+    metric_label,
+    noise_level,
+)
 from braidsim.io import atomic_directory, atomic_write_text
 
 if TYPE_CHECKING:
@@ -75,12 +83,17 @@ def summary(res: DesignResult, files: list[str] | None = None) -> dict[str, Any]
             "duration": m.duration,
             "cycle_time": m.cycle_time,
         },
+        "braidsim_version": braidsim_version(),
         "objective": spec.objective,
+        "pair": spec.pair,
         "objective_title": OBJECTIVES[spec.objective][0],
         "objective_unit": OBJECTIVES[spec.objective][1],
-        "baseline": _finite(res.before.metrics),
-        "optimised": _finite(res.after.metrics),
+        "baseline": _side(res.before.metrics, res.drive_before, _zero_robust(res)),
+        "optimised": _side(res.after.metrics, res.drive_after, _robust(res)),
+        "robust": _robust(res),
         "reduction": res.reductions,
+        "drive_model": res.drive.to_dict() if res.drive is not None else None,
+        "levers": [lv.to_dict() for lv in res.levers],
         "production": {
             **res.production,
             "kinematics": _kinematics(res),
@@ -124,6 +137,59 @@ def _finite(d: dict[str, float]) -> dict[str, float]:
     return {k: float(v) for k, v in d.items()}
 
 
+def braidsim_version() -> str:
+    """``braidsim.__version__``, else the installed package's metadata."""
+    import braidsim
+
+    v = getattr(braidsim, "__version__", None)
+    if isinstance(v, str):
+        return v
+    from importlib.metadata import version
+
+    return version("braidsim")
+
+
+def _pair(m: dict[str, float], pair: str) -> dict[str, float]:
+    p = "" if pair == "combined" else f"{pair}."
+    noise = float(m[f"{p}noise"])
+    return {
+        "peak_force": float(m[f"{p}peak_force"]),
+        "impact_energy_rate": float(m[f"{p}impact_energy"]),
+        "impact_rate": float(m[f"{p}impacts"]),
+        "noise": noise,
+        "noise_level_db": noise_level(noise) if noise > 0.0 else None,  # type: ignore[dict-item]
+    }
+
+
+def _side(m: dict[str, float], drive: dict[str, float], robust: dict[str, Any]) -> dict[str, Any]:
+    """One column of the JSON: both pairs, combined, the drive and the robust figures."""
+    return {
+        "track": _pair(m, "track"),
+        "slot": _pair(m, "slot"),
+        "combined": _pair(m, "combined"),
+        "drive": dict(drive),
+        "robust": robust,
+        "metrics": _finite(m),
+    }
+
+
+def _robust(res: DesignResult) -> dict[str, Any]:
+    if res.robust is None:
+        return {"median_improvement": None, "p5_improvement": None, "samples": 0}
+    return {
+        **res.robust.stats(),
+        "values": res.robust.values.tolist(),
+        "check_cycles": res.spec.robust.check_cycles,
+        "seed": res.spec.robust.seed + 1,
+    }
+
+
+def _zero_robust(res: DesignResult) -> dict[str, Any]:
+    """Constant speed against itself: improvement 0 on every set (exact)."""
+    n = res.robust.samples if res.robust is not None else 0
+    return {"median_improvement": 0.0, "p5_improvement": 0.0, "samples": n}
+
+
 # ----------------------------------------------------------------------------------------
 # figures
 # ----------------------------------------------------------------------------------------
@@ -157,8 +223,9 @@ def carrier_trace(res: DesignResult, optimised: bool) -> tuple[Result, float, fl
 
 
 def main_figure(res: DesignResult) -> Figure:
-    """Speed over two cycles, a carrier through its hardest transfer, and the peak force of
-    every transfer: constant speed against the optimised profile."""
+    """Speed (and drive torque) over two cycles, a carrier through its hardest transfer, the
+    change of every figure of both contact pairs, and the improvement distributions of the
+    profile and the other levers over the held-out tolerance samples."""
     from braidsim.plotting import new_figure
 
     spec = res.spec
@@ -167,8 +234,8 @@ def main_figure(res: DesignResult) -> Figure:
     Tc = m.cycle_time
     w = m.mean_speed
     rpm = 30.0 / math.pi
-    fig = new_figure(8.0, 8.2)
-    ax1, ax2, ax3 = fig.subplots(3, 1)
+    fig = new_figure(8.0, 10.8)
+    ax1, ax2, ax3, ax4 = fig.subplots(4, 1)
     ph = np.linspace(-0.5, 1.5, 1601)
     f, _, _ = prof.evaluate(ph)
     ax1.plot(ph * Tc * 1e3, np.full_like(ph, w * rpm), color="0.45", lw=1.5, label="constant")
@@ -184,9 +251,15 @@ def main_figure(res: DesignResult) -> Figure:
     ax1.set_title(
         f"{spec.name}\nsame mean speed {w * rpm:.4g} rpm: "
         + ", ".join(
-            f"{OBJECTIVES[k][0]} {res.before.metrics[k]:.4g} -> {res.after.metrics[k]:.4g} "
-            f"{OBJECTIVES[k][1]} ({-100 * res.reductions[k]:+.0f} %)"
-            for k in ("peak_force", "impact_energy")
+            f"{k.split('.')[0]} peak force {res.before.metrics[k]:.4g} -> "
+            f"{res.after.metrics[k]:.4g} N ({-100 * res.reductions[k]:+.0f} %)"
+            for k in ("track.peak_force", "slot.peak_force")
+        )
+        + "\n"
+        + ", ".join(
+            f"{metric_label(k)[0]} {res.before.metrics[k]:.4g} -> "
+            f"{res.after.metrics[k]:.4g} {metric_label(k)[1]} ({-100 * res.reductions[k]:+.0f} %)"
+            for k in ("impact_energy", "impacts")
         ),
         fontsize=8,
     )
@@ -221,14 +294,75 @@ def main_figure(res: DesignResult) -> Figure:
         "the carrier crosses the clearance and bounces on the inner wall (largest peak marked)",
         fontsize=8,
     )
-    _transfer_scatter(ax3, res, "peak_force")
-    ax3.set_ylabel("peak force per transfer / N")
-    ax3.set_xlabel("transfer time / s (every carrier of the machine)")
-    ax3.set_ylim(bottom=0.0)
-    ax3.legend(fontsize=7, frameon=False, loc="lower right", ncol=2)
-    for ax in (ax1, ax2, ax3):
+    _ratio_axes(ax3, res)
+    if res.drive is not None:
+        tw = ax1.twinx()
+        J = res.drive.inertia["total"]
+        _, d1, _ = prof.evaluate(ph)
+        tau = J * d1 * w / Tc + res.drive.drag_torque
+        tw.plot(ph * Tc * 1e3, tau, color="C0", lw=0.9, ls="-.", label="drive torque")
+        tw.set_ylabel("drive torque (dash-dot) / N m", color="C0")
+        lim = res.spec.drive.max_torque
+        tw.set_ylim(-lim, lim)
+    _robust_axes(ax4, res)
+    for ax in (ax1, ax2, ax3, ax4):
         ax.grid(True, lw=0.3, alpha=0.6)
     return fig
+
+
+def _ratio_axes(ax: Any, res: DesignResult) -> None:
+    """Optimised over constant speed for each figure of each pair (full machine runs)."""
+    b, a = res.before.metrics, res.after.metrics
+    figs = list(FIGURES)
+    x = np.arange(len(figs))
+    for j, (pair, colour) in enumerate((("track", "0.45"), ("slot", "C0"), ("both", "C3"))):
+        keys = [k if pair == "both" else f"{pair}.{k}" for k in figs]
+        r = [100.0 * (a[k] / b[k] - 1.0) if b[k] > 0 else math.nan for k in keys]
+        ax.bar(x + (j - 1) * 0.27, r, 0.27, color=colour, label=pair)
+    ax.axhline(0.0, color="k", lw=0.8)
+    ax.set_xticks(x, ["largest peak force", "impact energy / s", "impacts / s", "noise proxy"])
+    ax.set_ylabel("optimised vs constant / %")
+    ax.legend(fontsize=7, frameon=False, ncol=3)
+    ax.set_title(
+        f"the full machine, {res.spec.machine.duration:g} s, both contact pairs (negative = "
+        "fewer or softer impacts)",
+        fontsize=8,
+    )
+
+
+def _robust_axes(ax: Any, res: DesignResult) -> None:
+    """The improvement distributions over the held-out sets: the profile and every lever."""
+    if res.robust is None:
+        ax.text(0.5, 0.5, "no robustness check", ha="center", transform=ax.transAxes)
+        return
+    results = res.levers or []
+    names = [lv.move.name for lv in results] or ["profile"]
+    data = [100.0 * lv.improvement.values for lv in results] or [100.0 * res.robust.values]
+    data = [d[np.isfinite(d)] for d in data]
+    y = np.arange(len(names))[::-1]
+    jitter = np.random.default_rng(0).uniform(-0.15, 0.15, max(len(d) for d in data))
+    for yi, d, name in zip(y, data, names, strict=True):
+        colour = "C3" if name == "profile" else "C0"
+        ax.plot(d, yi + jitter[: d.size], "o", ms=2.5, color=colour, alpha=0.45)
+        if d.size:
+            p5, med, p95 = np.quantile(d, [0.05, 0.5, 0.95])
+            ax.plot([p5, p95], [yi, yi], color="k", lw=1.2)
+            ax.plot([med], [yi], "D", ms=6, color=colour, mec="k")
+    ax.set_yticks(y, names)
+    ax.set_ylim(-0.6, len(names) - 0.4)
+    ax.axvline(0.0, color="k", lw=0.8)
+    st = res.robust.stats()
+    obj = res.spec.objective
+    ax.set_xlabel(
+        f"improvement of the {obj} ({res.spec.pair}) against constant speed / % (positive = better)"
+    )
+    ax.set_title(
+        f"{st['samples']} held-out tolerance samples, {res.spec.robust.check_cycles:g} cycles "
+        f"each (dots; diamond median, bar 5-95 %): profile median "
+        f"{100 * st['median_improvement']:+.1f} %, "
+        f"5th percentile {100 * st['p5_improvement']:+.1f} %",
+        fontsize=8,
+    )
 
 
 def _transfer_scatter(ax: Any, res: DesignResult, column: str) -> None:
@@ -310,7 +444,7 @@ def sensitivity_figure(res: DesignResult) -> Figure:
     range) and Morris mu* with sigma."""
     from braidsim.plotting import new_figure
 
-    obj = res.spec.objective
+    obj = res.spec.figure
     fig = new_figure(8.0, 4.6)
     ax1, ax2 = fig.subplots(1, 2)
     mor = res.morris
@@ -344,13 +478,13 @@ def sensitivity_figure(res: DesignResult) -> Figure:
                 )
     ax1.axvline(0.0, color="k", lw=0.6)
     ax1.set_yticks(y, [levers[k].label for k in order], fontsize=7)
-    ax1.set_xlabel(f"change of the {OBJECTIVES[obj][0]} / %")
+    ax1.set_xlabel(f"change of the {metric_label(obj)[0]} / %")
     ax1.legend(fontsize=6, frameon=False)
     ax1.set_title("one lever at a time, to each end of its range", fontsize=8)
     idx = [mor.levers.index(levers[k]) for k in order]
     ax2.barh(y, mor.mu_star[idx], color="C0", alpha=0.8, xerr=mor.sigma[idx], capsize=2)
     ax2.set_yticks(y, [""] * len(y))
-    ax2.set_xlabel(f"Morris mu* / {OBJECTIVES[obj][1]} (bars: sigma)")
+    ax2.set_xlabel(f"Morris mu* / {metric_label(obj)[1]} (bars: sigma)")
     ax2.set_title(
         f"elementary effects over each range ({mor.trajectories} trajectories, seed {mor.seed})",
         fontsize=8,
@@ -400,8 +534,8 @@ def speed_limits_figure(res: DesignResult) -> Figure:
         axes[0].legend(fontsize=6, frameon=False)
     metric = res.spec.speed_limit.metric
     fig.suptitle(
-        f"constant-speed limits: {OBJECTIVES[metric][0]} <= {res.threshold:.4g} "
-        f"{OBJECTIVES[metric][1]} (triangles: not reached in the scanned range)",
+        f"constant-speed limits: {metric_label(metric)[0]} <= {res.threshold:.4g} "
+        f"{metric_label(metric)[1]} (triangles: not reached in the scanned range)",
         fontsize=9,
     )
     return fig
@@ -419,10 +553,14 @@ def convergence_figure(res: DesignResult) -> Figure:
         ax.plot(ev, [h["best"] for h in opt.history], "o-", ms=3, color="C3")
     ax.axhline(opt.baseline_value, color="0.45", lw=0.8, ls="--", label="constant speed")
     ax.set_xlabel("simulated candidates")
-    ax.set_ylabel(f"best {OBJECTIVES[opt.objective][0]} / {OBJECTIVES[opt.objective][1]}")
+    ax.set_ylabel(f"best robust {opt.objective} ({opt.pair}) / constant speed")
     ax.legend(fontsize=7, frameon=False)
     ax.grid(True, lw=0.3, alpha=0.6)
-    ax.set_title(f"differential evolution, seed {opt.options.seed} (proxy runs)", fontsize=9)
+    ax.set_title(
+        f"differential evolution, seed {opt.options.seed} ({opt.options.cycles:g}-cycle runs "
+        "on the optimiser's parameter sets)",
+        fontsize=9,
+    )
     return fig
 
 
@@ -478,13 +616,17 @@ def optimised_machine_toml(res: DesignResult) -> str:
     if not res.optimisation.profile.is_constant:
         mt["speed_profile"] = {"phase": ph, "factor": fa}
     t["machine"] = mt
+    # the design runs the two-DOF model (track and slot contacts)
+    t["overrides"] = {**dict(t.get("overrides", {})), "simulation.dof": "xy"}
     red = res.reductions
     head = (
         f"# {spec.name}: the machine with the optimised horn-gear speed profile\n"
-        f"# (braidsim design; objective {spec.objective}).\n"
+        f"# (braidsim design; objective {spec.objective} of {spec.pair}).\n"
         "# Run: braidsim machine THIS.toml --out DIR\n"
-        f"# Full-machine result: peak force -{100 * red['peak_force']:.1f} %, impact energy "
-        f"-{100 * red['impact_energy']:.1f} % against constant speed at the same mean speed.\n"
+        f"# Full-machine result against constant speed at the same mean speed: track peak "
+        f"force {-100 * red['track.peak_force']:+.1f} %, slot peak force "
+        f"{-100 * red['slot.peak_force']:+.1f} %, impact energy of both contacts "
+        f"{-100 * red['impact_energy']:+.1f} %.\n"
     )
     return head + to_toml(t)
 
@@ -551,7 +693,7 @@ def robustness(res: DesignResult) -> list[dict[str, Any]]:
     if len(res.oat) < 2:
         return []
     const, opt = res.oat[0], res.oat[1]
-    obj = res.spec.objective
+    obj = res.spec.figure
     out = []
     for lv in opt.levers:
         for v, a, b in zip(
@@ -566,7 +708,7 @@ def _robustness(res: DesignResult) -> list[str]:
     if len(res.oat) < 2:
         return []
     bad = robustness(res)
-    unit = OBJECTIVES[res.spec.objective][1]
+    unit = metric_label(res.spec.figure)[1]
     if not bad:
         return [
             "At every setting of the one-at-a-time study the optimised profile (tuned at the "
@@ -588,6 +730,115 @@ def _robustness(res: DesignResult) -> list[str]:
     ]
 
 
+def _drive_lines(res: DesignResult) -> list[str]:
+    dm = res.drive
+    if dm is None:
+        return []
+    d0, d1 = res.drive_before, res.drive_after
+    D = dm.drive
+    J = dm.inertia
+    rows = [
+        ["peak torque", "N m", d0["peak_torque"], d1["peak_torque"], D.max_torque],
+        ["RMS torque", "N m", d0["rms_torque"], d1["rms_torque"], D.max_rms_torque],
+        ["peak power (motoring)", "W", d0["peak_power"], d1["peak_power"], D.max_power],
+        [
+            "peak regenerated power",
+            "W",
+            d0["peak_regenerated_power"],
+            d1["peak_regenerated_power"],
+            "",
+        ],
+        ["mean power", "W", d0["mean_power"], d1["mean_power"], ""],
+        [
+            "largest |omega'|",
+            "rad/s^2",
+            d0["max_acceleration"],
+            d1["max_acceleration"],
+            res.spec.limits.max_acceleration,
+        ],
+        ["largest |omega''|", "rad/s^3", d0["max_jerk"], d1["max_jerk"], res.spec.limits.max_jerk],
+        [
+            "yarn-tension swing (bound)",
+            "N",
+            d0["yarn_tension_swing"],
+            d1["yarn_tension_swing"],
+            "",
+        ],
+    ]
+    return [
+        "## The drive",
+        "",
+        f"Inertia on the horn-gear speed {J['total']:.4g} kg m^2: horn gears {J['gears']:.4g}, "
+        f"carriers {J['carriers']:.4g}, motor rotor through the gearbox {J['motor']:.4g}; "
+        f"drag {dm.drag_torque:.3g} N m (the carriers' friction and contact losses at "
+        "constant speed). Torque tau = J omega' + drag, power tau omega, over one transfer "
+        "cycle; the limits are constraints of the optimiser.",
+        "",
+        _table(rows, ["quantity", "unit", "constant speed", "optimised", "limit"]),
+        "",
+    ]
+
+
+def _robust_lines(res: DesignResult) -> list[str]:
+    R = res.spec.robust
+    out = ["## Robustness: the improvement over tolerance samples", ""]
+    tol = ", ".join(
+        f"{t.key} x [{t.low:g}, {t.high:g}]" if t.relative else f"{t.key} [{t.low:g}, {t.high:g}]"
+        for t in R.tolerances
+    )
+    opt = res.optimisation
+    n_opt = R.samples if R.samples > 0 else 1
+    stat = "mean" if R.statistic == "mean" else f"{R.quantile:g}-quantile"
+    out += [
+        f"Uniform tolerances (Latin hypercube): {tol}. The optimiser minimised the {stat} of "
+        f"J(profile)/J(constant) over {n_opt} parameter sets (seed {R.seed}, "
+        f"{opt.options.cycles:g}-cycle runs): {opt.value:.4g}.",
+        "",
+    ]
+    if res.robust is not None:
+        st = res.robust.stats()
+        out += [
+            f"Improvement 1 - J(profile)/J(constant) measured on {st['samples']} *other* "
+            f"parameter sets (seed {R.seed + 1}, {R.check_cycles:g}-cycle runs, every set "
+            f"against constant speed on the same machine): median "
+            f"{100 * st['median_improvement']:+.1f} %, 5th percentile "
+            f"{100 * st['p5_improvement']:+.1f} %, 95th percentile "
+            f"{100 * st.get('p95_improvement', math.nan):+.1f} %, better than constant speed "
+            f"on {100 * st.get('fraction_better', math.nan):.0f} % of the sets.",
+            "",
+        ]
+    if res.levers:
+        rows = []
+        for i, lv in enumerate(res.levers, 1):
+            d = lv.to_dict()
+            rows.append(
+                [
+                    i,
+                    d["name"],
+                    d["description"],
+                    f"{100 * d['median_improvement']:+.1f} %",
+                    f"{100 * d['p5_improvement']:+.1f} %",
+                    d["effort"],
+                    d["improvement_per_effort"],
+                ]
+            )
+        out += [
+            "### The levers on the same footing",
+            "",
+            "Each change of the machine on the same held-out sets, against the unchanged "
+            "machine at constant speed (improvement of the same objective). The effort "
+            "(1 = a setting, 5 = a redesign) is an assumption of the study, not a model "
+            "result; the reasons are in `summary.json` (`levers`).",
+            "",
+            _table(
+                rows,
+                ["rank", "lever", "change", "median", "5th pct", "effort", "median / effort"],
+            ),
+            "",
+        ]
+    return out
+
+
 def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str:
     """The report as Markdown."""
     spec = res.spec
@@ -602,7 +853,8 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
         f"Machine: {m.name}; {m.geometry.N} horn gears, {m.geometry.S} slots, "
         f"{len(m.loading.carriers)} carriers, scenario `{m.scenario.name}`, mean horn-gear "
         f"speed {m.mean_speed * rpm:.4g} rpm, transfer cycle {m.cycle_time * 1e3:.4g} ms. "
-        f"Objective: **{OBJECTIVES[spec.objective][0]}**.",
+        f"Objective: **{OBJECTIVES[spec.objective][0]}**, contact pairs: **{spec.pair}**, "
+        "as a ratio to constant speed on the same machine.",
         "",
         "## Result: constant speed against the optimised profile (full machine)",
         "",
@@ -611,18 +863,46 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
         "",
     ]
     rows = []
-    for k in METRIC_KEYS:
-        rows.append([OBJECTIVES[k][0], OBJECTIVES[k][1], b[k], a[k], f"{-100 * red[k]:+.1f} %"])
+    for pair in ("track", "slot", "both"):
+        for k in FIGURES:
+            key = k if pair == "both" else f"{pair}.{k}"
+            name = FIGURES[k][0] if k != "noise" else "noise proxy (sum F_peak^2 per s)"
+            rows.append(
+                [
+                    "both pairs" if pair == "both" else pair,
+                    name,
+                    FIGURES[k][1],
+                    b[key],
+                    a[key],
+                    f"{-100 * red[key]:+.1f} %",
+                ]
+            )
     rows.append(
         [
-            "power dissipated in the track contacts",
+            "both pairs",
+            "noise proxy level",
+            "dB re 1 N^2/s",
+            noise_level(b["noise"]),
+            noise_level(a["noise"]),
+            f"{noise_level(a['noise']) - noise_level(b['noise']):+.2f} dB",
+        ]
+    )
+    rows.append(
+        [
+            "track",
+            "power dissipated in the contacts",
             "W",
             b["dissipated_power"],
             a["dissipated_power"],
             f"{-100 * (1 - a['dissipated_power'] / b['dissipated_power']):+.1f} %",
         ]
     )
-    lines += [_table(rows, ["quantity", "unit", "constant speed", "optimised", "change"]), ""]
+    lines += [
+        _table(rows, ["pair", "quantity", "unit", "constant speed", "optimised", "change"]),
+        "",
+    ]
+    lines += _drive_lines(res)
+    lines += _robust_lines(res)
     p = res.production
     lines += [
         "Production rate: mean horn-gear speed measured from the gear rotation of each run "
@@ -709,7 +989,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             "",
             _table(
                 [
-                    [OBJECTIVES[k][0], fd.rank_correlation[k], fd.median_relative_error[k]]
+                    [metric_label(k)[0], fd.rank_correlation[k], fd.median_relative_error[k]]
                     for k in METRIC_KEYS
                 ],
                 ["objective", "Spearman rank correlation", "median relative difference"],
@@ -719,14 +999,14 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
     if res.morris is not None:
         mor = res.morris
         lines += ["## The other levers", ""]
-        nominal = {o.profile: o.nominal[spec.objective] for o in res.oat}
+        nominal = {o.profile: o.nominal[spec.figure] for o in res.oat}
         lines += [
             f"Ranked by Morris mu* (mean |elementary effect| over each lever's range, "
             f"{mor.trajectories} trajectories, {mor.levels} levels, seed {mor.seed}, "
             f"{mor.values.size} runs at constant speed), with the one-at-a-time change of the "
-            f"{OBJECTIVES[spec.objective][0]} at each end of the range "
+            f"{metric_label(spec.figure)[0]} at each end of the range "
             f"(nominal: {', '.join(f'{k} {v:.5g}' for k, v in nominal.items())} "
-            f"{OBJECTIVES[spec.objective][1]}).",
+            f"{metric_label(spec.figure)[1]}).",
             "",
         ]
         rows = []
@@ -742,8 +1022,8 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
                 mor.sigma[i],
             ]
             for o in res.oat:
-                lo, hi = o.swing(spec.objective)[key]
-                nom = o.nominal[spec.objective]
+                lo, hi = o.swing(spec.figure)[key]
+                nom = o.nominal[spec.figure]
                 row.append(f"{100 * (lo / nom - 1):+.1f} % / {100 * (hi / nom - 1):+.1f} %")
             rows.append(row)
         lines += [
@@ -762,7 +1042,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             "## Speed limits",
             "",
             f"Transfer limit: the largest constant horn-gear speed at which the "
-            f"{OBJECTIVES[metric][0]} stays <= {res.threshold:.5g} {OBJECTIVES[metric][1]} "
+            f"{metric_label(metric)[0]} stays <= {res.threshold:.5g} {metric_label(metric)[1]} "
             f"(scan of {spec.speed_limit.options.points} speeds from "
             f"{spec.speed_limit.options.low:g} to {spec.speed_limit.options.high:g} x the mean, "
             f"then {spec.speed_limit.options.refine} bisections). Chatter speed: below it the "
@@ -803,9 +1083,16 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
         "- The horn-gear speed repeats every transfer cycle (all gears turn together and every "
         "slot meeting is a transfer of some carrier); its mean is held exactly, so transfers "
         "stay at the slot meetings and the production rate is unchanged.",
-        "- The limits on speed, angular acceleration and jerk stand for the drive; the "
-        "tangential inertia of the carriers (m r_c omega') and the slot contact are not part of "
-        "the objective (a single-DOF carrier model moves only radially in the track).",
+        "- Every carrier runs the two-DOF model: it moves radially in the track (the track "
+        "contact) and along its path in the horn-gear slot (the slot contact), so the "
+        "tangential inertia m r_c omega' of a profile acts on the slot walls and is in the "
+        "objective.",
+        "- The drive's inertia, torque and power are those of the drive model (defaults are "
+        "engineering estimates stated in `braidsim.design.drive`); gear-train losses are not "
+        "modelled. The yarn-tension swing is a bound from the tensioner's inertia; the contact "
+        "model holds the yarn tension constant.",
+        "- The search is global (differential evolution) only; a local refinement by exact "
+        "sensitivities of the runs is not available yet.",
         "- Every carrier is the paper's carrier model with the section 3.2 transfer map; see the "
         "machine report for its other assumptions.",
         "",

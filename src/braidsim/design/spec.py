@@ -10,7 +10,8 @@ and says what to study. Every quantity is a number in SI or a string with units:
                                        # [machine], duration/revolutions, [braid])
 
     [design]
-    objective = "peak_force"           # peak_force | impact_energy | impacts | mean_peak_force
+    objective = "score"                # score | peak_force | impact_energy | impacts | noise
+    pair = "both"                      # both | track | slot
     workers = 1                        # processes (the results do not depend on it)
 
     [design.profile]                   # the speed-profile family (braidsim.design.profiles)
@@ -21,9 +22,34 @@ and says what to study. Every quantity is a number in SI or a string with units:
 
     [design.limits]                    # motion limits of the horn-gear drive
     min_speed = 0.25                   # fraction of the mean speed
-    max_speed = 2.5                    # fraction of the mean speed
-    max_acceleration = "3000 rad/s^2"
-    max_jerk = "3e6 rad/s^3"
+    max_speed = 2.0                    # fraction of the mean speed
+    max_acceleration = "1000 rad/s^2"
+    max_jerk = "2e5 rad/s^3"
+
+    [design.drive]                     # braidsim.design.drive (defaults stated there)
+    gear_inertia = "0.0096 kg m^2"     # per horn gear; default: steel disc estimate
+    motor_inertia = "2e-4 kg m^2"
+    gear_ratio = 10
+    max_torque = "150 N m"             # on the horn-gear speed
+    max_rms_torque = "48 N m"
+    max_power = "3 kW"
+    tensioner_mass = "50 g"
+    drag_torque = "1.8 N m"            # default: the carriers' losses at constant speed
+
+    [design.robust]                    # braidsim.design.robust
+    samples = 8                        # parameter sets of the objective (0: nominal only)
+    check_samples = 32                 # held-out sets of the improvement distribution
+    statistic = "mean"                 # mean | quantile
+    quantile = 0.9
+    seed = 1
+    check_cycles = 32
+    [design.robust.tolerances]         # key = [low, high] factors on the nominal value
+    "track.clearance" = [0.8, 1.3]     # (absolute values for track.vibration_phase)
+
+    [design.levers]                    # compare the paper's levers on the held-out sets
+    enabled = true
+    [design.levers.effort]             # assumed effort, 1 (a setting) to 5 (a redesign)
+    profile = 2
 
     [design.optimizer]                 # scipy.optimize.differential_evolution
     maxiter = 20
@@ -57,6 +83,10 @@ and says what to study. Every quantity is a number in SI or a string with units:
     refine = 5
 
 Unknown keys and bad values stop with one line naming the entry and what is allowed.
+
+Every run of the study uses the two-DOF carrier model (``simulation.dof = "xy"`` is set on
+the machine whatever its scenario says): a speed profile acts on the carriers through the
+slot walls, so the slot contact belongs in every figure.
 """
 
 from __future__ import annotations
@@ -68,9 +98,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from braidsim.design.evaluate import OBJECTIVES, check_objective, machine_for
+from braidsim.design.drive import Drive
+from braidsim.design.evaluate import OBJECTIVES, check_objective, check_pair, machine_for
 from braidsim.design.optimise import OptimizerOptions
 from braidsim.design.profiles import Limits, ProfileFamily
+from braidsim.design.robust import RobustOptions, Tolerance, check_tolerances
 from braidsim.design.sensitivity import DEFAULT_LEVERS, Lever, make_levers
 from braidsim.design.speed_limits import SpeedLimitOptions
 from braidsim.errors import InputError
@@ -82,7 +114,11 @@ from braidsim.units import to_si
 TOP_KEYS = ("name", "description", "machine_spec", "design", *MACHINE_TOP_KEYS)
 DESIGN_KEYS = (
     "objective",
+    "pair",
     "workers",
+    "drive",
+    "robust",
+    "levers",
     "profile",
     "limits",
     "optimizer",
@@ -105,8 +141,35 @@ SENSITIVITY_KEYS = (
     "optimised",
     "ranges",
 )
+DRIVE_KEYS = {
+    "gear_inertia": "kg*m**2",
+    "motor_inertia": "kg*m**2",
+    "gear_ratio": "",
+    "max_torque": "N*m",
+    "max_rms_torque": "N*m",
+    "max_power": "W",
+    "tensioner_mass": "kg",
+    "drag_torque": "N*m",
+}
+ROBUST_KEYS = (
+    "samples",
+    "check_samples",
+    "statistic",
+    "quantile",
+    "seed",
+    "check_cycles",
+    "tolerances",
+)
+LEVER_KEYS = ("enabled", "effort")
+LEVER_NAMES = ("profile", "restitution", "vibration", "clearance")
 SPEED_KEYS = ("enabled", "metric", "threshold", "speeds", "points", "refine")
-METRIC_UNITS = {"peak_force": "N", "mean_peak_force": "N", "impact_energy": "W", "impacts": "1/s"}
+METRIC_UNITS = {
+    "peak_force": "N",
+    "mean_peak_force": "N",
+    "impact_energy": "W",
+    "impacts": "1/s",
+    "noise": "N**2/s",
+}
 
 
 def _int(where: str, value: Any, low: int, high: int) -> int:
@@ -190,7 +253,7 @@ class DesignSpec:
         The file the machine table comes from (relative scenario paths).
     machine : MachineSpec
         The nominal machine at constant speed.
-    objective : str
+    objective, pair : str
     workers : int
     family : ProfileFamily
     limits : Limits
@@ -199,6 +262,13 @@ class DesignSpec:
         Random profiles for the proxy check and their seed.
     sensitivity : SensitivityOptions
     speed_limit : SpeedLimitSettings
+    pair : str
+    drive : Drive
+    robust : RobustOptions
+    levers : bool
+        Compare the levers (:func:`braidsim.design.robust.compare_levers`).
+    efforts : dict
+        Lever name -> assumed effort (overrides the defaults).
     """
 
     name: str
@@ -216,6 +286,17 @@ class DesignSpec:
     proxy_seed: int
     sensitivity: SensitivityOptions
     speed_limit: SpeedLimitSettings
+    pair: str = "both"
+    drive: Drive = field(default_factory=Drive)
+    robust: RobustOptions = field(default_factory=RobustOptions)
+    levers: bool = True
+    efforts: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def figure(self) -> str:
+        """The figure the sensitivity and speed-limit studies use: the objective's, or the
+        combined peak force for ``score``."""
+        return "peak_force" if self.objective == "score" else self.objective
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -224,7 +305,11 @@ class DesignSpec:
             "spec": str(self.path) if self.path else None,
             "machine_spec": str(self.machine_path) if self.machine_path else None,
             "objective": self.objective,
+            "pair": self.pair,
             "workers": self.workers,
+            "drive": self.drive.to_dict(),
+            "robust": self.robust.to_dict(),
+            "levers": {"enabled": self.levers, "effort": dict(self.efforts)},
             "profile_family": self.family.to_dict(),
             "limits": self.limits.to_dict(),
             "optimizer": self.optimizer.to_dict(),
@@ -296,7 +381,8 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
 
     d = expect_table("design", data.get("design", {}))
     check_keys("design.", d, DESIGN_KEYS)
-    objective = check_objective(str(d.get("objective", "peak_force")))
+    objective = check_objective(str(d.get("objective", "score")))
+    pair = check_pair(str(d.get("pair", "both")))
     workers = _int("design.workers", d.get("workers", 1), 1, 256)
 
     p = expect_table("design.profile", d.get("profile", {}))
@@ -382,7 +468,12 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
 
     sl = expect_table("design.speed_limit", d.get("speed_limit", {}))
     check_keys("design.speed_limit.", sl, SPEED_KEYS)
-    metric = check_objective(str(sl.get("metric", objective)))
+    metric = str(sl.get("metric", "peak_force" if objective == "score" else objective))
+    if metric not in METRIC_UNITS:
+        raise InputError(
+            f"design.speed_limit.metric: {metric!r} is not allowed; allowed "
+            + ", ".join(METRIC_UNITS)
+        )
     threshold = None
     if "threshold" in sl:
         threshold = _float("design.speed_limit.threshold", sl["threshold"], METRIC_UNITS[metric])
@@ -408,6 +499,18 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         ),
     )
     _check_runs(table, mpath, machine, sensitivity, speed_limit)
+    drive = _drive(d.get("drive", {}))
+    robust = _robust(d.get("robust", {}), machine.scenario)
+    lv = expect_table("design.levers", d.get("levers", {}))
+    check_keys("design.levers.", lv, LEVER_KEYS)
+    ef = expect_table("design.levers.effort", lv.get("effort", {}))
+    check_keys("design.levers.effort.", ef, LEVER_NAMES)
+    efforts = {}
+    for k, v in ef.items():
+        e = _float(f"design.levers.effort.{k}", v)
+        if not 0.0 < e <= 100.0:
+            raise InputError(f"design.levers.effort.{k}: {e:g} is out of range; allowed 0 to 100")
+        efforts[k] = e
     return DesignSpec(
         name,
         description,
@@ -424,6 +527,55 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
         proxy_seed,
         sensitivity,
         speed_limit,
+        pair,
+        drive,
+        robust,
+        _bool("design.levers.enabled", lv.get("enabled", True)),
+        efforts,
+    )
+
+
+def _drive(table: Any) -> Drive:
+    dt = expect_table("design.drive", table)
+    check_keys("design.drive.", dt, tuple(DRIVE_KEYS))
+    kw: dict[str, Any] = {}
+    for k, unit in DRIVE_KEYS.items():
+        if k in dt:
+            kw[k] = _float(f"design.drive.{k}", dt[k], unit)
+    return Drive(**kw)
+
+
+def _robust(table: Any, sc: Any) -> RobustOptions:
+    rt = expect_table("design.robust", table)
+    check_keys("design.robust.", rt, ROBUST_KEYS)
+    dflt = RobustOptions()
+    tols = list(dflt.tolerances)
+    if "tolerances" in rt:
+        tt = expect_table("design.robust.tolerances", rt["tolerances"])
+        given: dict[str, Tolerance] = {}
+        for k, v in tt.items():
+            if not isinstance(v, list) or len(v) != 2:
+                raise InputError(
+                    f"design.robust.tolerances.{k}: {v!r}; allowed [low, high] (factors on the "
+                    "nominal value; absolute values for track.vibration_phase)"
+                )
+            rel = k != "track.vibration_phase"
+            lo = _float(f"design.robust.tolerances.{k}", v[0])
+            hi = _float(f"design.robust.tolerances.{k}", v[1])
+            given[k] = Tolerance(k, lo, hi, rel)
+        tols = [given.pop(t.key, t) for t in tols] + list(given.values())
+    check_tolerances(sc, tols)
+    stat = rt.get("statistic", dflt.statistic)
+    if not isinstance(stat, str):
+        raise InputError(f"design.robust.statistic: {stat!r}; allowed mean, quantile")
+    return RobustOptions(
+        tuple(tols),
+        _int("design.robust.samples", rt.get("samples", dflt.samples), 0, 10000),
+        _int("design.robust.check_samples", rt.get("check_samples", dflt.check_samples), 1, 10000),
+        stat,
+        _float("design.robust.quantile", rt.get("quantile", dflt.quantile)),
+        _int("design.robust.seed", rt.get("seed", dflt.seed), 0, 2**31 - 2),
+        _float("design.robust.check_cycles", rt.get("check_cycles", dflt.check_cycles)),
     )
 
 

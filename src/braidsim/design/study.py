@@ -1,5 +1,7 @@
-"""The whole design study of a spec: baseline, proxy check, optimised profile, before/after on
-the full machine, sensitivity of the other levers, speed limits.
+"""The whole design study of a spec: baseline, proxy check, the drive model, the robust
+optimised profile, before/after on the full machine (both contact pairs, the drive's torque
+and power), the improvement distribution over held-out tolerance samples, the levers
+compared on the same samples, sensitivity of the other levers, speed limits.
 
 :func:`run_design` does the computing and returns a :class:`DesignResult`;
 :func:`braidsim.design.report.write_report` turns it into files.
@@ -10,12 +12,13 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from braidsim.design.drive import DriveModel
 from braidsim.design.evaluate import (
     CarrierClass,
     Evaluation,
@@ -26,6 +29,14 @@ from braidsim.design.evaluate import (
 )
 from braidsim.design.optimise import OptimizationResult, optimise_profile, reductions
 from braidsim.design.profiles import SpeedProfile, feasible, limit_margins
+from braidsim.design.robust import (
+    Improvement,
+    LeverResult,
+    compare_levers,
+    default_moves,
+    draw_samples,
+    improvement,
+)
 from braidsim.design.sensitivity import (
     Lever,
     MorrisResult,
@@ -158,6 +169,17 @@ class DesignResult:
         Wall time of each stage [s].
     classes : list of CarrierClass
         Identical carriers over the proxy's length (one of each is run).
+    drive : DriveModel or None
+    drive_before, drive_after : dict
+        :meth:`DriveModel.figures` at constant speed and with the optimised profile.
+    robust : Improvement or None
+        The improvement distribution over the held-out sets.
+    check_samples : list of dict
+        The held-out parameter sets.
+    check_before, check_after : list of dict
+        Their metrics at constant speed and with the profile.
+    levers : list of LeverResult
+        The levers compared on the held-out sets, best per effort first.
     """
 
     spec: DesignSpec
@@ -175,6 +197,14 @@ class DesignResult:
     threshold: float = math.nan
     timings: dict[str, float] = field(default_factory=dict)
     classes: list[CarrierClass] = field(default_factory=list)
+    drive: DriveModel | None = None
+    drive_before: dict[str, float] = field(default_factory=dict)
+    drive_after: dict[str, float] = field(default_factory=dict)
+    robust: Improvement | None = None
+    check_samples: list[dict[str, float]] = field(default_factory=list)
+    check_before: list[dict[str, float]] = field(default_factory=list)
+    check_after: list[dict[str, float]] = field(default_factory=list)
+    levers: list[LeverResult] = field(default_factory=list)
 
 
 def _production(ev: Evaluation) -> dict[str, float]:
@@ -223,8 +253,24 @@ def run_design(
         fid = proxy_fidelity(base, mpath, profs, cycles, workers=1)
     timings["proxy_check"] = time.perf_counter() - t
 
+    m = spec.machine
+    drag = (baseline["dissipated_power"] + baseline["friction_power"]) / m.mean_speed
+    drive = DriveModel.build(
+        spec.drive,
+        m.geometry.N,
+        m.geometry.pitch_radius,
+        len(m.loading.carriers),
+        float(m.scenario["carrier.mass"]),
+        float(m.scenario["carrier.turning_radius"]),
+        m.mean_speed,
+        m.cycle_time,
+        drag,
+    )
+    R = spec.robust
+    opt_sets = draw_samples(m.scenario, R.tolerances, R.samples, R.seed)
     say(
-        f"optimising ({spec.family.name}, {spec.objective}, maxiter {spec.optimizer.maxiter}, "
+        f"optimising ({spec.family.name}, {spec.objective} of {spec.pair}, {R.statistic} over "
+        f"{len(opt_sets) or 1} parameter sets, maxiter {spec.optimizer.maxiter}, "
         f"popsize {spec.optimizer.popsize}, seed {spec.optimizer.seed})"
     )
     t = time.perf_counter()
@@ -237,8 +283,13 @@ def run_design(
         spec.optimizer,
         progress=lambda row: say(
             f"  generation {int(row['generation'])}: best {row['best']:.6g} "
-            f"({int(row['evaluations'])} runs, {row['elapsed_s']:.0f} s)"
+            f"({int(row['evaluations'])} candidates, {row['elapsed_s']:.0f} s)"
         ),
+        pair=spec.pair,
+        drive=drive,
+        samples=opt_sets,
+        statistic=R.statistic,
+        quantile=R.quantile,
     )
     timings["optimisation"] = time.perf_counter() - t
 
@@ -254,6 +305,42 @@ def run_design(
 
     result = DesignResult(spec, baseline, fid, opt, before, after, red, prod, timings=timings)
     result.classes = carrier_classes(spec.machine, cycles * spec.machine.cycle_time)
+    result.drive = drive
+    result.drive_before = drive.figures(None)
+    result.drive_after = drive.figures(opt.profile)
+
+    t = time.perf_counter()
+    check = draw_samples(m.scenario, R.tolerances, R.check_samples, R.seed + 1)
+    say(
+        f"robustness: {len(check)} held-out parameter sets, {R.check_cycles:g} cycles, "
+        "constant speed and optimised profile"
+    )
+    imp, cb, ca = improvement(
+        base, mpath, check, spec.objective, spec.pair, R.check_cycles, opt.profile
+    )
+    result.robust, result.check_samples = imp, check
+    result.check_before, result.check_after = cb, ca
+    timings["robustness"] = time.perf_counter() - t
+    if spec.levers:
+        t = time.perf_counter()
+        moves = [
+            replace(mv, effort=spec.efforts.get(mv.name, mv.effort))
+            for mv in default_moves(m.scenario)
+        ]
+        say(f"levers: {len(moves) - 1} changes of the machine on the same sets")
+        result.levers = compare_levers(
+            base,
+            mpath,
+            moves,
+            check,
+            spec.objective,
+            spec.pair,
+            R.check_cycles,
+            opt.profile,
+            cb,
+            imp,
+        )
+        timings["levers"] = time.perf_counter() - t
 
     sens = spec.sensitivity
     if sens.enabled:
@@ -272,7 +359,7 @@ def run_design(
             base,
             mpath,
             levers,
-            spec.objective,
+            spec.figure,
             sens.trajectories,
             sens.morris_levels,
             sens.seed,

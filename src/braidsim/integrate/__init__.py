@@ -1,1 +1,1 @@
-"""Integrators: the compiled Dormand-Prince kernel and the SciPy reference backend."""
+"""The SciPy reference backend (the compiled solver is :mod:`braidsim.core`)."""

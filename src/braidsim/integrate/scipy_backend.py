@@ -1,39 +1,32 @@
-"""SciPy reference backend: the kernel's equations integrated by :func:`scipy.integrate.solve_ivp`.
+"""SciPy reference backend: the model's equations integrated by :func:`scipy.integrate.solve_ivp`.
 
-This is the "plain SciPy implementation a user would write" of the model in
-:mod:`braidsim.integrate.kernel`, in pure Python/NumPy (no numba), for two purposes:
+A second integrator of the same model as the compiled solver (:mod:`braidsim.core`), for two
+purposes:
 
-* an independent cross-check of the compiled integrator (same equations and policies,
-  different method, different event location, different peak search), see
+* an independent cross-check of the compiled solver: same physics (the right-hand side, the
+  gaps and the contact forces are the core's own compiled functions, one definition for both
+  backends), different method, different event location, different peak search; see
   ``tests/integration/test_backends.py``;
 * the baseline of the speed benchmarks (``benchmarks/bench_simulate.py``).
 
-Equations (MODEL_NOTES sections 2-4; x radial, y tangential; walls at x = h(t),
-h(t) + eps_g and y = s(t), s(t) + eps_h)::
-
-    m x'' = -s_t N_t - f_x(x') - T1 cos(phi) - m r_c omega(t)^2
-    m y'' = -s_s N_s - f_y(y') + T1 sin(phi)                       (simulation.dof = "xy")
-    N     = max(0, K p^n (1 + D pdot / v0))   (no clamp with contact.allow_tension)
-    f_x   = mu1 |m g - T2| phi(x'),  f_y = mu2 |N_t| phi(y')     (Eq. 14 and variants)
-
-with s = -1 on the inner/rear wall, +1 on the outer/front wall, p >= 0 the penetration and
-pdot its rate relative to the moving wall, v0 the approach speed latched at contact onset and
-floored at ``contact.min_impact_velocity``. A contact present at t = 0 (or right after a
-transfer) with an overlap is released elastically (v0 = inf) unless
-``contact.initial_impact_velocity`` is set; a carrier exactly on a wall and moving into it
-starts in contact with its rate latched. A transfer at ``transfer.times`` maps the carrier
-from the wall it leans on to the far wall: x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr.
+The equations are those of :mod:`braidsim.core.models.carrier` (x radial, y tangential; walls
+at x = h(t), h(t) + eps_g and y = s(t), s(t) + eps_h; ``docs/model.md`` explains how they read
+the paper). A contact present at t = 0 (or right after a transfer) with an overlap is released
+elastically (v0 = inf) unless ``contact.initial_impact_velocity`` is set; a carrier exactly on
+a wall and moving into it starts in contact with its rate latched. A transfer at
+``transfer.times`` maps the carrier from the wall it leans on to the far wall:
+x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr.
 
 Method: one :func:`~scipy.integrate.solve_ivp` call per contact mode, with terminal events
 at contact onset (free pair: gap to each wall crosses zero downwards) and exit (penetration
 crosses zero downwards); the integration restarts after each event with the new mode and the
-newly latched v0. Steps are limited to the kernel's ``max_step`` so that the event functions,
-which SciPy only checks at step ends, are sampled as often as in the kernel. Within each
-contact segment the maxima and minima of the penetration, the damping-related force and the
-normal force are found on a grid of the dense output (step ends plus ``N_SUB`` interior points
-per step) and refined by bounded Brent minimisation (:func:`scipy.optimize.minimize_scalar`);
-the dissipated energy int (N - K p^n) pdot dt is integrated by 8-point Gauss-Legendre
-quadrature on each step of the dense output.
+newly latched v0. Steps are limited to the solver's ``max_step`` so that the event functions,
+which SciPy only checks at step ends, are sampled as often as in the compiled solver. Within
+each contact segment the maxima and minima of the penetration, the damping-related force and
+the normal force are found on a grid of the dense output (step ends plus ``N_SUB`` interior
+points per step) and refined by bounded Brent minimisation
+(:func:`scipy.optimize.minimize_scalar`); the dissipated energy int (N - K p^n) pdot dt is
+integrated by 8-point Gauss-Legendre quadrature on each step of the dense output.
 
 All model numbers (stiffness, damping factors, loads, excitation tables, transfer times,
 tolerances' defaults, maximum step) come from :func:`braidsim.model.build_model`, so both
@@ -53,8 +46,16 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
+from braidsim.core import (
+    contact_quantities,
+    derivatives,
+    pair_gaps,
+    pair_law,
+    state_size,
+    wall_motion,
+)
+from braidsim.core.layout import EPISODE_DTYPE
 from braidsim.errors import InputError, SimulationError
-from braidsim.integrate import kernel as K
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
 from braidsim.result import impacts_frame, ranges_dict
@@ -75,172 +76,56 @@ _MAX_SAME_TIME_EVENTS = 50
 
 
 class _Equations:
-    """The kernel's model functions on plain floats (scalar) and arrays (vectorised)."""
+    """The model's functions from the compiled core's own definitions (one definition of the
+    physics serves both backends), called from Python on plain floats and arrays."""
 
     def __init__(self, model: Model) -> None:
-        P = model.P
-        self.P = P
-        self.m = float(P[K.P_MASS])
-        self.load_x = float(P[K.P_LOAD_X])
-        self.mrc = float(P[K.P_MRC])
-        self.t_y = float(P[K.P_T_Y])
-        self.eps = (float(P[K.P_EPS_G]), float(P[K.P_EPS_H]))
-        self.k = (float(P[K.P_K_T]), float(P[K.P_K_S]))
-        self.n = (float(P[K.P_N_T]), float(P[K.P_N_S]))
-        self.d = (float(P[K.P_D_T]), float(P[K.P_D_S]))
-        self.fric_law = int(P[K.P_FRIC_LAW])
-        self.mu1 = float(P[K.P_MU1])
-        self.mu2 = float(P[K.P_MU2])
-        self.nx = float(P[K.P_NX])
-        self.vhat = float(P[K.P_VHAT])
-        self.mus_ratio = float(P[K.P_MUS_RATIO])
-        self.vstribeck = float(P[K.P_VSTRIBECK])
-        self.vmin = float(P[K.P_VMIN])
-        self.vinit = float(P[K.P_VINIT])
-        self.allow_tension = bool(P[K.P_ALLOW_TENSION] != 0.0)
-        self.two_dof = bool(P[K.P_DOF] > 1.5)
-        self.rc = float(P[K.P_RC])
-        self.omega0 = float(P[K.P_OMEGA0])
-        self.transfer_speed = float(P[K.P_TRANSFER_SPEED])
-        self.track_terms = [tuple(map(float, r)) for r in model.track_harmonics]
-        self.speed_terms = [tuple(map(float, r)) for r in model.speed_harmonics]
-        self.prof_t = np.asarray(model.profile_times, dtype=float)
-        self.prof_w = np.asarray(model.profile_speeds, dtype=float)
-        self.prof_i = np.asarray(model.profile_integral, dtype=float)
-        self._s0 = 0.0
-        if self.prof_t.size >= 2:
-            self._s0 = self._profile_integral(0.0)
+        r = model.record
+        self.record = r
+        self.two_dof = model.two_dof
+        self.eps = (float(r.track_clearance), float(r.slot_clearance))
+        self.vmin = float(r.min_impact_velocity)
+        self.vinit = float(r.initial_impact_velocity)
+        self.transfer_speed = float(r.transfer_speed)
+        self.n_state = state_size(r, energy=False)
+        self._derivs = derivatives.implementation(type(r))
+        self._gaps = pair_gaps.implementation(type(r))
+        self._track = wall_motion.implementation(type(r.track))
+        self._law = pair_law.implementation(type(r))
 
-    # ---- excitation ------------------------------------------------------------------
     def track_h(self, t: float) -> tuple[float, float]:
-        """h(t) = sum a cos(w t + phase) [m] and h'(t) [m/s]."""
-        h = 0.0
-        hd = 0.0
-        for a, w, ph in self.track_terms:
-            arg = w * t + ph
-            h += a * math.cos(arg)
-            hd -= a * w * math.sin(arg)
+        """h(t) [m] and h'(t) [m/s] of the track walls."""
+        h, hd, _ = self._track(self.record.track, t)
         return h, hd
-
-    def _profile_integral(self, t: float) -> float:
-        """int_{T0}^{t} omega for the periodic piecewise-linear profile [rad]."""
-        pt, pw, pi = self.prof_t, self.prof_w, self.prof_i
-        period = pt[-1] - pt[0]
-        tau = t - pt[0]
-        k = math.floor(tau / period)
-        r = tau - k * period
-        j = int(np.searchsorted(pt - pt[0], r, side="right")) - 1
-        j = min(max(j, 0), pt.size - 2)
-        dt = r - (pt[j] - pt[0])
-        slope = (pw[j + 1] - pw[j]) / (pt[j + 1] - pt[j])
-        return float(k * pi[-1] + pi[j] + pw[j] * dt + 0.5 * slope * dt * dt)
-
-    def omega(self, t: float) -> float:
-        """Horn-gear speed omega(t) [rad/s]."""
-        if self.prof_t.size >= 2:
-            pt = self.prof_t
-            r = (t - pt[0]) % (pt[-1] - pt[0]) + pt[0]
-            return float(np.interp(r, pt, self.prof_w))
-        om = self.omega0
-        for a, w, ph in self.speed_terms:
-            om += a * math.cos(w * t + ph)
-        return om
-
-    def slot_s(self, t: float) -> float:
-        """Slot travel s(t) = r_c int_0^t omega [m]."""
-        if self.prof_t.size >= 2:
-            return self.rc * (self._profile_integral(t) - self._s0)
-        integral = self.omega0 * t
-        for a, w, ph in self.speed_terms:
-            if w > 0.0:
-                integral += a / w * (math.sin(w * t + ph) - math.sin(ph))
-            else:
-                integral += a * math.cos(ph) * t
-        return self.rc * integral
 
     def pair_state(
         self, t: float, y: np.ndarray | Sequence[float], pair: int
     ) -> tuple[float, float]:
         """(u, u') of the carrier relative to the inner/rear wall of ``pair``."""
-        if pair == 0:
-            h, hd = self.track_h(t)
-            return y[0] - h, y[1] - hd
-        return y[2] - self.slot_s(t), y[3] - self.rc * self.omega(t)
+        g_in, _, rate = self._gaps(self.record, pair, t, np.asarray(y, dtype=float))
+        return g_in, rate
 
-    # ---- forces --------------------------------------------------------------------------
-    def friction(self, v: float, normal: float, mu: float) -> float:
-        """Regularised friction [N] (arctan of Eq. 14, tanh, Stribeck, none)."""
-        law = self.fric_law
-        if law == 0:
-            return mu * normal * (2.0 / math.pi) * math.atan(v / self.vhat)
-        if law == 1:
-            return mu * normal * math.tanh(v / self.vhat)
-        if law == 2:
-            mu_eff = mu * (1.0 + (self.mus_ratio - 1.0) * math.exp(-((v / self.vstribeck) ** 2)))
-            return mu_eff * normal * math.tanh(v / self.vhat)
-        return 0.0
-
-    def normal(self, pair: int, mode: int, u: float, ud: float, v0: float) -> float:
-        """Normal force N >= 0 [N] of ``pair`` in contact mode ``mode`` (0 when free)."""
-        if mode == 0:
-            return 0.0
-        if mode < 0:
-            p, pd = -u, -ud
-        else:
-            p, pd = u - self.eps[pair], ud
-        if p < 0.0:
-            p = 0.0
-        fk = self.k[pair] * p ** self.n[pair]
-        nn = fk + fk * self.d[pair] * pd / v0
-        if nn < 0.0 and not self.allow_tension:
-            nn = 0.0
-        return nn
+    def stiffness_force(self, pair: int, p: float) -> float:
+        """F_k [N] of ``pair``'s contact law at penetration p (it depends on p alone)."""
+        law = self._law(self.record, pair, float(p), 0.0, 1.0)
+        return float(law[0])
 
     def make_rhs(
         self, mt: int, ms: int, v0t: float, v0s: float
     ) -> Callable[[float, np.ndarray], np.ndarray]:
         """f(t, y) of the state [x, x'] (one DOF) or [x, x', y, y'] in the modes (mt, ms)."""
-        m = self.m
-        load = self.load_x
-        mrc = self.mrc
-        nx, mu1, mu2 = self.nx, self.mu1, self.mu2
-        fric = self.friction
-        normal = self.normal
-        omega = self.omega
-        track_h = self.track_h
-        const_omega = self.prof_t.size < 2 and not self.speed_terms
-        om0sq = self.omega0**2
-        if not self.two_dof:
+        modes = np.array([mt, ms], dtype=np.int64)
+        v0 = np.array([v0t, v0s])
+        n = self.n_state
+        derivs = self._derivs
+        record = self.record
 
-            def rhs1(t: float, y: np.ndarray) -> np.ndarray:
-                om2 = om0sq if const_omega else omega(t) ** 2
-                nt = 0.0
-                if mt != 0:
-                    h, hd = track_h(t)
-                    nt = normal(0, mt, y[0] - h, y[1] - hd, v0t)
-                fx = fric(y[1], nx, mu1)
-                return np.array([y[1], (-mt * nt - fx - load - mrc * om2) / m])
+        def rhs(t: float, y: np.ndarray) -> np.ndarray:
+            out = np.empty(n)
+            derivs(record, t, y, modes, v0, n, out)
+            return out
 
-            return rhs1
-
-        t_y = self.t_y
-
-        def rhs2(t: float, y: np.ndarray) -> np.ndarray:
-            om = omega(t)
-            nt = 0.0
-            if mt != 0:
-                h, hd = track_h(t)
-                nt = normal(0, mt, y[0] - h, y[1] - hd, v0t)
-            ns = 0.0
-            if ms != 0:
-                ns = normal(1, ms, y[2] - self.slot_s(t), y[3] - self.rc * om, v0s)
-            fx = fric(y[1], nx, mu1)
-            fy = fric(y[3], abs(nt), mu2)
-            return np.array(
-                [y[1], (-mt * nt - fx - load - mrc * om * om) / m, y[3], (-ms * ns - fy + t_y) / m]
-            )
-
-        return rhs2
+        return rhs
 
     def make_events(self, mt: int, ms: int) -> list[Any]:
         """Terminal events of the modes (mt, ms): onset of a free pair, exit of a pair in contact.
@@ -259,35 +144,11 @@ class _Equations:
                 events.append(ev)
         return events
 
-    # ---- vectorised contact quantities for the post-processing ------------------------
     def pair_arrays(
         self, t: np.ndarray, Y: np.ndarray, pair: int, mode: int, v0: float
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(p, pdot, F_k, F_c, N) of ``pair`` in contact mode ``mode`` at the times ``t``."""
-        if pair == 0:
-            h = np.zeros_like(t)
-            hd = np.zeros_like(t)
-            for a, w, ph in self.track_terms:
-                h += a * np.cos(w * t + ph)
-                hd -= a * w * np.sin(w * t + ph)
-            u = Y[0] - h
-            ud = Y[1] - hd
-        else:
-            s = np.array([self.slot_s(float(tt)) for tt in t])
-            om = np.array([self.omega(float(tt)) for tt in t])
-            u = Y[2] - s
-            ud = Y[3] - self.rc * om
-        if mode < 0:
-            p, pd = -u, -ud
-        else:
-            p, pd = u - self.eps[pair], ud
-        p = np.maximum(p, 0.0)
-        fk = self.k[pair] * p ** self.n[pair]
-        fc = fk * self.d[pair] * pd / v0
-        nn = fk + fc
-        if not self.allow_tension:
-            nn = np.maximum(nn, 0.0)
-        return p, pd, fk, fc, nn
+        return contact_quantities(self.record, pair, t, Y, mode, v0)
 
 
 def _make_event(eq: _Equations, pair: int, side: int, mode: int, eps: float) -> Any:
@@ -343,7 +204,7 @@ class _Episode:
     end_reason: int = 1  # 0 exit, 1 still in contact at the end, 2 cut by a transfer
 
     def row(self) -> list[float]:
-        """The episode in the column order of :data:`kernel.EPISODE_COLUMNS`."""
+        """The episode in the field order of :data:`braidsim.core.layout.EPISODE_DTYPE`."""
         return [
             self.t,
             self.t_end,
@@ -373,7 +234,7 @@ class ScipyResult:
     model : Model
         The model integrated (from :func:`braidsim.build_model`).
     episodes : np.ndarray
-        Contact episodes, columns :data:`braidsim.integrate.kernel.EPISODE_COLUMNS`.
+        Contact episodes, records of :data:`braidsim.core.layout.EPISODE_DTYPE`.
     windows : np.ndarray
         (n, 2) windows of ``ranges`` [s]; window 0 is the whole run.
     ranges : np.ndarray
@@ -446,8 +307,8 @@ class _Run:
         self.method = method
         self.rtol = rtol
         self.atol = atol
-        self.hmax = float(model.P[K.P_HMAX])
-        self.max_steps = int(model.P[K.P_MAXSTEPS])
+        self.hmax = float(model.options.max_step)
+        self.max_steps = int(model.options.max_steps)
         self.modes = [0, 0]
         self.v0 = [1.0, 1.0]
         self.open: list[_Episode | None] = [None, None]
@@ -461,7 +322,7 @@ class _Run:
 
     # ---- contacts at t = 0 and after a transfer ---------------------------------------
     def start_contacts(self, t: float, y: np.ndarray, npair: int) -> None:
-        """The kernel's start policy (see ``kernel._start_contacts``)."""
+        """The solver's start policy (see :mod:`braidsim.core.solver.loop`)."""
         eq = self.eq
         for pair in range(npair):
             u, ud = eq.pair_state(t, y, pair)
@@ -570,7 +431,6 @@ class _Run:
             if sol is None or not tb > ta:
                 continue
             v0 = self.v0[pair]
-            k, n = self.eq.k[pair], self.eq.n[pair]
             ex = self._extremes(sol, ts, pair, mode, v0, ta, tb)
             ep = self.open[pair]
             if ep is not None:
@@ -591,8 +451,12 @@ class _Run:
                     continue
                 exw = ex if (a == ta and b == tb) else self._extremes(sol, ts, pair, mode, v0, a, b)
                 pmin, pmax = exw["p"][0], exw["p"][2]
-                lo = np.array([pmin, k * pmin**n, exw["fc"][0], exw["nn"][0]])
-                hi = np.array([pmax, k * pmax**n, exw["fc"][2], exw["nn"][2]])
+                fk_lo, fk_hi = (
+                    self.eq.stiffness_force(pair, pmin),
+                    self.eq.stiffness_force(pair, pmax),
+                )
+                lo = np.array([pmin, fk_lo, exw["fc"][0], exw["nn"][0]])
+                hi = np.array([pmax, fk_hi, exw["fc"][2], exw["nn"][2]])
                 if mode < 0:
                     lo, hi = -hi, -lo
                 self.R[w, pair, :, 0] = np.minimum(self.R[w, pair, :, 0], lo)
@@ -753,7 +617,7 @@ def simulate_scipy(
         Relative tolerance of solve_ivp (the scenario's ``simulation.rtol`` is not used here).
     atol : float or sequence, optional
         Absolute tolerance(s); default ``simulation.atol_position`` [m] on positions and
-        ``simulation.atol_velocity`` [m/s] on velocities, as in the kernel.
+        ``simulation.atol_velocity`` [m/s] on velocities, as in the compiled solver.
     windows : sequence of (t0, t1), optional
         Extra windows [s] for the ranges (window 0 is the whole run).
 
@@ -772,13 +636,13 @@ def simulate_scipy(
     model = build_model(sc, duration)
     W = _windows(model.duration, windows)
     if atol is None:
-        ax, av = float(model.P[K.P_ATOL_X]), float(model.P[K.P_ATOL_V])
-        atol = [ax, av, ax, av] if model.P[K.P_DOF] > 1.5 else [ax, av]
+        ax, av = float(model.options.atol_position), float(model.options.atol_velocity)
+        atol = [ax, av, ax, av] if model.two_dof else [ax, av]
     run = _Run(model, W, method, rtol, atol)
     t0 = time.perf_counter()
     t, y = run.run()
     wall = time.perf_counter() - t0
-    EP = np.array([ep.row() for ep in run.episodes], dtype=float).reshape(-1, K.NEP)
+    EP = np.array([tuple(ep.row()) for ep in run.episodes], dtype=EPISODE_DTYPE)
     stats: dict[str, Any] = dict(run.stats)
     stats.update(
         {"method": method, "rtol": rtol, "wall_time": wall, "solve_ivp_time": run.solve_time}
@@ -787,7 +651,7 @@ def simulate_scipy(
         "t": float(t),
         "x": float(y[0]),
         "vx": float(y[1]),
-        "y": float(y[2]) if y.size > 2 else float(model.y0[2]),
-        "vy": float(y[3]) if y.size > 2 else float(model.y0[3]),
+        "y": float(y[2]) if y.size > 2 else float(sc["initial.y"]),
+        "vy": float(y[3]) if y.size > 2 else float(sc["initial.vy"]),
     }
     return ScipyResult(model, EP, W, run.R, stats, final)

@@ -5,8 +5,8 @@ Horn-gear rotation
 ------------------
 Every gear turns through ``Omega(t) = int_0^t omega(t') dt'`` [rad], with ``omega(t)`` the
 carrier model's horn-gear speed (constant, harmonics or a periodic piecewise-linear profile;
-:func:`braidsim.integrate.kernel.horn_gear` evaluates it, and this module calls that same
-compiled function so that the transfer times agree with the slot motion the kernel integrates).
+:func:`braidsim.core.horn_gear_state` evaluates it, and this module calls that same
+compiled function so that the transfer times agree with the slot motion the solver integrates).
 A carrier transfers when ``Omega`` reaches the angle of its next crossing
 (:meth:`~braidsim.machine.geometry.MachineGeometry.transfer_events`); the transfer *times*
 follow by inverting ``Omega(t)`` (:meth:`SpeedLaw.time_at_angle`), not from ``angle/omega``
@@ -42,26 +42,26 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from braidsim.core import horn_gear_state
 from braidsim.errors import InputError
-from braidsim.integrate import kernel as K
 from braidsim.model import Model
 
 
 @njit(cache=True, error_model="numpy")
-def _rotation(ts, P, EX, om_out, ang_out):  # pragma: no cover - compiled
-    rc = P[K.P_RC]
+def _rotation(ts, hg, om_out, ang_out):  # pragma: no cover - compiled
+    rc = hg.turning_radius
     for i in range(ts.shape[0]):
-        om, s = K.horn_gear(ts[i], P, EX)
+        om, s = horn_gear_state(hg, ts[i])
         om_out[i] = om
         ang_out[i] = s / rc
 
 
 @njit(cache=True, error_model="numpy")
-def _invert(targets, P, EX, omega_min, omega_mean, out):  # pragma: no cover - compiled
+def _invert(targets, hg, omega_min, omega_mean, out):  # pragma: no cover - compiled
     """Times at which Omega(t) reaches the increasing ``targets`` (Omega(0) = 0, omega >=
     omega_min > 0): bracket [lo, lo + (target - Omega(lo)) / omega_min], then Newton steps
     kept inside the bracket (bisection when a step leaves it)."""
-    rc = P[K.P_RC]
+    rc = hg.turning_radius
     lo = 0.0
     a_lo = 0.0
     for i in range(targets.shape[0]):
@@ -74,7 +74,7 @@ def _invert(targets, P, EX, omega_min, omega_mean, out):  # pragma: no cover - c
         t = min(max(t, lo), hi)
         l, h = lo, hi
         for _ in range(200):
-            om, s = K.horn_gear(t, P, EX)
+            om, s = horn_gear_state(hg, t)
             f = s / rc - th
             if abs(f) <= 1e-14 * max(1.0, abs(th)):
                 break
@@ -121,14 +121,15 @@ class SpeedLaw:
         InputError
             omega(t) can reach 0 or below (the gears would stop or reverse).
         """
-        if model.profile_times.size:
-            t, w = model.profile_times, model.profile_speeds
-            mean = float(model.profile_integral[-1] / (t[-1] - t[0]))
+        hg = model.horn_gear
+        if hg.profile_times.size:
+            t, w = hg.profile_times, hg.profile_speeds
+            mean = float(hg.profile_integral[-1] / (t[-1] - t[0]))
             low = float(w.min())
             what = "horn_gear.speed_profile: the speeds"
         else:
-            w0 = float(model.P[K.P_OMEGA0])
-            H = model.speed_harmonics
+            w0 = float(hg.omega0)
+            H = hg.harmonics
             steady = float(sum(a * math.cos(ph) for a, f, ph in H if f == 0.0))
             mean = w0 + steady
             low = w0 + steady - float(sum(abs(a) for a, f, _ in H if f > 0.0))
@@ -145,7 +146,7 @@ class SpeedLaw:
         ts = np.ascontiguousarray(np.asarray(t, dtype=float).reshape(-1))
         om = np.empty_like(ts)
         ang = np.empty_like(ts)
-        _rotation(ts, self.model.P, self.model.excitation, om, ang)
+        _rotation(ts, self.model.horn_gear, om, ang)
         return om, ang
 
     def time_at_angle(self, angles: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -161,8 +162,7 @@ class SpeedLaw:
         sorted_t = np.empty(a.size)
         _invert(
             np.ascontiguousarray(a[order]),
-            self.model.P,
-            self.model.excitation,
+            self.model.horn_gear,
             self.minimum,
             self.mean,
             sorted_t,

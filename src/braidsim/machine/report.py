@@ -112,9 +112,13 @@ def kinematics_summary(spec: MachineSpec) -> dict[str, Any]:
 
 def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
     """The JSON object of ``braidsim machine --json`` (SI units)."""
+    from braidsim.provenance import utc_now, version
+
     spec = run.spec
     sc = spec.scenario
     return {
+        "braidsim_version": version(),
+        "created": utc_now(),
         "name": spec.name,
         "description": spec.description,
         "spec": str(spec.path) if spec.path else None,
@@ -138,7 +142,7 @@ def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
             "integration_steps": run.steps,
             "elapsed_s": run.elapsed,
             "workers": run.workers,
-            "engine": "compiled kernel (braidsim.simulate.run_kernel) per carrier, "
+            "engine": "compiled core (braidsim.simulate.run_model) per carrier, "
             + ("in one process" if run.workers == 1 else f"over {run.workers} local processes"),
             "track_vibration_amplitude": sc["track.vibration_amplitude"],
             "transfer_contact_speed": sc["transfer.contact_speed"],
@@ -154,15 +158,42 @@ def summary(run: MachineRun, files: list[str] | None = None) -> dict[str, Any]:
 # ----------------------------------------------------------------------------------------
 
 
+#: alt text of the report's figures: what each shows, for readers who cannot see it
+FIGURE_ALT = {
+    "peak_force_per_transfer.png": "Peak contact force and number of impacts of every transfer "
+    "of every carrier against the transfer time, coloured by carrier group",
+    "carrier_distribution.png": "Distribution over the carriers: peak force per transfer as a "
+    "box per carrier, impacts per second as bars and impact energy per second as black marks",
+    "machine_layout.png": "Layout of the machine: horn gears, carrier paths of both groups and "
+    "the crossings where carriers transfer",
+    "machine.gif": "Animation of the carriers moving round the machine, coloured by their "
+    "contact force",
+    "machine_frame.png": "One frame of the animation: carrier positions coloured by contact force",
+}
+
+
+def _from_zero(ax: Any) -> None:
+    """y axis from 0 to 8 % above the highest point: nothing sits on the frame."""
+    top = ax.dataLim.y1 if np.isfinite(ax.dataLim.y1) else 1.0
+    ax.set_ylim(0.0, 1.08 * top if top > 0 else 1.0)
+
+
 def peak_force_figure(run: MachineRun) -> Figure:
-    """Peak contact force and number of impacts of every transfer against its time."""
+    """Peak contact force and number of impacts of every transfer against its time.
+
+    Colour = carrier group, as in every machine figure and the animation (A blue, B green);
+    marker = the arc the carrier moves onto (circle inner, triangle outer). The y axes start
+    at 0 so that heights compare.
+    """
+    from braidsim.machine.animation import GROUP_COLOURS
     from braidsim.plotting import new_figure
 
     tr = run.transfers
     fig = new_figure(7.0, 5.0)
     ax1, ax2 = fig.subplots(2, 1, sharex=True)
-    for g, marker in (("A", "o"), ("B", "^")):
-        for side, colour in (("inner", "C2"), ("outer", "C3")):
+    for g in ("A", "B"):
+        colour = GROUP_COLOURS[g]
+        for side, marker in (("inner", "o"), ("outer", "^")):
             sel = (tr["group"] == g) & (tr["arc"] == side) if len(tr) else []
             if not len(tr) or not np.any(sel):
                 continue
@@ -182,6 +213,7 @@ def peak_force_figure(run: MachineRun) -> Figure:
     ax2.set_xlim(0.0, run.duration)
     for ax in (ax1, ax2):
         ax.grid(True, lw=0.3, alpha=0.6)
+        _from_zero(ax)
     if len(tr):
         ax1.legend(fontsize=7, frameon=False, loc="lower right", ncol=2)
     else:
@@ -211,7 +243,11 @@ def distribution_figure(run: MachineRun) -> Figure:
     nonempty = [i for i, d in enumerate(data) if d.size]
     if nonempty:
         bp = ax1.boxplot(
-            [data[i] for i in nonempty], positions=pos[nonempty], widths=0.6, patch_artist=True
+            [data[i] for i in nonempty],
+            positions=pos[nonempty],
+            widths=0.6,
+            patch_artist=True,
+            medianprops={"color": "k"},  # colours mean groups only
         )
         for i, box in zip(nonempty, bp["boxes"], strict=True):
             box.set_facecolor(GROUP_COLOURS[str(ca["group"].iloc[i])])
@@ -223,11 +259,12 @@ def distribution_figure(run: MachineRun) -> Figure:
     ax3 = ax2.twinx()
     ax3.plot(pos, ca["impact_energy"] / run.duration, "k_", ms=12, mew=2)
     ax3.set_ylabel("impact energy per second / W (black)")
-    ax3.set_ylim(bottom=0.0)
+    _from_zero(ax3)
     ax2.set_xticks(pos, names, rotation=90, fontsize=7)
     ax2.set_xlim(-0.6, len(names) - 0.4)
     for ax in (ax1, ax2):
         ax.grid(True, axis="y", lw=0.3, alpha=0.6)
+        _from_zero(ax)  # heights compare from zero, as in the other figures
     ax1.set_title("distribution over carriers (group A blue, group B green)", fontsize=9)
     return fig
 
@@ -409,7 +446,7 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
     else:
         lines.append("No transfer in the run.")
     lines += ["", "## Figures", ""]
-    lines += [f"![{f}]({f})" for f in figures]
+    lines += [f"![{FIGURE_ALT.get(f, f)}]({f})" for f in figures]
     lines += [
         "",
         "## What the model assumes",

@@ -17,7 +17,7 @@ Engine
 The batch engine (:mod:`braidsim.batch`) reduces every run to whole-window metrics; the
 machine needs the impacts of each run grouped by transfer interval, so it runs its own small
 process pool (:func:`run_carriers`) over the compiled kernel
-(:func:`braidsim.simulate.run_kernel`, the path :func:`braidsim.simulate` takes) with only
+(:func:`braidsim.simulate.run_model`, the path :func:`braidsim.simulate` takes) with only
 the samples it needs (the transfer times for the energy integrals, the animation frames) and
 no event rows.
 Runs are independent and deterministic: the result does not depend on the number of workers.
@@ -42,6 +42,10 @@ A carrier's run is cut at its transfer times ``t_1 < t_2 < ...`` into intervals
   ``int (N - K p^n) pdot dt`` over the interval (exact up to the integrator's tolerance);
   friction energy the same for ``int f v dt``.
 
+The slot contact (two-DOF runs, ``simulation.dof = "xy"``) is reduced per carrier only:
+its impacts (onsets on a slot wall), their largest peak force, sum of m v^2 / 2 and sum of
+squared peak forces.
+
 Machine totals: impacts per second and impact energy per second (over all carriers and the
 whole run), dissipated power, the worst carrier (largest peak force) and the worst transfer.
 """
@@ -57,8 +61,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from braidsim.core import CARRIER_COLUMNS
 from braidsim.errors import SimulationError
-from braidsim.integrate import kernel as K
 from braidsim.machine.geometry import TransferEvent
 from braidsim.machine.kinematics import SpeedLaw
 from braidsim.machine.spec import MachineSpec
@@ -69,7 +73,6 @@ if TYPE_CHECKING:
 
 SAMPLED = ("track_dissipated", "friction_work_x", "friction_work_y", "track_contact_force")
 """Kernel columns sampled per carrier (at transfer times and animation frames)."""
-_EP = {name: i for i, name in enumerate(K.EPISODE_COLUMNS)}
 
 
 @dataclass(frozen=True)
@@ -135,22 +138,19 @@ def plan_transfers(
 def _run_one(
     sc: Any, times: np.ndarray, duration: float, samples: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, int, int]:
-    """One carrier: the kernel with its transfer times, samples only (no event rows)."""
-    from braidsim.simulate import run_kernel
+    """One carrier: the solver with its transfer times, samples only (no event rows)."""
+    from braidsim.simulate import run_model
 
     model = build_model(sc.with_overrides({"transfer.times": [float(t) for t in times]}), duration)
-    # about ten impacts follow a transfer: size the episode table so that the kernel need
-    # not repeat the run with a larger one
-    cap = 256 + 32 * times.size + int(100.0 * duration)
     W = np.array([[0.0, duration]])
-    rows, EP, _, _, stats, _, _ = run_kernel(
-        model, samples, W, record_events=False, episode_capacity=cap
-    )
+    raw = run_model(model, sample_times=samples, windows=W, record_events=False)
+    rows = raw.series
+    assert rows is not None
     if rows.shape[0] != samples.size or not np.array_equal(rows[:, 0], samples):
-        # without event rows the kernel writes exactly the samples asked for, in order
-        raise AssertionError("kernel returned a series that does not match the sample times")
-    cols = np.ascontiguousarray(rows[:, [K.COLUMNS.index(c) for c in SAMPLED]].T)
-    return EP, cols, int(stats[0]), int(stats[4])
+        # without event rows the solver writes exactly the samples asked for, in order
+        raise AssertionError("solver returned a series that does not match the sample times")
+    cols = np.ascontiguousarray(rows[:, [CARRIER_COLUMNS.index(c) for c in SAMPLED]].T)
+    return raw.episodes, cols, int(raw.stats[0]["steps"]), int(raw.stats[0]["transfers"])
 
 
 def _run_chunk(
@@ -261,7 +261,11 @@ class MachineRun:
     transfers : pd.DataFrame
         One row per transfer (module docstring), SI units.
     carriers : pd.DataFrame
-        One row per carrier.
+        One row per carrier: track impacts, largest peak force, impact energy and friction
+        and dissipated energies, ``peak_force_squares`` (sum of the squared peak forces of its
+        track impacts [N^2]), and the same for the slot contact (two-DOF runs; zero otherwise):
+        ``slot_impacts``, ``slot_max_peak_force``, ``slot_impact_energy``,
+        ``slot_peak_force_squares``.
     impacts : pd.DataFrame
         Every track impact: carrier, interval (transfer index, 0 before the first), t, wall,
         velocity, peak_force, dissipated_energy.
@@ -371,11 +375,11 @@ def run_machine(
         ie = np.searchsorted(samples, edges)
         diss = cols[0][ie]
         fric = cols[1][ie] + cols[2][ie]
-        track = EP[:, _EP["pair"]] == 0.0
-        onset = track & (EP[:, _EP["initial"]] == 0.0)
-        t_on = EP[onset, _EP["t"]]
-        vel = EP[onset, _EP["velocity"]]
-        peak = EP[onset, _EP["peak_force"]]
+        track = EP["pair"] == 0.0
+        onset = track & (EP["initial"] == 0.0)
+        t_on = EP["t"][onset]
+        vel = EP["velocity"][onset]
+        peak = EP["peak_force"][onset]
         k_of = np.searchsorted(edges[1:-1], t_on, side="right")  # interval index 0..n
         im_parts.append(
             pd.DataFrame(
@@ -383,10 +387,10 @@ def run_machine(
                     "carrier": p.carrier,
                     "interval": k_of,
                     "t": t_on,
-                    "wall": np.where(EP[onset, _EP["wall"]] < 0, "inner", "outer"),
+                    "wall": np.where(EP["wall"][onset] < 0, "inner", "outer"),
                     "velocity": vel,
                     "peak_force": peak,
-                    "dissipated_energy": EP[onset, _EP["dissipated_energy"]],
+                    "dissipated_energy": EP["dissipated_energy"][onset],
                 }
             )
         )
@@ -399,7 +403,7 @@ def run_machine(
         np.maximum.at(vmax, k_of, vel)
         np.add.at(ekin, k_of, 0.5 * mass * vel * vel)
         # the gap crossing: the first impact on the inner wall of each interval
-        inner = EP[onset, _EP["wall"]] < 0
+        inner = EP["wall"][onset] < 0
         v_gap = np.full(n_int, np.nan)
         ki, first = np.unique(k_of[inner], return_index=True)
         v_gap[ki] = vel[inner][first]
@@ -429,6 +433,10 @@ def run_machine(
                 }
             )
         worst_k = int(np.argmax(pk[1:]) + 1) if n_int > 1 else 0
+        # the slot contact (two-DOF runs only): onsets of the carrier on a slot wall
+        s_on = (EP["pair"] == 1.0) & (EP["initial"] == 0.0)
+        s_vel = EP["velocity"][s_on]
+        s_peak = EP["peak_force"][s_on]
         ca_rows.append(
             {
                 "carrier": p.carrier,
@@ -444,13 +452,18 @@ def run_machine(
                 "dissipated_energy": float(diss[-1] - diss[0]),
                 "friction_energy": float(fric[-1] - fric[0]),
                 "worst_transfer": worst_k,
+                "peak_force_squares": float(np.sum(peak * peak)),
+                "slot_impacts": int(s_vel.size),
+                "slot_max_peak_force": float(s_peak.max()) if s_peak.size else 0.0,
+                "slot_impact_energy": float(np.sum(0.5 * mass * s_vel * s_vel)),
+                "slot_peak_force_squares": float(np.sum(s_peak * s_peak)),
             }
         )
         if ft.size:
             ifr = np.searchsorted(samples, ft)
             f_now = np.abs(cols[3][ifr])
-            t_pk = EP[track, _EP["t_peak_force"]]
-            v_pk = EP[track, _EP["peak_force"]]
+            t_pk = EP["t_peak_force"][track]
+            v_pk = EP["peak_force"][track]
             fb = np.searchsorted(ft, t_pk, side="left")  # frame f gets peaks in (t_{f-1}, t_f]
             ok = fb < ft.size
             np.maximum.at(f_now, fb[ok], v_pk[ok])

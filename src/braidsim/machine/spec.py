@@ -56,8 +56,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from braidsim.core import horn_gear_state, wall_motion
 from braidsim.errors import InputError
-from braidsim.integrate import kernel as K
 from braidsim.machine.geometry import (
     Loading,
     MachineGeometry,
@@ -240,14 +240,15 @@ def _rest_start(sc: Scenario) -> dict[str, float]:
     moves with the track: x0 = h(0) - delta, dx0/dt = h'(0). With two DOFs the carrier rides
     in the middle of the slot clearance at the slot speed r_c omega(0)."""
     model = build_model(sc, 1.0)
-    om0, s0 = K.horn_gear(0.0, model.P, model.excitation)
-    load = model.P[K.P_LOAD_X] + model.P[K.P_MRC] * om0 * om0
+    om0, s0 = horn_gear_state(model.horn_gear, 0.0)
+    rec = model.record
+    load = rec.load_x + rec.mass_radius * om0 * om0
     delta = (load / model.track.stiffness) ** (1.0 / model.track.exponent) if load > 0 else 0.0
-    h0, hd0 = K.track_h(0.0, model.excitation)
+    h0, hd0, _ = wall_motion.py(rec.track, 0.0)
     out = {"initial.x": float(h0 - delta), "initial.vx": float(hd0)}
     if sc["simulation.dof"] == "xy":
         out["initial.y"] = float(s0 + 0.5 * sc["slot.clearance"])
-        out["initial.vy"] = float(sc["carrier.turning_radius"] * om0)
+        out["initial.vy"] = 0.0  # moving with the slot (initial.vy is relative to it)
     return out
 
 

@@ -31,10 +31,10 @@ Format (every quantity a number in SI or a string with units)::
 
     [metrics]
     keep = ["regime", "track_max_contact_force"]    # default: all of braidsim.batch.METRICS
-    window = ["0.5 s", "1 s"]               # metrics window; default: the whole run
+    window = ["0.5 s", "1 s"]               # metrics window; default: second half of the run
 
     [series]                                # optional sampled time series of every run
-    variables = ["x", "track_contact_force"]  # columns of braidsim.integrate.kernel.COLUMNS
+    variables = ["x", "track_contact_force"]  # columns of braidsim.core.CARRIER_COLUMNS
     start = "0.9 s"                         # a uniform grid (or times = [...])
     stop = "1 s"
     num = 101
@@ -190,17 +190,16 @@ class Samples:
 def draw_samples(method: str, n: int, d: int, seed: int) -> np.ndarray:
     """(n, d) points in [0, 1): plain uniform (``random``) or Latin hypercube.
 
-    Latin hypercube: for each dimension, u = (pi(i) + v_i) / n with pi a random permutation
-    of 0..n-1 and v_i uniform in [0, 1), so every stratum [k/n, (k+1)/n) holds exactly one
-    point in every dimension.
+    Latin hypercube (:class:`scipy.stats.qmc.LatinHypercube`): for each dimension,
+    u = (pi(i) + v_i) / n with pi a random permutation of 0..n-1 and v_i uniform in [0, 1),
+    so every stratum [k/n, (k+1)/n) holds exactly one point in every dimension.
     """
     rng = np.random.default_rng(seed)
     if method == "random":
         return rng.random((n, d))
-    u = np.empty((n, d))
-    for j in range(d):
-        u[:, j] = (rng.permutation(n) + rng.random(n)) / n
-    return u
+    from scipy.stats import qmc
+
+    return qmc.LatinHypercube(d=d, rng=rng).random(n)
 
 
 @dataclass(frozen=True)
@@ -674,6 +673,11 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
         path, text, "", ref, base, duration, axes, samples, metrics, RunOptions(), (1,), 0
     )
     durations = partial.run_durations()
+    if window is None:
+        # the start of a run is a transient (the first impacts): by default the metrics
+        # describe the second half of the shortest run, [D/2, D]
+        d_min = float(np.min(durations))
+        window = (0.5 * d_min, d_min)
     series_names: tuple[str, ...] = ()
     series_times = None
     if "series" in data:

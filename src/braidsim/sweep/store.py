@@ -157,6 +157,9 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
         "title": spec.name,
         "format": STORE_FORMAT,
         "source": f"braidsim {braidsim.__version__} sweep",
+        # no creation date: a store is reproducible to the bit (a resumed store equals an
+        # uninterrupted one), and the spec and parameters above say how it was made
+        "braidsim_version": braidsim.__version__,
         "scenario": spec.base.name,
         "spec": spec.text,
         "spec_sha256": spec.digest(),

@@ -1,0 +1,209 @@
+"""Drive the compiled solver: buffers, flushing, and one pass however long the run.
+
+:func:`run` calls :func:`braidsim.core.solver.loop.integrate` with a series buffer of
+bounded size and an impact table of bounded size. When either fills, the solver returns at a
+step boundary with everything it carries in the restart record. The driver then hands the
+rows to the series sink (kept in memory, or passed to a callback that streams them to a
+store or decimates them) and moves the closed impacts out. Then it calls the solver again.
+The run is integrated once; its bits do not depend on the buffer sizes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from braidsim.core import layout as L
+from braidsim.core.interfaces import dissipation_index, model_size, series_columns
+from braidsim.core.solver.loop import EPISODE_RESERVE, EVENT_ROWS, integrate
+
+SeriesSink = Callable[[np.ndarray], None]
+"""Receives each chunk of series rows (a (rows, columns) array, a copy it may keep)."""
+
+DEFAULT_ROW_CHUNK = 32768  # rows of the series buffer (about 7 MB for the carrier)
+DEFAULT_EPISODE_CHUNK = 256
+
+
+@dataclass
+class RawRun:
+    """What one run of the solver produced, in the solver's own records.
+
+    Attributes
+    ----------
+    status : int
+        A status code of :mod:`braidsim.core.layout` (``ST_OK`` or a failure).
+    series : np.ndarray or None
+        (rows, columns) in the model's :func:`~braidsim.core.interfaces.series_columns`
+        order, sorted by time (samples and event rows interleaved); None when not kept.
+    episodes : np.ndarray
+        The impact table (EPISODE_DTYPE); contacts still open at the end are closed at the
+        final time with ``end_reason = END_ONGOING``.
+    ranges : np.ndarray
+        (windows, 2, 4, 2) window extremes.
+    xsq : np.ndarray or None
+        int x^2 dt over each window [m^2 s].
+    stats : np.ndarray
+        STATS_DTYPE record.
+    y : np.ndarray
+        Final state vector.
+    restart : np.ndarray
+        RESTART_DTYPE record where the run stands (to continue it).
+    rows_written : int
+        Series rows produced in all (kept or streamed).
+    """
+
+    status: int
+    series: np.ndarray | None
+    episodes: np.ndarray
+    ranges: np.ndarray
+    xsq: np.ndarray | None
+    stats: np.ndarray
+    y: np.ndarray
+    restart: np.ndarray
+    rows_written: int
+
+    @property
+    def t(self) -> float:
+        """Where the run stopped [s]."""
+        return float(self.restart[0]["t"])
+
+
+def state_size(model: Any, energy: bool) -> int:
+    """Length of the state vector of ``model`` (with or without the energy quadratures)."""
+    n_coords, _, n_quads = model_size.py(model)
+    return 2 * n_coords + (n_quads if energy else 0)
+
+
+def max_samples_per_step(sample_times: np.ndarray, max_step: float) -> int:
+    """Most sample times in any half-open interval (t, t + max_step]: what one step can
+    write."""
+    st = np.asarray(sample_times, dtype=float)
+    if st.size == 0:
+        return 0
+    ends = np.searchsorted(st, st + max_step, side="right")
+    return int(np.max(ends - np.arange(st.size))) + 1
+
+
+def run(
+    model: Any,
+    opts: L.SolverOptions,
+    y0: np.ndarray,
+    *,
+    sample_times: np.ndarray | None = None,
+    transfer_times: np.ndarray | None = None,
+    windows: np.ndarray | None = None,
+    series: bool | SeriesSink = True,
+    xsq: bool = True,
+    restart: np.ndarray | None = None,
+    row_chunk: int = DEFAULT_ROW_CHUNK,
+    episode_chunk: int = DEFAULT_EPISODE_CHUNK,
+) -> RawRun:
+    """Integrate ``model`` with solver options ``opts`` from ``y0`` (or from ``restart``).
+
+    Parameters
+    ----------
+    series : bool or callable
+        True: keep the series rows in memory; False: record no series (the lean path: the
+        impact table, window ranges and statistics only); a callable: receive the rows in
+        chunks of at most ``row_chunk`` (plus one step's worth), each sorted by time and
+        together in time order, and keep none.
+    xsq : bool
+        Integrate x^2 over the windows (for the RMS of x).
+    restart : RESTART_DTYPE record, optional
+        Where to start: a new run by default (:func:`braidsim.core.layout.new_restart` at
+        t = 0 or its ``t``), or a continuation (``started = CONTINUED``).
+    """
+    n = state_size(model, opts.energy)
+    y = np.array(y0, dtype=float)
+    if y.shape != (n,):
+        raise ValueError(
+            f"the state vector of {type(model).__name__} has {n} entries, got {y.shape}"
+        )
+    ST = np.zeros(0) if sample_times is None else np.ascontiguousarray(sample_times, dtype=float)
+    TR = (
+        np.zeros(0) if transfer_times is None else np.ascontiguousarray(transfer_times, dtype=float)
+    )
+    WIN = np.zeros((0, 2)) if windows is None else np.ascontiguousarray(windows, dtype=float)
+    RS = L.new_restart() if restart is None else np.array(restart, dtype=L.RESTART_DTYPE).reshape(1)
+    RANGES = L.new_ranges(WIN.shape[0])
+    XSQ = np.zeros(WIN.shape[0]) if xsq else None
+    STATS = L.new_stats()
+    keep = series is True
+    sink: SeriesSink | None = series if callable(series) else None
+    ncol = len(series_columns(model))
+    reserve = max_samples_per_step(ST, opts.max_step) + EVENT_ROWS
+    rows = np.empty((max(row_chunk, 1) + reserve, ncol)) if (keep or sink) else None
+    EP = np.empty(max(episode_chunk, 2 * EPISODE_RESERVE), dtype=L.EPISODE_DTYPE)
+    chunks: list[np.ndarray] = []
+    closed: list[np.ndarray] = []
+    written = 0
+    while True:
+        status = integrate(model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS)
+        r = RS[0]
+        final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)
+        nrow = int(r["rows"])
+        if rows is not None:
+            if nrow > rows.shape[0]:
+                raise RuntimeError(f"solver wrote {nrow} rows into a buffer of {rows.shape[0]}")
+            if nrow and (final or status == L.ST_ROWS_FULL):
+                # a flush happens between steps, and a step's rows (its samples, then its
+                # peaks and event) lie inside the step: sorted chunks make a sorted stream
+                chunk = rows[:nrow][np.argsort(rows[:nrow, 0], kind="stable")]
+                written += nrow
+                if keep:
+                    chunks.append(chunk)
+                elif sink is not None:
+                    sink(chunk)
+                r["rows"] = 0
+        if final:
+            closed.append(EP[: int(r["episodes"])].copy())
+            break
+        if status == L.ST_EPISODES_FULL:
+            _flush_episodes(EP, RS, closed)
+    episodes = np.concatenate(closed)
+    # in order of onset (a contact open across a flush was written after later ones)
+    episodes = episodes[np.argsort(episodes["t"], kind="stable")]
+    _close_open(episodes, RS, y, model, n)
+    series_rows = None
+    if keep:
+        series_rows = np.concatenate(chunks) if chunks else np.zeros((0, ncol))
+    return RawRun(status, series_rows, episodes, RANGES, XSQ, STATS, y, RS, written)
+
+
+def _flush_episodes(EP: np.ndarray, RS: np.ndarray, closed: list[np.ndarray]) -> None:
+    """Move the closed impact rows out of the solver's table; the open ones (at most one a
+    pair) go on at the front of the table, their rows in the restart record updated."""
+    r = RS[0]
+    nep = int(r["episodes"])
+    open_rows = [int(r["open_0"]), int(r["open_1"])]
+    held = [i for i in open_rows if i >= 0]
+    mask = np.ones(nep, dtype=bool)
+    mask[held] = False
+    closed.append(EP[:nep][mask].copy())
+    kept = EP[held].copy()
+    EP[: len(held)] = kept
+    for pair in range(2):
+        r[f"open_{pair}"] = held.index(open_rows[pair]) if open_rows[pair] >= 0 else -1
+    r["episodes"] = len(held)
+
+
+def _close_open(episodes: np.ndarray, RS: np.ndarray, y: np.ndarray, model: Any, n: int) -> None:
+    """Close, in the output table, the contacts still open at the end of the run."""
+    t = float(RS[0]["t"])
+    for pair in range(2):
+        if int(RS[0][f"mode_{pair}"]) == 0:
+            continue
+        # the open episode of this pair is the last row of the table for the pair that has
+        # no end time yet
+        idx = np.nonzero((episodes["pair"] == pair) & np.isnan(episodes["t_end"]))[0]
+        if idx.size == 0:
+            continue
+        i = idx[-1]
+        k = int(dissipation_index.py(model, pair))
+        energy = float(y[k]) if k < n else float("nan")
+        episodes["t_end"][i] = t
+        episodes["dissipated_energy"][i] = energy - episodes["dissipated_energy"][i]
+        episodes["end_reason"][i] = L.END_ONGOING

@@ -1,0 +1,184 @@
+"""The generic functions the solver is written against: what a contact law, a friction law,
+an excitation and a model each provide.
+
+Each function below is declared once; each record class implements it in its own file with
+``@name.register(RecordClass)`` (see :mod:`braidsim.core.generic`). The stubs only document
+the contract: compiled code calls the implementation of the argument's class.
+
+Signs and conventions: a contact pair is a coordinate between two walls. ``g_in`` is the
+gap to the inner (lower) wall, ``g_out`` the gap to the outer (upper) wall, both positive
+when free; ``rate`` is d g_in / dt (= -d g_out / dt). In contact with a wall, the
+penetration is ``p = -gap`` >= 0 and ``p_dot`` its rate. A one-sided pair has an infinite
+gap to its missing wall.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from braidsim.core.generic import generic
+
+# What each model writes: its series columns (``kind`` last) and the names of its energy
+# quadratures in state order. Filled by :func:`describe_model`, read by :func:`series_columns`.
+_COLUMNS: dict[type, tuple[str, ...]] = {}
+_QUADS: dict[type, tuple[str, ...]] = {}
+
+
+def describe_model(cls: type, columns: tuple[str, ...], quads: tuple[str, ...]) -> None:
+    """Register the series columns and energy quadratures of a model class."""
+    _COLUMNS[cls] = columns
+    _QUADS[cls] = quads
+
+
+def series_columns(model: Any) -> tuple[str, ...]:
+    """The columns of the sampled series of ``model`` (a record or its class)."""
+    return _COLUMNS[model if isinstance(model, type) else type(model)]
+
+
+def quadrature_names(model: Any) -> tuple[str, ...]:
+    """The energy quadratures of ``model`` in state order."""
+    return _QUADS[model if isinstance(model, type) else type(model)]
+
+
+# =======================================================================================
+# Contact laws: the normal force of a compliant contact
+# =======================================================================================
+
+
+@generic
+def contact_forces(law, p, p_dot, v0):
+    """(F_k, F_c, N) [N] at penetration ``p`` >= 0 [m], rate ``p_dot`` [m/s], with the
+    approach speed ``v0`` [m/s] latched at onset: the stiffness-related force, the
+    damping-related force and the normal force (>= 0 unless the law allows tension)."""
+    raise NotImplementedError
+
+
+@generic
+def contact_potential(law, p):
+    """Elastic energy stored at penetration ``p`` >= 0 [J]: int_0^p F_k dp."""
+    raise NotImplementedError
+
+
+@generic
+def contact_force_rates(law, p, p_dot, p_ddot, v0, f_k, f_c):
+    """(dN/dt, dF_c/dt) [N/s] given the penetration, its first two time derivatives and the
+    forces ``f_k``, ``f_c`` of :func:`contact_forces` at the same instant. Only their signs
+    matter at p = 0 (they decide whether a step holds a force peak)."""
+    raise NotImplementedError
+
+
+@generic
+def contact_onset_step(law, mass, v):
+    """(h, q): a first step [s] for a contact that starts at approach speed ``v`` [m/s] on a
+    body of ``mass`` [kg] (about 1/12 of the contact's duration), and the exponent q of that
+    step's local error (h^q: the force grows as p^n after onset, so q = n + 1)."""
+    raise NotImplementedError
+
+
+# =======================================================================================
+# Friction laws: a regularised sign function times a normal force
+# =======================================================================================
+
+
+@generic
+def friction_force(law, v, normal, mu):
+    """Friction force [N] opposing the sliding speed ``v`` [m/s] under the normal force
+    ``normal`` [N] with coefficient ``mu`` [-]."""
+    raise NotImplementedError
+
+
+# =======================================================================================
+# Excitations: the prescribed motion of a wall pair
+# =======================================================================================
+
+
+@generic
+def wall_motion(ex, t):
+    """(position [m], speed [m/s], acceleration [m/s^2]) of the inner wall at time t."""
+    raise NotImplementedError
+
+
+@generic
+def wall_accel_bound(ex):
+    """An upper bound of |acceleration| of the wall over all time [m/s^2] (for the contact
+    screens of the solver)."""
+    raise NotImplementedError
+
+
+# =======================================================================================
+# Models: equations of motion over coordinates with contact pairs
+# =======================================================================================
+# A model's state vector is (q0, q0', q1, q1', ...) for its n_coords coordinates, followed
+# by its n_quads energy quadratures when the run integrates them.
+
+
+@generic
+def model_size(model):
+    """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures."""
+    raise NotImplementedError
+
+
+@generic
+def derivatives(model, t, y, modes, v0s, n_state, out):
+    """Write dy/dt into ``out[:n_state]`` in the contact modes ``modes`` (per pair: -1 inner,
+    +1 outer, 0 free) with the latched approach speeds ``v0s``; ``n_state`` is 2 n_coords, or
+    2 n_coords + n_quads when the energy quadratures are integrated."""
+    raise NotImplementedError
+
+
+@generic
+def pair_gaps(model, pair, t, y):
+    """(g_in, g_out, rate) of contact pair ``pair`` at (t, y) (see the module docstring)."""
+    raise NotImplementedError
+
+
+@generic
+def pair_gap_accel(model, pair, t, f):
+    """d^2 g_in / dt^2 [m/s^2] at t, ``f`` being dy/dt there (an RK stage or the derivative
+    of the interpolant)."""
+    raise NotImplementedError
+
+
+@generic
+def pair_law(model, pair, p, p_dot, v0):
+    """:func:`contact_forces` of the law of pair ``pair``."""
+    raise NotImplementedError
+
+
+@generic
+def pair_law_rates(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
+    """:func:`contact_force_rates` of the law of pair ``pair``."""
+    raise NotImplementedError
+
+
+@generic
+def pair_onset_step(model, pair, v):
+    """:func:`contact_onset_step` of the law of pair ``pair`` for this model's mass."""
+    raise NotImplementedError
+
+
+@generic
+def free_accel_bound(model, pair, f0, f1):
+    """A bound of |d^2 g / dt^2| of pair ``pair`` in free flight over a step whose ends have
+    the derivatives ``f0``, ``f1``; +inf when no useful bound exists (the pair's events are
+    then sampled in every step)."""
+    raise NotImplementedError
+
+
+@generic
+def apply_transfer(model, t, y):
+    """Apply a transfer (a jump of the state at a prescribed time) to ``y`` in place."""
+    raise NotImplementedError
+
+
+@generic
+def dissipation_index(model, pair):
+    """Index in the state vector of the energy dissipated by pair ``pair``'s contact law."""
+    raise NotImplementedError
+
+
+@generic
+def series_row(model, t, y, modes, v0s, n_state, kind, row):
+    """Fill one row of the model's sampled series (its :func:`series_columns`, ``kind``
+    last)."""
+    raise NotImplementedError

@@ -1,0 +1,183 @@
+"""The named records at the boundary of the compiled core.
+
+Everything that crosses between Python and the compiled solver is named here: the solver
+options, the impact (episode) rows, the run statistics, the restart state and the codes
+(status, series row kinds, contact sides). numba reads a field of a structured array
+(``EP[i].peak_force``) or of a ``NamedTuple`` (``opts.rtol``) at a fixed offset, at the speed
+of a raw index, so no code outside this module needs to know a column number.
+
+Physical parameters are records too, but they belong to the model that uses them (see
+:mod:`braidsim.core.models`); this module holds what every model shares.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+# ---- status codes of a run ----------------------------------------------------------------
+ST_OK = 0  # reached the end time
+ST_STEP_COLLAPSE = 1  # the step size fell below round-off
+ST_NONFINITE = 2  # the state became NaN or infinite
+ST_MAX_STEPS = 3  # the step budget was spent
+ST_ROWS_FULL = 4  # the series buffer is full: flush it and resume (not a failure)
+ST_EPISODES_FULL = 5  # the impact table is full: flush it and resume (not a failure)
+ST_ZENO = 6  # more than 50 contact events at one instant
+ST_STIFF = 7  # steps held by stability for STIFF_LIMIT steps
+ST_BAD_ARRAYS = 8  # an array of the wrong size was passed (a caller bug, never user input)
+STIFF_LIMIT = 100_000  # accepted steps held by stability (few breaks) before giving up
+
+# ---- kinds of the rows of the sampled series -----------------------------------------------
+# (floats: the kind is a column of the float series array)
+KIND_SAMPLE, KIND_ONSET, KIND_EXIT, KIND_PEAK, KIND_TRANSFER, KIND_START, KIND_END = (
+    float(k) for k in range(7)
+)
+KIND_NAMES = ("sample", "onset", "exit", "peak", "transfer", "start", "end")
+
+# ---- contact sides (the mode of a pair) -----------------------------------------------------
+FREE = 0
+INNER = -1  # the inner (track) or rear (slot) wall: the coordinate's lower bound
+OUTER = 1  # the outer (track) or front (slot) wall: its upper bound
+
+# ---- why an episode ended ---------------------------------------------------------------
+END_EXIT = 0.0  # the carrier left the wall
+END_ONGOING = 1.0  # still in contact at the end of the run
+END_TRANSFER = 2.0  # cut by a transfer to the next horn gear
+
+MAX_PAIRS = 2  # contact pairs a model may have (track and slot)
+MAX_STATE = 16  # longest state vector (coordinates, speeds and energy quadratures)
+
+
+class SolverOptions(NamedTuple):
+    """How the solver integrates (not what: that is the model).
+
+    Attributes
+    ----------
+    rtol : float
+        Relative tolerance of the embedded error estimate [-].
+    atol_position, atol_velocity : float
+        Absolute tolerances on coordinates [m] and speeds [m/s].
+    max_step : float
+        Largest step [s].
+    max_steps : int
+        Step budget of the run (accepted and rejected steps).
+    t_end : float
+        End time [s].
+    record_events : bool
+        Write the exact onset, exit, peak and transfer states into the series.
+    energy : bool
+        Integrate the energy quadratures (work of every force) with the motion.
+    """
+
+    rtol: float
+    atol_position: float
+    atol_velocity: float
+    max_step: float
+    max_steps: int
+    t_end: float
+    record_events: bool = True
+    energy: bool = True
+
+
+# ---- one row of the impact table (a contact episode) ----------------------------------------
+EPISODE_DTYPE = np.dtype(
+    [
+        ("t", "f8"),  # onset time [s]
+        ("t_end", "f8"),  # exit time [s] (NaN while ongoing)
+        ("pair", "f8"),  # 0 track, 1 slot
+        ("wall", "f8"),  # -1 inner/rear, +1 outer/front
+        ("velocity", "f8"),  # approach speed at onset (relative, >= 0 when approaching) [m/s]
+        ("latched_velocity", "f8"),  # v0 used by the force law (floored, or the start policy)
+        ("rebound_velocity", "f8"),  # separation speed at exit, NaN while ongoing [m/s]
+        ("max_depth", "f8"),  # [m]
+        ("t_max_depth", "f8"),  # [s]
+        ("peak_force", "f8"),  # largest normal force [N]
+        ("t_peak_force", "f8"),  # [s]
+        ("min_damping_force", "f8"),  # [N]
+        ("max_damping_force", "f8"),  # [N]
+        ("dissipated_energy", "f8"),  # energy the contact law dissipated [J] (NaN: not integrated)
+        ("end_reason", "f8"),  # END_EXIT, END_ONGOING or END_TRANSFER
+        ("initial", "f8"),  # 1 when the contact existed at the start or right after a transfer
+    ]
+)
+EPISODE_COLUMNS: tuple[str, ...] = tuple(EPISODE_DTYPE.names or ())
+
+# ---- run statistics -------------------------------------------------------------------------
+STATS_DTYPE = np.dtype(
+    [
+        ("steps", "f8"),  # accepted steps
+        ("rejected_steps", "f8"),
+        ("events", "f8"),  # contact onsets and exits
+        ("rhs_evaluations", "f8"),
+        ("transfers", "f8"),
+        ("min_step", "f8"),  # [s]
+        ("max_step", "f8"),  # [s]
+    ]
+)
+
+# ---- everything the step loop carries from one step to the next -----------------------------
+# A run interrupted at any accepted step (a full series buffer, a full impact table, the end of
+# one call of a longer run) continues from this record and the state vector with the same
+# bits as an uninterrupted run.
+RESTART_DTYPE = np.dtype(
+    [
+        ("started", "f8"),  # NEW_RUN, CONTINUED or STARTED
+        ("t", "f8"),  # time [s]
+        ("h", "f8"),  # next step size [s] (0: choose the first step)
+        ("err_old", "f8"),  # last accepted error norm (PI control)
+        ("onset_q", "f8"),  # error exponent of a pending first contact step (0: none)
+        ("stiff_run", "f8"),
+        ("nonstiff_run", "f8"),
+        ("same_time_events", "f8"),
+        ("last_event_t", "f8"),
+        ("steps", "f8"),  # step attempts counted against max_steps
+        ("next_sample", "f8"),  # index of the next sample time
+        ("next_transfer", "f8"),  # index of the next transfer time
+        ("mode_0", "f8"),  # contact mode of pair 0 and 1 (FREE, INNER, OUTER)
+        ("mode_1", "f8"),
+        ("v0_0", "f8"),  # latched approach speeds [m/s]
+        ("v0_1", "f8"),
+        ("open_0", "f8"),  # row of the open episode of each pair in the impact table (-1: none)
+        ("open_1", "f8"),
+        ("rows", "f8"),  # rows of the series buffer written
+        ("episodes", "f8"),  # rows of the impact table written
+    ]
+)
+
+
+# what the ``started`` field of a restart record says
+NEW_RUN = 0.0  # a new run: the start policy decides the contacts, the first step is chosen
+STARTED = 1.0  # a run under way (resumed after its buffers were flushed): nothing is redone
+CONTINUED = 2.0  # a new run continuing an earlier one's state, contacts and step control
+
+
+def new_restart() -> np.ndarray:
+    """A restart record for a new run (one-element structured array)."""
+    r = np.zeros(1, dtype=RESTART_DTYPE)
+    r[0]["open_0"] = -1.0
+    r[0]["open_1"] = -1.0
+    r[0]["v0_0"] = 1.0
+    r[0]["v0_1"] = 1.0
+    r[0]["err_old"] = 1e-4
+    r[0]["last_event_t"] = -1.0
+    return r
+
+
+def new_stats() -> np.ndarray:
+    """Zeroed run statistics (one-element structured array)."""
+    s = np.zeros(1, dtype=STATS_DTYPE)
+    s[0]["min_step"] = np.inf
+    return s
+
+
+# ---- window ranges: RANGES[window, pair, quantity, 0 min / 1 max] ----------------------------
+RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")
+
+
+def new_ranges(n_windows: int) -> np.ndarray:
+    """Window extremes initialised to (+inf, -inf)."""
+    r = np.empty((n_windows, MAX_PAIRS, len(RANGE_QUANTITIES), 2))
+    r[..., 0] = np.inf
+    r[..., 1] = -np.inf
+    return r

@@ -1,0 +1,400 @@
+"""The braiding-machine carrier: radial x against the track, tangential y against the slot.
+
+Equations of motion (x radial, y tangential)::
+
+    m x'' = -s_t N_t - f_x(x') - T1 cos(phi) - m r_c omega(t)^2
+    m y'' = -s_s N_s - f_y(y') + T1 sin(phi)                      (xy only)
+
+with the track walls at x = h(t) (inner) and x = h(t) + eps_g (outer), the slot walls at
+y = s(t) (rear) and y = s(t) + eps_h (front), s(t) = r_c int omega dt, s_t, s_s the side of
+the wall in contact (-1 inner/rear, +1 outer/front, 0 free), N the normal force of each
+pair's contact law (:mod:`braidsim.core.physics.contact_laws`), and the friction of the
+paper's Eq. (14): f_x = mu1 |m g - T2| phi(x'), f_y = mu2 |N_t| phi(y'), phi the regularised
+sign function (:mod:`braidsim.core.physics.friction`). ``docs/model.md`` explains how these
+equations read the paper (moving walls, signs, the calibrated stiffness).
+
+Energy quadratures (integrated with the motion when asked): the energy each contact law
+dissipates int (N - F_k) p' dt, the friction work int f v dt, the work of the loads, and the
+work the moving walls do on the carrier int -s N h' dt. With them the carrier's energy
+m v^2/2 + K p^(n+1)/(n+1) balances to the integrator's tolerance.
+
+A transfer to the next horn gear maps the carrier from the wall it leans on to the far wall:
+x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr (the track pair only). Its work, the jump
+of m x'^2 / 2 plus the elastic energy of a contact it ends, is the last quadrature
+(``transfer_work``), so the balance closes across transfers too.
+
+The initial tangential speed ``initial.vy`` is relative to the slot: the state holds the
+ground-frame y' = initial.vy + r_c omega(0) (:func:`braidsim.model.build_model`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+from braidsim.core.generic import inline_helper
+from braidsim.core.interfaces import (
+    apply_transfer,
+    contact_force_rates,
+    contact_forces,
+    contact_onset_step,
+    contact_potential,
+    derivatives,
+    describe_model,
+    dissipation_index,
+    free_accel_bound,
+    friction_force,
+    model_size,
+    pair_gap_accel,
+    pair_gaps,
+    pair_law,
+    pair_law_rates,
+    pair_onset_step,
+    series_row,
+    wall_accel_bound,
+    wall_motion,
+)
+from braidsim.core.physics.excitation import HornGear, horn_gear_accel, horn_gear_state
+
+CARRIER_COLUMNS = (
+    "t",
+    "x",
+    "vx",
+    "y",
+    "vy",
+    "track_depth",
+    "track_stiffness_force",
+    "track_damping_force",
+    "track_contact_force",
+    "slot_depth",
+    "slot_stiffness_force",
+    "slot_damping_force",
+    "slot_contact_force",
+    "friction_x",
+    "friction_y",
+    "track_dissipated",
+    "slot_dissipated",
+    "friction_work_x",
+    "friction_work_y",
+    "load_work_x",
+    "track_work",
+    "load_work_y",
+    "slot_work",
+    "track_position",
+    "slot_position",
+    "omega",
+    "transfer_work",
+    "kind",
+)
+# Energy quadratures of the xy carrier in state order (after x, vx, y, vy); the x-only
+# carrier integrates the four of them that concern x, in this order.
+XY_QUADS = (
+    "track_dissipated",
+    "slot_dissipated",
+    "friction_work_x",
+    "friction_work_y",
+    "load_work_x",
+    "track_work",
+    "load_work_y",
+    "slot_work",
+    "transfer_work",
+)
+X_QUADS = ("track_dissipated", "friction_work_x", "load_work_x", "track_work", "transfer_work")
+
+
+class CarrierX(NamedTuple):
+    """The carrier moving radially only (one coordinate x, the track pair).
+
+    Physical parameters in SI units; ``track_law``, ``slot_law`` and ``friction`` are
+    physics records, ``track`` the track's excitation record, ``horn_gear`` the
+    :class:`HornGear`.
+    """
+
+    mass: float  # m [kg]
+    load_x: float  # T1 cos(phi) [N]
+    mass_radius: float  # m r_c [kg m] (centrifugal load m r_c omega^2)
+    load_y: float  # T1 sin(phi) [N]
+    track_clearance: float  # eps_g [m]
+    slot_clearance: float  # eps_h [m]
+    track_law: Any
+    slot_law: Any
+    friction: Any
+    mu_x: float  # mu1, friction between carrier and horn gear [-]
+    normal_x: float  # |m g - T2| [N]
+    mu_y: float  # mu2, friction between guide pad and track [-]
+    track: Any  # excitation of the track walls
+    horn_gear: HornGear
+    transfer_speed: float  # v_tr added to x' at a transfer [m/s]
+    min_impact_velocity: float  # floor of the latched approach speed [m/s]
+    initial_impact_velocity: float  # v0 of a contact present at the start (<= 0: inf) [m/s]
+
+
+class CarrierXY(CarrierX):
+    """The carrier moving radially and tangentially (x and y, the track and slot pairs)."""
+
+
+describe_model(CarrierX, CARRIER_COLUMNS, X_QUADS)
+describe_model(CarrierXY, CARRIER_COLUMNS, XY_QUADS)
+
+
+@model_size.register(CarrierX)
+def _size_x(model):
+    return 1, 1, 5
+
+
+@model_size.register(CarrierXY)
+def _size_xy(model):
+    return 2, 2, 9
+
+
+@inline_helper
+def _track_contact(model, t, y, mode, v0):
+    """(p', F_k, N) of the track pair and the wall's (h, h') at t."""
+    h, hd, _ = wall_motion(model.track, t)
+    if mode == 0:
+        return 0.0, 0.0, 0.0, h, hd
+    u = y[0] - h
+    if mode > 0:
+        u = u - model.track_clearance
+    if mode < 0:
+        p = -u
+        pd = -(y[1] - hd)
+    else:
+        p = u
+        pd = y[1] - hd
+    if p < 0.0:
+        p = 0.0
+    fk, _, nn = contact_forces(model.track_law, p, pd, v0)
+    return pd, fk, nn, h, hd
+
+
+@inline_helper
+def _slot_contact(model, t, y, mode, v0, om, s):
+    """(p', F_k, N) of the slot pair at t (the slot at s moving at r_c omega)."""
+    if mode == 0:
+        return 0.0, 0.0, 0.0
+    u = y[2] - s
+    ud = y[3] - model.horn_gear.turning_radius * om
+    if mode > 0:
+        u = u - model.slot_clearance
+    if mode < 0:
+        p = -u
+        pd = -ud
+    else:
+        p = u
+        pd = ud
+    if p < 0.0:
+        p = 0.0
+    fk, _, nn = contact_forces(model.slot_law, p, pd, v0)
+    return pd, fk, nn
+
+
+@derivatives.register(CarrierX)
+def _derivs_x(model, t, y, modes, v0s, n_state, out):
+    om, _ = horn_gear_state(model.horn_gear, t)
+    mt = modes[0]
+    pdt, fkt, nt, _, hd = _track_contact(model, t, y, mt, v0s[0])
+    fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
+    load_x = model.load_x + model.mass_radius * om * om
+    out[0] = y[1]
+    out[1] = (-mt * nt - fx - load_x) / model.mass
+    if n_state > 2:
+        # with p = s (x - wall), p' = s (x' - h'), the carrier's energy
+        # E = m v^2 / 2 + K p^(n+1) / (n+1) changes at -(N - F_k) p' - f x' - load x' - s N h'
+        out[2] = (nt - fkt) * pdt
+        out[3] = fx * y[1]
+        out[4] = -load_x * y[1]
+        out[5] = -mt * nt * hd
+        out[6] = 0.0  # transfers change the energy at an instant (apply_transfer)
+
+
+@derivatives.register(CarrierXY)
+def _derivs_xy(model, t, y, modes, v0s, n_state, out):
+    om, s = horn_gear_state(model.horn_gear, t)
+    mt = modes[0]
+    ms = modes[1]
+    pdt, fkt, nt, _, hd = _track_contact(model, t, y, mt, v0s[0])
+    fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
+    load_x = model.load_x + model.mass_radius * om * om
+    pds, fks, ns = _slot_contact(model, t, y, ms, v0s[1], om, s)
+    fy = friction_force(model.friction, y[3], abs(nt), model.mu_y)
+    out[0] = y[1]
+    out[1] = (-mt * nt - fx - load_x) / model.mass
+    out[2] = y[3]
+    out[3] = (-ms * ns - fy + model.load_y) / model.mass
+    if n_state > 4:
+        out[4] = (nt - fkt) * pdt
+        out[5] = (ns - fks) * pds
+        out[6] = fx * y[1]
+        out[7] = fy * y[3]
+        out[8] = -load_x * y[1]
+        out[9] = -mt * nt * hd
+        out[10] = model.load_y * y[3]
+        out[11] = -ms * ns * model.horn_gear.turning_radius * om
+        out[12] = 0.0  # transfers change the energy at an instant (apply_transfer)
+
+
+@pair_gaps.register(CarrierX)
+@pair_gaps.register(CarrierXY)
+def _gaps(model, pair, t, y):
+    if pair == 0:
+        h, hd, _ = wall_motion(model.track, t)
+        u = y[0] - h
+        return u, model.track_clearance - u, y[1] - hd
+    s, sd, _ = wall_motion(model.horn_gear, t)
+    u = y[2] - s
+    return u, model.slot_clearance - u, y[3] - sd
+
+
+@pair_gap_accel.register(CarrierX)
+@pair_gap_accel.register(CarrierXY)
+def _gap_accel(model, pair, t, f):
+    if pair == 0:
+        _, _, hdd = wall_motion(model.track, t)
+        return f[1] - hdd
+    return f[3] - model.horn_gear.turning_radius * horn_gear_accel(model.horn_gear, t)
+
+
+@pair_law.register(CarrierX)
+@pair_law.register(CarrierXY)
+def _law(model, pair, p, p_dot, v0):
+    if pair == 0:
+        return contact_forces(model.track_law, p, p_dot, v0)
+    return contact_forces(model.slot_law, p, p_dot, v0)
+
+
+@pair_law_rates.register(CarrierX)
+@pair_law_rates.register(CarrierXY)
+def _law_rates(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
+    if pair == 0:
+        return contact_force_rates(model.track_law, p, p_dot, p_ddot, v0, f_k, f_c)
+    return contact_force_rates(model.slot_law, p, p_dot, p_ddot, v0, f_k, f_c)
+
+
+@pair_onset_step.register(CarrierX)
+@pair_onset_step.register(CarrierXY)
+def _onset(model, pair, v):
+    if pair == 0:
+        return contact_onset_step(model.track_law, model.mass, v)
+    return contact_onset_step(model.slot_law, model.mass, v)
+
+
+@free_accel_bound.register(CarrierX)
+@free_accel_bound.register(CarrierXY)
+def _free_bound(model, pair, f0, f1):
+    if pair != 0:
+        return math.inf
+    # |x''| at the ends (plus 10 %), the full swing of the friction force, and the wall's
+    # acceleration bound
+    return (
+        1.1 * max(abs(f0[1]), abs(f1[1]))
+        + 2.0 * model.mu_x * model.normal_x / model.mass
+        + wall_accel_bound(model.track)
+    )
+
+
+@apply_transfer.register(CarrierX)
+@apply_transfer.register(CarrierXY)
+def _transfer(model, t, y):
+    hh, hd, _ = wall_motion(model.track, t)
+    xr = y[0] - hh
+    eps = model.track_clearance
+    # the carrier's energy m x'^2 / 2 + (elastic energy in either wall) before the jump
+    p = max(0.0, -xr, xr - eps)
+    before = 0.5 * model.mass * y[1] * y[1] + contact_potential(model.track_law, p)
+    if xr < 0.0:
+        xr = 0.0
+    if xr > eps:
+        xr = eps
+    y[0] = hh + eps - xr
+    y[1] = 2.0 * hd - y[1] + model.transfer_speed
+    n_coords, _, n_quads = model_size(model)
+    if y.shape[0] == 2 * n_coords + n_quads:
+        # the work of the transfer: the jump of that energy (the carrier lands in the gap)
+        y[y.shape[0] - 1] += 0.5 * model.mass * y[1] * y[1] - before
+    return 1  # the contacts of the first pair (the track) start anew
+
+
+@dissipation_index.register(CarrierX)
+def _diss_x(model, pair):
+    return 2
+
+
+@dissipation_index.register(CarrierXY)
+def _diss_xy(model, pair):
+    return 4 + pair
+
+
+@inline_helper
+def _signed_forces(law, mode, g_in, g_out, rate, v0):
+    if mode == 0:
+        return 0.0, 0.0, 0.0, 0.0
+    if mode < 0:
+        p = -g_in
+        pd = -rate
+    else:
+        p = -g_out
+        pd = rate
+    if p < 0.0:
+        p = 0.0
+    fk, fc, nn = contact_forces(law, p, pd, v0)
+    s = float(mode)
+    return s * p, s * fk, s * fc, s * nn
+
+
+@series_row.register(CarrierX)
+@series_row.register(CarrierXY)
+def _row(model, t, y, modes, v0s, n_state, kind, row):
+    n_coords, _, _ = model_size(model)
+    row[0] = t
+    row[1] = y[0]
+    row[2] = y[1]
+    h, hd, _ = wall_motion(model.track, t)
+    om, s = horn_gear_state(model.horn_gear, t)
+    u = y[0] - h
+    d, fk, fc, nn = _signed_forces(
+        model.track_law, modes[0], u, model.track_clearance - u, y[1] - hd, v0s[0]
+    )
+    row[5] = d
+    row[6] = fk
+    row[7] = fc
+    row[8] = nn
+    row[13] = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
+    if n_coords == 2:
+        row[3] = y[2]
+        row[4] = y[3]
+        us = y[2] - s
+        ds, fks, fcs, nns = _signed_forces(
+            model.slot_law,
+            modes[1],
+            us,
+            model.slot_clearance - us,
+            y[3] - model.horn_gear.turning_radius * om,
+            v0s[1],
+        )
+        row[9] = ds
+        row[10] = fks
+        row[11] = fcs
+        row[12] = nns
+        row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
+        for i in range(8):
+            row[15 + i] = y[4 + i] if n_state > 4 else math.nan
+        row[26] = y[12] if n_state > 4 else math.nan
+    else:
+        for i in (3, 4, 9, 10, 11, 12, 14):
+            row[i] = 0.0
+        # state order: track_dissipated, friction_work_x, load_work_x, track_work
+        energy = n_state > 2
+        row[15] = y[2] if energy else math.nan
+        row[16] = 0.0 if energy else math.nan
+        row[17] = y[3] if energy else math.nan
+        row[18] = 0.0 if energy else math.nan
+        row[19] = y[4] if energy else math.nan
+        row[20] = y[5] if energy else math.nan
+        row[21] = 0.0 if energy else math.nan
+        row[22] = 0.0 if energy else math.nan
+        row[26] = y[6] if energy else math.nan
+    row[23] = h
+    row[24] = s
+    row[25] = om
+    row[27] = kind

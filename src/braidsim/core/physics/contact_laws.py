@@ -1,0 +1,75 @@
+"""The power-law contact family: N = K p^n (1 + D p' / v0), clamped at 0.
+
+Every law of the paper's Eqs. (3)-(13) (Hertz, Brandlein, Hunt-Crossley, Herbert-McWhannell,
+Lee-Wang, Lankarani-Nikravesh, Gonthier, Zhiying-Qishao, Flores) and Carvalho-Martins is of
+this form and differs only in its damping factor D(c_r) (:mod:`braidsim.contact` computes it
+from the restitution); one record class, compiled once, serves them all:
+
+    F_k = K p^n                    stiffness-related force [N]
+    F_c = K p^n D p' / v0          damping-related force [N]
+    N   = max(0, F_k + F_c)        (no clamp when tension is allowed)
+
+K [N/m^n] stiffness, n exponent, D damping factor, p >= 0 penetration [m], p' its rate
+[m/s], v0 the approach speed latched at onset [m/s]. Hunt, K. H. and Crossley, F. R. E.
+(1975), Coefficient of restitution interpreted as damping in vibroimpact, J. Appl. Mech.
+42(2), 440-445, doi:10.1115/1.3423596.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from braidsim.core.interfaces import (
+    contact_force_rates,
+    contact_forces,
+    contact_onset_step,
+    contact_potential,
+)
+
+
+class PowerLawContact(NamedTuple):
+    """K p^n (1 + D p'/v0) (see the module docstring)."""
+
+    stiffness: float  # K [N/m^n]
+    exponent: float  # n [-]
+    damping: float  # D [-]
+    allow_tension: bool = False  # keep N < 0 (no clamp) when the damping term pulls
+
+
+@contact_forces.register(PowerLawContact)
+def _forces(law, p, p_dot, v0):
+    k = law.stiffness
+    n = law.exponent
+    # the Hertz exponent 3/2 is by far the most common: p sqrt(p) is cheaper than pow
+    fk = k * p * math.sqrt(p) if n == 1.5 else k * p**n
+    fc = fk * law.damping * p_dot / v0
+    nn = fk + fc
+    if nn < 0.0 and not law.allow_tension:
+        nn = 0.0
+    return fk, fc, nn
+
+
+@contact_potential.register(PowerLawContact)
+def _potential(law, p):
+    n1 = law.exponent + 1.0
+    return law.stiffness * p**n1 / n1
+
+
+@contact_force_rates.register(PowerLawContact)
+def _rates(law, p, p_dot, p_ddot, v0, f_k, f_c):
+    # dN/dt   = K n p^(n-1) p' (1 + D p'/v0) + K p^n D p''/v0
+    # dF_c/dt = D/v0 (K n p^(n-1) p'^2 + K p^n p'')
+    # with K n p^(n-1) replaced by 1 at p = 0 (only the signs are used there)
+    dfk = law.exponent * f_k / p * p_dot if p > 0.0 else p_dot
+    d_v0 = law.damping / v0
+    return dfk * (1.0 + d_v0 * p_dot) + f_k * d_v0 * p_ddot, d_v0 * (dfk * p_dot + f_k * p_ddot)
+
+
+@contact_onset_step.register(PowerLawContact)
+def _onset(law, mass, v):
+    # the elastic closed form: maximum depth p_m = ((n+1) m v^2 / (2 K))^(1/(n+1)), duration
+    # about 3 p_m / v; the first step is a twelfth of that
+    n1 = law.exponent + 1.0
+    p_m = (n1 * mass * v * v / (2.0 * law.stiffness)) ** (1.0 / n1)
+    return 0.25 * p_m / v, n1

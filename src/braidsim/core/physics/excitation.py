@@ -1,0 +1,143 @@
+"""Prescribed wall motions: the track's vibration and the horn gear's slot.
+
+Track (the walls of the radial pair move together)::
+
+    h(t) = sum_i a_i cos(w_i t + phi_i)            [m]
+
+Horn gear (the walls of the tangential pair move with the slot)::
+
+    omega(t) = omega_0 + sum_i b_i cos(v_i t + psi_i)      [rad/s], or a periodic
+               piecewise-linear profile through (t_k, omega_k)
+    s(t)     = r_c int_0^t omega dt                        [m]
+
+The inner wall of the track pair is at x = h(t), the rear wall of the slot pair at y = s(t).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from braidsim.core.generic import helper
+from braidsim.core.interfaces import wall_accel_bound, wall_motion
+
+
+class TrackHarmonics(NamedTuple):
+    """h(t) = sum a cos(w t + phi): rows (a [m], w [rad/s], phi [rad]) of ``table``."""
+
+    table: np.ndarray  # (n, 3)
+
+
+@wall_motion.register(TrackHarmonics)
+def _track_motion(ex, t):
+    h = 0.0
+    hd = 0.0
+    hdd = 0.0
+    tab = ex.table
+    for i in range(tab.shape[0]):
+        a = tab[i, 0]
+        w = tab[i, 1]
+        arg = w * t + tab[i, 2]
+        c = math.cos(arg)
+        h += a * c
+        hd -= a * w * math.sin(arg)
+        hdd -= a * w * w * c
+    return h, hd, hdd
+
+
+@wall_accel_bound.register(TrackHarmonics)
+def _track_bound(ex):
+    acc = 0.0
+    tab = ex.table
+    for i in range(tab.shape[0]):
+        acc += abs(tab[i, 0]) * tab[i, 1] ** 2
+    return acc
+
+
+class HornGear(NamedTuple):
+    """The horn gear's speed omega(t) and the slot travel s(t) = r_c int omega dt.
+
+    A profile (``profile_times`` of at least two points) replaces ``omega0`` and the
+    harmonics; it repeats with the period profile_times[-1] - profile_times[0].
+    """
+
+    turning_radius: float  # r_c [m]
+    omega0: float  # [rad/s]
+    harmonics: np.ndarray  # (n, 3): amplitude [rad/s], angular frequency [rad/s], phase [rad]
+    profile_times: np.ndarray  # [s]
+    profile_speeds: np.ndarray  # [rad/s]
+    profile_integral: np.ndarray  # int of omega from profile_times[0] to each time [rad]
+
+
+@helper
+def _profile_integral(tau, hg, period):
+    """(omega, int of the periodic piecewise-linear omega from the profile start over tau)."""
+    pt = hg.profile_times
+    pw = hg.profile_speeds
+    pi_ = hg.profile_integral
+    npf = pt.shape[0]
+    k = math.floor(tau / period)
+    tau -= k * period
+    j = 0
+    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
+        j += 1
+    dt = tau - (pt[j] - pt[0])
+    w0 = pw[j]
+    slope = (pw[j + 1] - w0) / (pt[j + 1] - pt[j])
+    om = w0 + slope * dt
+    return om, k * pi_[npf - 1] + pi_[j] + w0 * dt + 0.5 * slope * dt * dt
+
+
+@helper
+def horn_gear_state(hg, t):
+    """(omega(t) [rad/s], s(t) = r_c int_0^t omega [m])."""
+    rc = hg.turning_radius
+    pt = hg.profile_times
+    if pt.shape[0] >= 2:
+        period = pt[pt.shape[0] - 1] - pt[0]
+        om, integral = _profile_integral(t - pt[0], hg, period)
+        _, integral0 = _profile_integral(-pt[0], hg, period)
+        return om, rc * (integral - integral0)
+    om = hg.omega0
+    integral = hg.omega0 * t
+    tab = hg.harmonics
+    for i in range(tab.shape[0]):
+        a = tab[i, 0]
+        w = tab[i, 1]
+        ph = tab[i, 2]
+        om += a * math.cos(w * t + ph)
+        if w > 0.0:
+            integral += a / w * (math.sin(w * t + ph) - math.sin(ph))
+        else:
+            integral += a * math.cos(ph) * t
+    return om, rc * integral
+
+
+@helper
+def horn_gear_accel(hg, t):
+    """omega'(t) [rad/s^2]: analytic for the harmonics, a central difference on a profile."""
+    if hg.profile_times.shape[0] >= 2:
+        dt = 1e-7
+        wp, _ = horn_gear_state(hg, t + dt)
+        wm, _ = horn_gear_state(hg, t - dt)
+        return (wp - wm) / (2.0 * dt)
+    acc = 0.0
+    tab = hg.harmonics
+    for i in range(tab.shape[0]):
+        w = tab[i, 1]
+        acc -= tab[i, 0] * w * math.sin(w * t + tab[i, 2])
+    return acc
+
+
+@wall_motion.register(HornGear)
+def _slot_motion(hg, t):
+    om, s = horn_gear_state(hg, t)
+    rc = hg.turning_radius
+    return s, rc * om, rc * horn_gear_accel(hg, t)
+
+
+@wall_accel_bound.register(HornGear)
+def _slot_bound(hg):
+    return math.inf

@@ -1,0 +1,44 @@
+"""Regularised friction laws (the paper's Eq. 14 and two variants).
+
+    arctan:   f = mu N (2/pi) arctan(v / v_hat)
+    tanh:     f = mu N tanh(v / v_hat)
+    stribeck: f = mu (1 + (r_s - 1) exp(-(v/v_s)^2)) N tanh(v / v_hat)
+    none:     f = 0
+
+v the sliding speed [m/s], N the normal force [N], v_hat the regularisation speed [m/s],
+r_s = mu_s / mu the static-to-kinetic ratio and v_s the Stribeck speed [m/s]. The law is a
+run-time code so that one compiled solver serves all four.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from braidsim.core.interfaces import friction_force
+
+FRICTION_CODES = {"arctan": 0, "tanh": 1, "stribeck": 2, "none": 3}
+
+
+class RegularizedFriction(NamedTuple):
+    """A regularised sign function (see the module docstring)."""
+
+    law: int  # FRICTION_CODES
+    regularization_velocity: float  # v_hat [m/s]
+    static_ratio: float = 1.0  # r_s (stribeck)
+    stribeck_velocity: float = 1.0  # v_s [m/s] (stribeck)
+
+
+@friction_force.register(RegularizedFriction)
+def _friction(fr, v, normal, mu):
+    law = fr.law
+    vhat = fr.regularization_velocity
+    if law == 0:
+        return mu * normal * (2.0 / math.pi) * math.atan(v / vhat)
+    if law == 1:
+        return mu * normal * math.tanh(v / vhat)
+    if law == 2:
+        vs = fr.stribeck_velocity
+        mu_eff = mu * (1.0 + (fr.static_ratio - 1.0) * math.exp(-((v / vs) ** 2)))
+        return mu_eff * normal * math.tanh(v / vhat)
+    return 0.0

@@ -1,0 +1,130 @@
+"""The Dormand-Prince 5(4) pair with its 4th-order continuous extension.
+
+Hairer, Norsett & Wanner, Solving Ordinary Differential Equations I, 2nd ed. (1993),
+Sect. II.5 (code DOPRI5) and II.6 (dense output), doi:10.1007/978-3-540-78862-1. The stage
+loops run over the ``n`` components the run integrates (coordinates and speeds, plus the
+energy quadratures only when asked).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from braidsim.core.generic import helper, inline_helper
+from braidsim.core.interfaces import derivatives
+
+C2, C3, C4, C5 = 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0
+A21 = 1.0 / 5.0
+A31, A32 = 3.0 / 40.0, 9.0 / 40.0
+A41, A42, A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
+A51, A52, A53, A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
+A61, A62, A63, A64, A65 = (
+    9017.0 / 3168.0,
+    -355.0 / 33.0,
+    46732.0 / 5247.0,
+    49.0 / 176.0,
+    -5103.0 / 18656.0,
+)
+A71, A73, A74, A75, A76 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
+E1, E3, E4, E5, E6, E7 = (
+    71.0 / 57600.0,
+    -71.0 / 16695.0,
+    71.0 / 1920.0,
+    -17253.0 / 339200.0,
+    22.0 / 525.0,
+    -1.0 / 40.0,
+)
+D1, D3, D4, D5, D6, D7 = (
+    -12715105075.0 / 11282082432.0,
+    87487479700.0 / 32700410799.0,
+    -10690763975.0 / 1880347072.0,
+    701980252875.0 / 199316789632.0,
+    -1453857185.0 / 822651844.0,
+    69997945.0 / 29380423.0,
+)
+# the tableau as arrays for the stage loop: RK_A[s] gives stage s (row 6: the solution),
+# RK_C[s] its time fraction
+RK_A = np.zeros((7, 6))
+RK_A[1, :1] = (A21,)
+RK_A[2, :2] = (A31, A32)
+RK_A[3, :3] = (A41, A42, A43)
+RK_A[4, :4] = (A51, A52, A53, A54)
+RK_A[5, :5] = (A61, A62, A63, A64, A65)
+RK_A[6, :6] = (A71, 0.0, A73, A74, A75, A76)
+RK_C = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
+
+
+@helper
+def rk_step(model, t, y, h, K, modes, v0s, n, yt, y1):
+    """One step of size h from (t, y) with K[0] = f(t, y); fills K[1..6] and y1.
+
+    Stage s (1..5) is evaluated at y + h sum_j A[s, j] K[j]; the solution y1 uses row A[6]
+    (the 5th-order weights) and K[6] = f(t + h, y1) is the first stage of the next step.
+    """
+    for s in range(1, 7):
+        ys = y1 if s == 6 else yt
+        for i in range(n):
+            acc = 0.0
+            for j in range(s):
+                acc += RK_A[s, j] * K[j, i]
+            ys[i] = y[i] + h * acc
+        derivatives(model, t + RK_C[s] * h, ys, modes, v0s, n, K[s])
+
+
+@helper
+def error_norm(y, y1, h, K, n_dof2, rtol, atol_x, atol_v):
+    """RMS of the embedded error estimate scaled by atol + rtol |y| over the coordinates and
+    speeds (the energy quadratures follow the motion and are not controlled)."""
+    acc = 0.0
+    for i in range(n_dof2):
+        atol = atol_x if i % 2 == 0 else atol_v
+        err = h * (
+            E1 * K[0, i] + E3 * K[2, i] + E4 * K[3, i] + E5 * K[4, i] + E6 * K[5, i] + E7 * K[6, i]
+        )
+        sc = atol + rtol * max(abs(y[i]), abs(y1[i]))
+        acc += (err / sc) ** 2
+    return math.sqrt(acc / n_dof2)
+
+
+@helper
+def dense_coeffs(y, y1, h, K, RC, n):
+    """Coefficients of the continuous extension of the step (Hairer's CONTD5)."""
+    for i in range(n):
+        ydiff = y1[i] - y[i]
+        bspl = h * K[0, i] - ydiff
+        RC[0, i] = y[i]
+        RC[1, i] = ydiff
+        RC[2, i] = bspl
+        RC[3, i] = ydiff - h * K[6, i] - bspl
+        RC[4, i] = h * (
+            D1 * K[0, i] + D3 * K[2, i] + D4 * K[3, i] + D5 * K[4, i] + D6 * K[5, i] + D7 * K[6, i]
+        )
+
+
+@inline_helper
+def dense_component(theta, RC, i):
+    """Component i of the state at fraction theta of the step."""
+    th1 = 1.0 - theta
+    return RC[0, i] + theta * (RC[1, i] + th1 * (RC[2, i] + theta * (RC[3, i] + th1 * RC[4, i])))
+
+
+@inline_helper
+def dense_eval(theta, RC, out, n):
+    """The state at fraction theta of the step."""
+    for i in range(n):
+        out[i] = dense_component(theta, RC, i)
+
+
+@inline_helper
+def dense_deriv(theta, h, RC, out, n):
+    """Time derivative of the continuous extension at theta for the first ``n`` components
+    (d/dtheta of :func:`dense_eval`, divided by h); it equals the RK derivative at both
+    ends of the step."""
+    th1 = 1.0 - theta
+    for i in range(n):
+        b = RC[3, i] + th1 * RC[4, i]
+        c = RC[2, i] + theta * b
+        d = RC[1, i] + th1 * c
+        out[i] = (d + theta * (th1 * (b - theta * RC[4, i]) - c)) / h

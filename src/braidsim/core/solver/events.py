@@ -1,0 +1,195 @@
+"""Contact onset and exit, located on the step's interpolant.
+
+Event function j belongs to pair j // 2 and its inner (j even) or outer (j odd) wall: in
+free flight it is the gap to that wall, in contact with that wall minus the penetration; it
+turns negative when the event happens. In every accepted step the event functions are
+sampled at ``N_SUB`` interior points of the interpolant (after a screen that rules a pair
+out when its gap cannot close within the step); a sign change is located by the Illinois
+method, and an interior minimum that does not change sign at the samples is searched for by
+golden section, so that a contact cannot hide between two samples.
+"""
+
+from __future__ import annotations
+
+import math
+
+from braidsim.core.generic import helper, inline_helper
+from braidsim.core.interfaces import free_accel_bound, pair_gaps
+from braidsim.core.solver.dopri5 import dense_eval
+from braidsim.core.solver.pairs import I_GIN, I_GOUT, I_P, I_PDD
+
+N_SUB = 8  # interior samples of the interpolant per step for events and extremes
+GOLD = 0.3819660112501051  # 2 - golden ratio
+
+
+@helper
+def event_value(model, j, t, y, modes):
+    """Event function j (>= 0 allowed, < 0 means the event happened); +1 when inactive."""
+    pair = j // 2
+    side = -1 if j % 2 == 0 else 1
+    mode = modes[pair]
+    if mode != 0 and mode != side:
+        return 1.0
+    g_in, g_out, _ = pair_gaps(model, pair, t, y)
+    if mode == 0:
+        return g_in if side < 0 else g_out
+    return -g_in if side < 0 else -g_out
+
+
+@inline_helper
+def event_active(j, modes):
+    """Whether event function j can fire in the contact modes."""
+    side = -1 if j % 2 == 0 else 1
+    mode = modes[j // 2]
+    return mode == 0 or mode == side
+
+
+@helper
+def _event_at(model, j, t0, h, theta, RC, modes, n, ys):
+    dense_eval(theta, RC, ys, n)
+    return event_value(model, j, t0 + theta * h, ys, modes)
+
+
+@helper
+def _golden_dip(model, j, t0, h, a, b, RC, modes, n, ys):
+    """Golden-section search of event function j on [a, b] for a value below zero.
+
+    Returns the first theta found with a negative value, or 2.0 when the minimum is >= 0.
+    """
+    c = a + GOLD * (b - a)
+    d = b - GOLD * (b - a)
+    fc = _event_at(model, j, t0, h, c, RC, modes, n, ys)
+    fd = _event_at(model, j, t0, h, d, RC, modes, n, ys)
+    for _ in range(80):
+        if fc < 0.0:
+            return c
+        if fd < 0.0:
+            return d
+        if b - a < 1e-13:
+            break
+        if fc < fd:
+            b = d
+            d = c
+            fd = fc
+            c = a + GOLD * (b - a)
+            fc = _event_at(model, j, t0, h, c, RC, modes, n, ys)
+        else:
+            a = c
+            c = d
+            fc = fd
+            d = b - GOLD * (b - a)
+            fd = _event_at(model, j, t0, h, d, RC, modes, n, ys)
+    return 2.0
+
+
+@helper
+def events_possible(model, pair, h, f0, f1, mode, i0, i1):
+    """Screen: can an event of ``pair`` (onset when free, exit in contact) happen in the step?
+
+    For a function g with |g''| <= A on a step of length h, g >= min(g(0), g(h)) - A h^2 / 8.
+    In free flight g is a gap and A the model's bound of its second derivative; in contact g
+    is the penetration and A twice the larger |p''| at the ends (the contact force varies
+    smoothly over the tens of steps a contact takes). A pair without a bound (+inf) is always
+    sampled. ``i0``, ``i1``: the pair's summaries at the two ends of the step.
+    """
+    acc = free_accel_bound(model, pair, f0, f1)
+    if acc == math.inf:
+        return True
+    if mode == 0:
+        margin = acc * h * h / 8.0
+        return min(i0[I_GIN], i1[I_GIN]) <= margin or min(i0[I_GOUT], i1[I_GOUT]) <= margin
+    margin = 2.0 * max(abs(i0[I_PDD]), abs(i1[I_PDD])) * h * h / 8.0
+    return min(i0[I_P], i1[I_P]) <= margin
+
+
+@helper
+def sample_events(model, n_pairs, t0, h, RC, modes, n, ys, GS, f0, f1, INF0, INF1):
+    """Event functions at the N_SUB + 1 equally spaced points of the step (GS[j, k]).
+
+    A pair the screen rules out is not sampled (its rows are +1). Returns False when nothing
+    needs sampling.
+    """
+    any_on = False
+    for pair in range(n_pairs):
+        on = events_possible(model, pair, h, f0, f1, modes[pair], INF0[pair], INF1[pair])
+        for k in range(N_SUB + 1):
+            GS[2 * pair, k] = 1.0
+            GS[2 * pair + 1, k] = 1.0
+        if not on:
+            continue
+        any_on = True
+        j0 = 2 * pair
+        a0 = event_active(j0, modes)
+        a1 = event_active(j0 + 1, modes)
+        mode = modes[pair]
+        for k in range(N_SUB + 1):
+            dense_eval(k / N_SUB, RC, ys, n)
+            # one evaluation of the gaps serves both walls of the pair
+            g_in, g_out, _ = pair_gaps(model, pair, t0 + k / N_SUB * h, ys)
+            if mode == 0:
+                GS[j0, k] = g_in if a0 else 1.0
+                GS[j0 + 1, k] = g_out if a1 else 1.0
+            else:
+                GS[j0, k] = -g_in if a0 else 1.0
+                GS[j0 + 1, k] = -g_out if a1 else 1.0
+    return any_on
+
+
+@helper
+def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
+    """Earliest theta in (0, 1] where event function j turns negative; 2.0 when none.
+
+    Uses the samples GS[j] (:func:`sample_events`); a sign change is refined by the Illinois
+    method, an interior local minimum of the samples by golden section.
+    """
+    if not event_active(j, modes):
+        return 2.0
+    gs = GS[j]
+    gs[0] = max(gs[0], 0.0)
+    lo = -1.0
+    hi = -1.0
+    for k in range(1, N_SUB + 1):
+        if gs[k] < 0.0:
+            lo = (k - 1) / N_SUB
+            hi = k / N_SUB
+            break
+        if (
+            k < N_SUB
+            and gs[k] < gs[k - 1]
+            and gs[k] <= gs[k + 1]
+            and gs[k] < max(gs[k - 1] - gs[k], gs[k + 1] - gs[k])
+        ):
+            # interior local minimum of the samples, close enough to zero that the function
+            # could dip below it between the samples: golden section for that dip
+            dip = _golden_dip(model, j, t0, h, (k - 1) / N_SUB, (k + 1) / N_SUB, RC, modes, n, ys)
+            if dip < 2.0:
+                lo = (k - 1) / N_SUB
+                hi = dip
+                break
+    if hi < 0.0:
+        return 2.0
+    # Illinois on [lo, hi] with g(lo) >= 0 > g(hi)
+    glo = max(_event_at(model, j, t0, h, lo, RC, modes, n, ys), 0.0)
+    ghi = _event_at(model, j, t0, h, hi, RC, modes, n, ys)
+    side = 0
+    for _ in range(200):
+        if hi - lo <= 1e-15 * max(1.0, abs(t0) / max(h, 1e-300)) or hi - lo < 1e-16:
+            break
+        denom = glo - ghi
+        mid = hi - ghi * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
+        if not (lo < mid < hi):
+            mid = 0.5 * (lo + hi)
+        gm = _event_at(model, j, t0, h, mid, RC, modes, n, ys)
+        if gm < 0.0:
+            hi = mid
+            ghi = gm
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        else:
+            lo = mid
+            glo = gm
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+    return hi

@@ -1,0 +1,36 @@
+"""Writing a run's series to disk: compressed netCDF4 by default, CSV on request.
+
+The series of a 5-s run sampled every 10 us holds ~5e5 rows of 27 columns: ~110 MB as
+uncompressed netCDF3 and as much again as CSV. netCDF4 (HDF5) with zlib compression and the
+byte-shuffle filter stores the same numbers bit for bit in a fraction of that (the columns
+are smooth, so neighbouring values share their high bytes). The file is written through
+``h5netcdf`` (a netCDF4 writer on ``h5py``, no C netCDF library needed) and opens with
+``xarray.open_dataset(path)``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from braidsim.io import atomic_write_with
+
+if TYPE_CHECKING:
+    from braidsim.result import Result
+
+#: zlib level of the series file: 4 gives nearly all of level 9's saving at a third of its time
+COMPLEVEL = 4
+
+
+def write_series_netcdf(result: Result, path: str | Path) -> Path:
+    """Write :meth:`Result.to_xarray` as compressed netCDF4 (zlib + shuffle); the file is
+    whole or absent."""
+    ds = result.to_xarray()
+    encoding = {
+        name: {"zlib": True, "complevel": COMPLEVEL, "shuffle": True} for name in ds.data_vars
+    }
+
+    def write(tmp: Path) -> None:
+        ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding)
+
+    return atomic_write_with(path, write)

@@ -1,0 +1,453 @@
+"""What a run leaves behind: the xarray/netCDF series, provenance in every output, the
+version, compact and tidy output files, and the steady-state windows of the analysis verbs."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+import braidsim
+from braidsim.cli import main
+from braidsim.sweep.spec import parse_spec
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    with pytest.raises(SystemExit) as exc:
+        main(list(argv))
+    out, err = capsys.readouterr()
+    return int(exc.value.code or 0), out, err
+
+
+@pytest.fixture(scope="module")
+def transfer_run() -> braidsim.Result:
+    """paper-3.2 with a transfer at 20 ms: events at sample times and a state jump."""
+    sc = braidsim.load_scenario("paper-3.2", overrides={"transfer.times": [0.02]})
+    return braidsim.simulate(sc, duration=0.05)
+
+
+# ------------------------------------------------------------------ to_xarray / series.nc
+
+
+def test_xarray_time_index_is_unique_and_increasing(transfer_run) -> None:
+    res = transfer_run
+    t = res.series["t"]
+    assert np.any(np.diff(t) == 0)  # the raw series repeats times (start, end, transfer)
+    ds = res.to_xarray()
+    ti = ds.indexes["t"]
+    assert ti.is_unique and ti.is_monotonic_increasing
+    assert ds["t"].values[0] == 0.0 and ds["t"].values[-1] == pytest.approx(0.05)
+    assert ds.sizes["t"] == np.unique(t).size
+
+    # nothing is lost: every row is on t or on the event dimension, every event on event
+    def rows(tt, kk, xx):
+        return set(zip(tt.tolist(), kk.astype(int).tolist(), xx.tolist(), strict=True))
+
+    kinds = np.asarray(res.series["kind"])
+    everything = rows(t, kinds, res.series["x"])
+    on_t = rows(ds["t"].values, ds["kind"].values, ds["x"].values)
+    on_event = rows(ds["event_t"].values, ds["event_kind"].values, ds["event_x"].values)
+    assert on_t | on_event == everything
+    assert {r for r in everything if r[1] != 0} <= on_event
+    # the exact peak is on the time axis
+    assert float(ds["track_contact_force"].min()) == res.ranges_dict()["contact_force"][0]
+
+
+def test_xarray_sel_nearest_and_interp(transfer_run) -> None:
+    ds = transfer_run.to_xarray()
+    t = ds["t"].values
+    i = int(np.searchsorted(t, 0.0123))
+    near = ds.sel(t=0.0123, method="nearest")
+    j = i if abs(t[i] - 0.0123) < abs(t[i - 1] - 0.0123) else i - 1
+    assert float(near["x"]) == float(ds["x"].values[j])
+    # linear interpolation between the two neighbouring rows, by hand
+    w = (0.0123 - t[i - 1]) / (t[i] - t[i - 1])
+    expect = (1 - w) * ds["x"].values[i - 1] + w * ds["x"].values[i]
+    assert float(ds.interp(t=0.0123)["x"]) == pytest.approx(expect, rel=1e-12)
+    sub = ds.sel(t=slice(0.01, 0.02))
+    assert sub.sizes["t"] > 100
+
+
+def test_transfer_keeps_both_states(transfer_run) -> None:
+    """At a transfer the state jumps: the state after it is on t, the state before it on
+    the event dimension."""
+    ds = transfer_run.to_xarray()
+    k = int(np.flatnonzero(ds["event_kind"].values == 4)[0])
+    tt = float(ds["event_t"].values[k])
+    at = ds.sel(t=tt)
+    assert int(at["kind"]) == 4 and float(at["x"]) == float(ds["event_x"].values[k])
+    before = ds["event_x"].values[(ds["event_t"].values == tt) & (ds["event_kind"].values == 0)]
+    assert before.size == 1 and before[0] != float(at["x"])
+
+
+def test_series_netcdf_is_compressed_and_round_trips(transfer_run, tmp_path) -> None:
+    from braidsim.export import write_series_netcdf
+
+    p = write_series_netcdf(transfer_run, tmp_path / "series.nc")
+    ds = transfer_run.to_xarray()
+    ds.to_netcdf(tmp_path / "plain.nc", engine="scipy")  # netCDF3, uncompressed
+    assert p.stat().st_size < 0.5 * (tmp_path / "plain.nc").stat().st_size
+    with xr.open_dataset(p) as back:
+        xr.testing.assert_identical(back.load(), ds)
+        assert back.indexes["t"].is_unique
+        assert float(back.sel(t=0.0123, method="nearest")["x"]) == float(
+            ds.sel(t=0.0123, method="nearest")["x"]
+        )
+
+
+# ------------------------------------------------------------------ provenance
+
+
+def test_duration_actually_used_is_recorded(capsys, tmp_path) -> None:
+    out = tmp_path / "r"
+    code, stdout, err = run_cli(
+        capsys, "run", "paper-3.2", "--duration", "0.02", "--out", str(out), "--json"
+    )
+    assert code == 0, err
+    for data in (json.loads(stdout), json.loads((out / "summary.json").read_text())):
+        assert data["parameters"]["simulation.duration"] == 0.02
+        assert data["simulation"]["duration"] == 0.02
+        assert data["braidsim_version"] == braidsim.__version__
+        assert re.match(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d", data["created"])
+    with xr.open_dataset(out / "series.nc") as ds:
+        assert ds.attrs["braidsim_version"] == braidsim.__version__
+        assert ds.attrs["duration"] == 0.02 and ds.attrs["scenario"] == "paper-3.2"
+        params = json.loads(ds.attrs["parameters_json"])
+        assert params["simulation.duration"] == 0.02 and params["initial.x"] == 0.003
+    res = braidsim.simulate("paper-3.2", duration=0.01)
+    s = res.summary()
+    assert s["parameters"]["simulation.duration"] == 0.01
+    assert braidsim.load_scenario("paper-3.2")["simulation.duration"] == 0.5
+
+
+def test_version_option(capsys) -> None:
+    code, out, _ = run_cli(capsys, "--version")
+    assert code == 0 and out.strip() == f"braidsim {braidsim.__version__}"
+
+
+SPEC = """
+scenario = "paper-3.2"
+duration = "0.01 s"
+[[axes]]
+key = "track.clearance"
+start = "2 mm"
+stop = "3 mm"
+num = 2
+"""
+
+#: every verb with --json, at a size that runs in about a second
+JSON_VERBS: dict[str, list[str]] = {
+    "run": ["run", "paper-3.2", "--duration", "0.01"],
+    "impact": ["impact"],
+    "models": ["models"],
+    "scenarios": ["scenarios"],
+    "restitution": ["restitution", "--law", "hertz", "--points", "2"],
+    "bifurcation": [
+        "bifurcation",
+        "paper-3.3",
+        "--param",
+        "track.vibration_amplitude",
+        "--from",
+        "0.1 mm",
+        "--to",
+        "0.12 mm",
+        "--points",
+        "2",
+        "--transient-cycles",
+        "2",
+        "--cycles",
+        "4",
+    ],
+    "basins": [
+        "basins",
+        "paper-3.3",
+        "--nx",
+        "2",
+        "--ny",
+        "1",
+        "--transient-cycles",
+        "2",
+        "--cycles",
+        "4",
+    ],
+    "lyapunov": ["lyapunov", "paper-3.4b", "--transient-cycles", "2", "--cycles", "4"],
+    "analyze": ["analyze", "paper-3.3", "--duration", "0.1"],
+    "sweep": ["sweep", "{spec}", "--out", "{tmp}/s.zarr", "--workers", "1"],
+    "machine": [
+        "machine",
+        str(ROOT / "examples" / "machine16.toml"),
+        "--out",
+        "{tmp}/m",
+        "--duration",
+        "0.05",
+        "--frames",
+        "0",
+        "--workers",
+        "1",
+    ],
+}
+SLOW_JSON_VERBS = {
+    "paper": ["paper", "--out", "{tmp}/paper"],
+}
+
+
+def _verbs_with_json() -> set[str]:
+    from braidsim.cli import _register
+    from braidsim.cli.common import app
+
+    _register()
+    names = set()
+    for cmd in app.registered_commands:
+        name = cmd.name or cmd.callback.__name__.replace("_", "-")
+        import inspect
+
+        src = inspect.signature(cmd.callback)
+        if "json_" in src.parameters:
+            names.add(name)
+    return names
+
+
+def test_every_json_verb_is_checked() -> None:
+    """A new verb with --json must be added to the version check below."""
+    covered = set(JSON_VERBS) | set(SLOW_JSON_VERBS) | {"sweep-plot", "design"}
+    assert _verbs_with_json() <= covered
+
+
+def _check_version(capsys, argv: list[str], tmp_path: Path) -> dict:
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    argv = [a.format(spec=spec, tmp=tmp_path) for a in argv]
+    code, out, err = run_cli(capsys, *argv, "--json")
+    assert code == 0, err
+    assert out.count("\n") == 1  # one JSON object, nothing else on stdout
+    data = json.loads(out)
+    assert data["braidsim_version"] == braidsim.__version__
+    return data
+
+
+@pytest.mark.parametrize("verb", sorted(JSON_VERBS))
+def test_every_json_output_carries_the_version(capsys, tmp_path, verb) -> None:
+    data = _check_version(capsys, JSON_VERBS[verb], tmp_path)
+    if verb == "sweep":
+        code, out, err = run_cli(
+            capsys,
+            "sweep-plot",
+            str(tmp_path / "s.zarr"),
+            "--metric",
+            "regime",
+            "--x",
+            "track.clearance",
+            "--out",
+            str(tmp_path / "p.png"),
+            "--json",
+        )
+        assert code == 0, err
+        assert json.loads(out)["braidsim_version"] == braidsim.__version__
+    if verb in ("bifurcation", "basins", "lyapunov", "analyze"):
+        # analysis outputs state the settings and the steady-state window they used
+        assert "window_rule" in data["settings"] and data["parameters"]
+        assert data["created"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("verb", sorted(SLOW_JSON_VERBS))
+def test_slow_json_outputs_carry_the_version(capsys, tmp_path, verb) -> None:
+    _check_version(capsys, SLOW_JSON_VERBS[verb], tmp_path)
+
+
+# ------------------------------------------------------------------ compact outputs
+
+
+def test_run_out_refuses_an_unrelated_folder(capsys, tmp_path) -> None:
+    (tmp_path / "notes.txt").write_text("mine")
+    code, _, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01", "--out", str(tmp_path))
+    assert code == 2 and "--out" in err and "not empty" in err and "Traceback" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+    # an earlier run output is replaced; CSV series only with --csv
+    d = tmp_path / "r"
+    for extra in ([], ["--csv"]):
+        code, _, err = run_cli(
+            capsys, "run", "paper-3.2", "--duration", "0.01", "--out", str(d), *extra
+        )
+        assert code == 0, err
+    assert (d / "series.csv").is_file() and (d / "series.nc").is_file()
+
+
+def test_lyapunov_json_is_short_unless_asked(capsys) -> None:
+    argv = ["lyapunov", "paper-3.4b", "--transient-cycles", "2", "--cycles", "20", "--json"]
+    code, short, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    code, full, err = run_cli(capsys, *argv, "--curve")
+    assert code == 0, err
+    s, f = json.loads(short), json.loads(full)
+    assert "running" not in s and len(f["running"]) == f["intervals"] > 100
+    assert s["exponent"] == f["exponent"]
+    assert len(short) < 0.5 * len(full)
+
+
+def test_result_repr_is_short_and_html(transfer_run) -> None:
+    r = repr(transfer_run)
+    assert len(r) < 300 and "\n" not in r and "paper-3.2" in r
+    h = transfer_run._repr_html_()
+    assert h.startswith("<div>") and "<table>" in h and len(h) < 5000
+
+
+def test_sweep_plot_says_what_it_wrote(capsys, tmp_path) -> None:
+    spec = tmp_path / "spec.toml"
+    spec.write_text(SPEC)
+    code, _, err = run_cli(capsys, "sweep", str(spec), "--out", str(tmp_path / "s.zarr"))
+    assert code == 0, err
+    png = tmp_path / "p.png"
+    code, out, err = run_cli(
+        capsys, "sweep-plot", str(tmp_path / "s.zarr"), "--metric", "regime", "--x",
+        "track.clearance", "--out", str(png),
+    )  # fmt: skip
+    assert code == 0, err
+    assert str(png) in out.replace("\n", "") and png.is_file()
+
+
+def test_example_does_not_overwrite_the_tracked_figure() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("ex", ROOT / "examples" / "sweep_ha_omega.py")
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    fig = mod.parser().parse_args([]).figure
+    assert "docs" not in Path(fig).parts
+
+
+# ------------------------------------------------------------------ steady-state defaults
+
+
+def test_sweep_metrics_window_defaults_to_the_second_half() -> None:
+    spec = parse_spec(
+        {"scenario": "paper-3.2", "duration": "0.4 s", "axes": [
+            {"key": "track.clearance", "start": "2 mm", "stop": "3 mm", "num": 2}
+        ]}
+    )  # fmt: skip
+    assert spec.options.window == (0.2, 0.4)
+
+
+def test_analyze_default_discards_a_transient(capsys) -> None:
+    """paper-3.3 settles into a period-6 orbit; over its first 0.5 s it has not yet. The
+    default window starts after 100 excitation periods and says so."""
+    from braidsim.analysis.report import analyze
+
+    a = analyze("paper-3.3")
+    T = 1 / 60
+    assert a.result.model.duration == pytest.approx(150 * T)
+    assert a.window[0] == pytest.approx(100 * T, abs=1e-9)
+    assert a.steady is not None and a.steady.regime.period == 6
+    assert "100 T" in a.window_rule
+    short = analyze("paper-3.3", duration=0.5)
+    assert short.window[0] == pytest.approx(0.25, abs=T)  # half of a short run
+    assert short.steady is not None and short.steady.regime.label == "irregular"
+
+
+# ------------------------------------------------------------------ xy mode
+
+
+def test_run_shows_both_pairs_in_xy_mode(capsys, tmp_path) -> None:
+    xy = tmp_path / "xy"
+    code, out, err = run_cli(
+        capsys, "run", "paper-3.1", "--set", "simulation.dof=xy", "--duration", "0.03",
+        "--out", str(xy),
+    )  # fmt: skip
+    assert code == 0, err
+    assert "slot (y) min" in out and "track (x) min" in out
+    for name in ("x.png", "y.png", "slot_stiffness_force.png", "slot_depth.png"):
+        assert (xy / name).stat().st_size > 0, name
+    x_only = tmp_path / "x"
+    code, out, err = run_cli(capsys, "run", "paper-3.1", "--duration", "0.03", "--out", str(x_only))
+    assert code == 0, err
+    assert "slot (y)" not in out and not (x_only / "y.png").exists()
+
+
+# ------------------------------------------------------------------ progress and signals
+
+
+def test_progress_is_off_under_json_and_without_a_terminal(capsys) -> None:
+    from braidsim.cli.progress import enabled
+
+    assert not enabled(quiet=True)
+    assert not enabled()  # pytest captures stderr: not a terminal
+    code, out, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01", "--json")
+    assert code == 0 and err == "" and json.loads(out)
+
+
+def test_first_compile_is_detected() -> None:
+    """With an empty numba cache the integrator's first call compiles (and the progress note
+    says so); here, after runs, it does not."""
+    import subprocess
+    import sys
+    import tempfile
+
+    from braidsim.cli.progress import kernel_needs_compile
+
+    braidsim.simulate("paper-3.2", duration=0.001)
+    assert not kernel_needs_compile()
+    with tempfile.TemporaryDirectory() as cache:
+        code = "from braidsim.cli.progress import kernel_needs_compile as k; print(k())"
+        env = {**__import__("os").environ, "NUMBA_CACHE_DIR": cache}
+        out = subprocess.run(
+            [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+        )
+    assert out.stdout.strip() == "True"
+
+
+def _descendants(pid: int) -> set[int]:
+    """Process ids below ``pid`` (Linux /proc)."""
+    children: dict[int, list[int]] = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                stat = (d / "stat").read_text()
+            except OSError:
+                continue
+            ppid = int(stat.rsplit(")", 1)[1].split()[1])
+            children.setdefault(ppid, []).append(int(d.name))
+    out, todo = set(), [pid]
+    while todo:
+        for c in children.get(todo.pop(), []):
+            out.add(c)
+            todo.append(c)
+    return out
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigterm_stops_the_worker_processes(tmp_path) -> None:
+    import subprocess
+    import sys
+    import time
+
+    cmd = [
+        sys.executable, "-m", "braidsim", "bifurcation", "paper-3.3", "--param",
+        "track.vibration_amplitude", "--from", "0.1 mm", "--to", "0.2 mm", "--points", "4",
+        "--transient-cycles", "5000", "--cycles", "50", "--workers", "2", "--json",
+    ]  # fmt: skip
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 60
+        kids: set[int] = set()
+        while time.monotonic() < deadline and len(kids) < 2:
+            time.sleep(0.2)
+            kids = _descendants(p.pid)
+        assert len(kids) >= 2, "the workers did not start"
+        p.terminate()  # SIGTERM to the parent only, as `kill PID` does
+        _, err = p.communicate(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    time.sleep(0.5)
+    alive = {k for k in kids if Path(f"/proc/{k}").exists()}
+    # a killed worker may linger as a zombie for a moment only if nobody reaps it
+    states = {k: Path(f"/proc/{k}/stat").read_text().split(") ")[1][0] for k in alive}
+    assert all(s == "Z" for s in states.values()), states

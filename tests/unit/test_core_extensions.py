@@ -1,0 +1,152 @@
+"""Laws and excitations added to the core in one file each, against closed forms: the
+Kelvin-Voigt contact (outside the power-law family), Coulomb plus viscous friction, and a
+track vibration from a measured record."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from braidsim.core import (
+    CoulombViscousFriction,
+    ImpactOscillator,
+    KelvinVoigtContact,
+    MeasuredTrack,
+    TrackHarmonics,
+    run,
+    state_size,
+    wall_motion,
+)
+from braidsim.core import layout as L
+from braidsim.model import build_model
+from braidsim.params import load_scenario
+
+TIGHT = L.SolverOptions(
+    rtol=1e-11, atol_position=1e-15, atol_velocity=1e-13, max_step=1e-4, max_steps=10**7, t_end=0.0
+)
+
+
+@pytest.mark.parametrize("e", [0.3, 0.7, 0.95])
+def test_kelvin_voigt_impact_is_half_a_damped_period(e: float) -> None:
+    """With tension allowed, a free impact lasts pi / w_d and rebounds at exactly e."""
+    m, k, v, gap = 1.2, 5e7, 0.4, 1e-3
+    law = KelvinVoigtContact.for_restitution(k, e, m, allow_tension=True)
+    model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, law)
+    raw = run(model, TIGHT._replace(t_end=gap / v + 0.01), np.array([0.0, v, 0.0, 0.0, 0.0]))
+    (ep,) = raw.episodes
+    zeta = law.damping / (2.0 * math.sqrt(k * m))
+    w_d = math.sqrt(k / m) * math.sqrt(1.0 - zeta**2)
+    assert ep["t_end"] - ep["t"] == pytest.approx(math.pi / w_d, rel=1e-9)
+    assert ep["rebound_velocity"] / ep["velocity"] == pytest.approx(e, rel=1e-8)
+    # the force jumps to c v at onset: the damping-related force peaks at the first instant
+    assert ep["max_damping_force"] == pytest.approx(law.damping * v, rel=1e-9)
+    assert ep["dissipated_energy"] == pytest.approx(0.5 * m * v * v * (1 - e * e), rel=1e-8)
+
+
+def test_kelvin_voigt_without_tension_leaves_the_wall_when_the_force_vanishes() -> None:
+    """With tension allowed the dashpot pulls the body back at the end of the contact (N < 0
+    while p' < -k p / c); clamped at N >= 0 it does not, so the body rebounds faster than
+    the nominal restitution, after the same peak force."""
+    m, k, v, gap = 1.2, 5e7, 0.4, 1e-3
+    kw = dict(stiffness=k, restitution=0.5, mass=m)
+    free = KelvinVoigtContact.for_restitution(**kw, allow_tension=True)
+    clamped = KelvinVoigtContact.for_restitution(**kw)
+    opts = TIGHT._replace(t_end=gap / v + 0.01)
+    out = {}
+    for name, law in (("free", free), ("clamped", clamped)):
+        model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, law)
+        out[name] = run(model, opts, np.array([0.0, v, 0.0, 0.0, 0.0])).episodes[0]
+    assert out["free"]["rebound_velocity"] == pytest.approx(0.5 * v, rel=1e-8)
+    assert out["clamped"]["rebound_velocity"] > out["free"]["rebound_velocity"] * 1.05
+    assert out["clamped"]["peak_force"] == pytest.approx(out["free"]["peak_force"], rel=1e-9)
+
+
+def _free_carrier(friction: object, mu: float, v0: float) -> tuple[object, np.ndarray]:
+    """The x-only carrier in the middle of a 1 m gap, no loads, no vibration."""
+    model = build_model(load_scenario("paper-3.1"), 1.0)
+    rec = model.record._replace(
+        friction=friction,
+        mu_x=mu,
+        load_x=0.0,
+        mass_radius=0.0,
+        track_clearance=1.0,
+        track=TrackHarmonics(np.zeros((0, 3))),
+    )
+    y0 = np.zeros(state_size(rec, True))
+    y0[:2] = (0.5, v0)
+    return rec, y0
+
+
+def test_viscous_friction_decays_the_speed_exponentially() -> None:
+    """mu = 0: m x'' = -b x', so x' = v0 exp(-b t / m), x = x0 + v0 m / b (1 - exp(-b t / m))."""
+    b, v0, T = 3.0, 0.2, 0.4
+    rec, y0 = _free_carrier(CoulombViscousFriction(1e-3, b), 0.0, v0)
+    raw = run(rec, TIGHT._replace(t_end=T, max_step=1e-3), y0)
+    m = rec.mass
+    decay = math.exp(-b * T / m)
+    assert raw.y[1] == pytest.approx(v0 * decay, rel=1e-9)
+    assert raw.y[0] == pytest.approx(0.5 + v0 * m / b * (1 - decay), rel=1e-10)
+    assert raw.y[3] == pytest.approx(0.5 * m * v0 * v0 * (1 - decay**2), rel=1e-8)  # friction work
+
+
+def test_coulomb_friction_decelerates_at_mu_n_over_m() -> None:
+    """b = 0, v >> v_hat: m x'' = -mu N, a constant deceleration while sliding."""
+    mu, v0, T = 0.1, 0.5, 0.2
+    rec, y0 = _free_carrier(CoulombViscousFriction(1e-7, 0.0), mu, v0)
+    raw = run(rec, TIGHT._replace(t_end=T, max_step=1e-3), y0)
+    a = mu * rec.normal_x / rec.mass
+    assert v0 - a * T > 0.05  # still sliding
+    assert raw.y[1] == pytest.approx(v0 - a * T, rel=1e-9)
+    assert raw.y[0] == pytest.approx(0.5 + v0 * T - 0.5 * a * T * T, rel=1e-9)
+
+
+def _paper_track_record(n: int = 400) -> tuple[np.ndarray, np.ndarray, tuple[float, float, float]]:
+    sc = load_scenario("paper-3.3")
+    a, w, ph = (
+        sc["track.vibration_amplitude"],
+        sc["track.vibration_frequency"],
+        sc["track.vibration_phase"],
+    )
+    t = np.linspace(0.0, 2 * math.pi / w, n + 1)
+    return t, a * np.cos(w * t + ph), (a, w, ph)
+
+
+def test_measured_track_interpolates_the_sampled_vibration() -> None:
+    t, h, (a, w, ph) = _paper_track_record()
+    tr = MeasuredTrack.from_samples(t, h)
+    for tq in (0.0, 0.0012345, 0.017, 0.31415, 2.5):  # inside and beyond the record
+        pos, vel, acc = wall_motion.py(tr, tq)
+        arg = w * tq + ph
+        assert pos == pytest.approx(a * math.cos(arg), abs=1e-8 * a)
+        assert vel == pytest.approx(-a * w * math.sin(arg), abs=1e-6 * a * w)
+        assert acc == pytest.approx(-a * w * w * math.cos(arg), abs=1e-3 * a * w * w)
+
+
+def test_a_run_on_the_measured_record_equals_the_run_on_the_harmonic(tmp_path: Path) -> None:
+    """The paper-3.3 carrier on the record of its own track vibration (written to CSV in mm
+    and read back): the same impacts as on the harmonic track."""
+    t, h, _ = _paper_track_record()
+    path = tmp_path / "track.csv"
+    rows = "".join(f"{float(a)!r},{float(b) * 1e3!r}\n" for a, b in zip(t, h, strict=True))
+    path.write_text("t [s],h [mm]\n" + rows)
+    tr = MeasuredTrack.from_csv(path)
+    model = build_model(load_scenario("paper-3.3"), 0.2)
+    harmonic = run(model.record, model.options, model.y0)
+    measured = run(model.record._replace(track=tr), model.options, model.y0)
+    assert measured.episodes.size == harmonic.episodes.size > 10
+    np.testing.assert_allclose(measured.episodes["t"], harmonic.episodes["t"], rtol=1e-6)
+    np.testing.assert_allclose(
+        measured.episodes["peak_force"], harmonic.episodes["peak_force"], rtol=1e-4
+    )
+
+
+def test_a_bad_record_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="increasing"):
+        MeasuredTrack.from_samples(np.array([0.0, 1.0, 1.0, 2.0]), np.zeros(4))
+    path = tmp_path / "bad.csv"
+    path.write_text("t,x\n0,0\n1,0\n2,0\n3,0\n")
+    with pytest.raises(ValueError, match="columns t and h"):
+        MeasuredTrack.from_csv(path)

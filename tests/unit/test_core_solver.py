@@ -1,0 +1,215 @@
+"""The compiled core's solver on its own: numerical helpers against independent
+evaluations, the impact oscillator against closed forms, and the driver's guarantees (one
+pass, the same bits whatever the buffers and recorders).
+
+The helpers are the pieces the step loop relies on without re-checking: the time derivative
+of the continuous extension (used to locate peaks) and the slopes dN/dt, dF_c/dt of a pair
+summary (whose signs decide whether a step holds a peak).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from braidsim import contact
+from braidsim.core import ImpactOscillator, PowerLawContact, derivatives, run, state_size
+from braidsim.core import layout as L
+from braidsim.core.solver.dopri5 import dense_coeffs, dense_deriv, dense_eval, rk_step
+from braidsim.core.solver.pairs import I_DFC, I_DN, I_FC, I_FK, I_N, I_P, I_PD, NI, pair_info
+from braidsim.model import build_model
+from braidsim.params import load_scenario
+
+
+def _one_contact_step() -> tuple[object, np.ndarray, float, float, np.ndarray, int]:
+    """One Dormand-Prince step of the paper-3.4a carrier 2 um deep in the inner track wall,
+    moving into it."""
+    model = build_model(load_scenario("paper-3.4a"), 0.01)
+    rec = model.record
+    n = state_size(rec, True)
+    y = np.zeros(n)
+    t, h = 0.01, 2e-6
+    a = rec.track.table[0]
+    h0 = a[0] * math.cos(a[1] * t + a[2])
+    hd0 = -a[0] * a[1] * math.sin(a[1] * t + a[2])
+    y[0] = h0 - 2e-6
+    y[1] = hd0 - 0.05
+    modes = np.array([-1, 0])
+    v0s = np.array([0.3, 1.0])
+    K = np.empty((7, n))
+    derivatives.py(rec, t, y, modes, v0s, n, K[0])
+    yt, y1, RC = np.empty(n), np.empty(n), np.empty((5, n))
+    rk_step(rec, t, y, h, K, modes, v0s, n, yt, y1)
+    dense_coeffs(y, y1, h, K, RC, n)
+    return rec, K, t, h, RC, n
+
+
+def test_dense_derivative_matches_the_stages_and_finite_differences() -> None:
+    _, K, _, h, RC, n = _one_contact_step()
+    d = np.empty(n)
+    dense_deriv(0.0, h, RC, d, 2)
+    np.testing.assert_allclose(d[:2], K[0, :2], rtol=1e-9, atol=1e-12)
+    dense_deriv(1.0, h, RC, d, 2)
+    np.testing.assert_allclose(d[:2], K[6, :2], rtol=1e-9, atol=1e-12)
+    yp, ym = np.empty(n), np.empty(n)
+    for theta in (0.2, 0.5, 0.9):
+        e = 1e-5
+        dense_eval(theta + e, RC, yp, n)
+        dense_eval(theta - e, RC, ym, n)
+        dense_deriv(theta, h, RC, d, 2)
+        fd = (yp[:2] - ym[:2]) / (2 * e * h)
+        np.testing.assert_allclose(d[:2], fd, rtol=1e-6)
+
+
+def test_pair_summary_slopes_are_the_time_derivatives_of_the_forces() -> None:
+    rec, _, t, h, RC, n = _one_contact_step()
+    v0 = 0.3
+    info, ip, im = np.empty(NI), np.empty(NI), np.empty(NI)
+    ys, yd = np.empty(n), np.empty(n)
+    e = 1e-4
+    for theta in (0.3, 0.7):
+        for th, out in ((theta, info), (theta + e, ip), (theta - e, im)):
+            dense_eval(th, RC, ys, n)
+            dense_deriv(th, h, RC, yd, 2)
+            pair_info(rec, 0, t + th * h, ys, yd, -1, v0, out)
+        dt = 2 * e * h
+        assert info[I_P] > 0.0
+        assert info[I_N] == pytest.approx(info[I_FK] + info[I_FC], rel=1e-14)
+        assert info[I_DN] == pytest.approx((ip[I_N] - im[I_N]) / dt, rel=1e-5)
+        assert info[I_DFC] == pytest.approx((ip[I_FC] - im[I_FC]) / dt, rel=1e-5)
+        assert info[I_PD] == pytest.approx((ip[I_P] - im[I_P]) / dt, rel=1e-5)
+
+
+# ---- the impact oscillator ----------------------------------------------------------------
+
+TIGHT = L.SolverOptions(
+    rtol=1e-11, atol_position=1e-15, atol_velocity=1e-13, max_step=1e-4, max_steps=10**7, t_end=0.0
+)
+
+
+def _free_flight_into_wall(v: float = 0.5, gap: float = 1e-3) -> L.SolverOptions:
+    """Options for a free mass starting at x = 0 with speed v towards a wall at x = gap."""
+    return TIGHT._replace(t_end=gap / v + 0.01)
+
+
+def test_oscillator_without_walls_is_the_harmonic_oscillator() -> None:
+    """m x'' + k x = 0 from x0: x = x0 cos(w t), v = -x0 w sin(w t), energy conserved."""
+    m, k, x0 = 2.0, 800.0, 0.01
+    model = ImpactOscillator(
+        m, k, 0.0, 0.0, 0.0, 0.0, math.inf, math.inf, PowerLawContact(1e9, 1.5, 0.0)
+    )
+    w = math.sqrt(k / m)
+    T = 0.73
+    raw = run(model, TIGHT._replace(t_end=T), np.array([x0, 0.0, 0.0, 0.0, 0.0]))
+    assert raw.status == L.ST_OK
+    assert raw.y[0] == pytest.approx(x0 * math.cos(w * T), abs=1e-11)
+    assert raw.y[1] == pytest.approx(-x0 * w * math.sin(w * T), abs=1e-9)
+    assert raw.episodes.size == 0
+
+
+def test_elastic_hertz_impact_closed_form() -> None:
+    """A free mass on a Hertz wall (D = 0): rebound speed = approach speed, maximum depth
+    ((n+1) m v^2 / (2 K))^(1/(n+1)), peak force K p_m^n, no energy dissipated."""
+    m, K, v, gap = 1.0, 1e9, 0.5, 1e-3
+    law = PowerLawContact(K, 1.5, 0.0)
+    model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, law)
+    raw = run(model, _free_flight_into_wall(), np.array([0.0, v, 0.0, 0.0, 0.0]))
+    (ep,) = raw.episodes
+    p_m = (2.5 * m * v * v / (2 * K)) ** (1 / 2.5)
+    assert ep["t"] == pytest.approx(gap / v, rel=1e-12)
+    assert ep["velocity"] == pytest.approx(v, rel=1e-12)
+    assert ep["rebound_velocity"] == pytest.approx(v, rel=1e-9)
+    assert ep["max_depth"] == pytest.approx(p_m, rel=1e-9)
+    assert ep["peak_force"] == pytest.approx(K * p_m**1.5, rel=1e-9)
+    assert abs(ep["dissipated_energy"]) < 1e-12
+    assert raw.y[1] == pytest.approx(-v, rel=1e-9)
+
+
+@pytest.mark.parametrize("name", ["hunt_crossley", "flores", "lankarani_nikravesh", "gonthier"])
+def test_restitution_of_a_free_impact_is_the_laws_exact_value(name: str) -> None:
+    """With D(c_r) from the law, one free impact rebounds at the exact restitution of
+    :func:`braidsim.contact.effective_restitution` (an independent quadrature), and the
+    dissipated energy is the lost kinetic energy."""
+    m, K, v, gap = 1.2, 2.49e10, 0.3, 2e-4
+    law_def = contact.get_law(name)
+    d = law_def.damping_factor(0.7)
+    law = PowerLawContact(K, 1.5, d)
+    model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, law)
+    raw = run(model, _free_flight_into_wall(v, gap), np.array([0.0, v, 0.0, 0.0, 0.0]))
+    (ep,) = raw.episodes
+    e = ep["rebound_velocity"] / ep["velocity"]
+    assert e == pytest.approx(contact.effective_restitution(d), rel=1e-6)
+    assert ep["dissipated_energy"] == pytest.approx(0.5 * m * v * v * (1 - e * e), rel=1e-6)
+
+
+def test_energy_balance_of_the_forced_oscillator() -> None:
+    """Kinetic + spring + elastic contact energy at the end = at the start - contact and
+    dashpot dissipation + forcing work (the quadratures integrated with the motion)."""
+    m, k, c, K = 1.0, 400.0, 0.8, 1e8
+    law = PowerLawContact(K, 1.5, 0.4)
+    model = ImpactOscillator(m, k, c, 30.0, 25.0, 0.2, 2e-3, 1.5e-3, law)
+    raw = run(model, TIGHT._replace(t_end=2.0), np.array([0.0, 0.2, 0.0, 0.0, 0.0]))
+    assert raw.episodes.size > 10
+    x, v, diss, visc, work = raw.y
+
+    def elastic(x: float) -> float:
+        p = max(0.0, -(x + 2e-3), x - 1.5e-3)
+        return K * p**2.5 / 2.5
+
+    e0 = 0.5 * m * 0.2**2
+    e1 = 0.5 * m * v * v + 0.5 * k * x * x + elastic(x)
+    assert e1 == pytest.approx(e0 - diss - visc + work, abs=1e-9 * max(1.0, work))
+
+
+# ---- the driver ---------------------------------------------------------------------------
+
+
+def test_buffers_of_any_size_give_the_same_bits() -> None:
+    """The solver hands full buffers back at step boundaries and goes on: the series and the
+    impact table do not depend on the buffer sizes (one pass, nothing integrated twice)."""
+    model = build_model(load_scenario("paper-3.3"), 0.3)
+    st = np.linspace(0.0, 0.3, 601)
+    W = np.array([[0.0, 0.3], [0.1, 0.2]])
+    args = dict(sample_times=st, transfer_times=model.transfer_times, windows=W)
+    big = run(model.record, model.options, model.y0, **args)
+    small = run(model.record, model.options, model.y0, row_chunk=7, episode_chunk=8, **args)
+    assert big.episodes.size > 10
+    assert small.rows_written == big.rows_written
+    np.testing.assert_array_equal(small.series, big.series)
+    np.testing.assert_array_equal(small.episodes, big.episodes)
+    np.testing.assert_array_equal(small.ranges, big.ranges)
+    np.testing.assert_array_equal(small.xsq, big.xsq)
+    np.testing.assert_array_equal(small.y, big.y)
+
+
+def test_streamed_series_equals_the_kept_series() -> None:
+    model = build_model(load_scenario("paper-3.4a"), 0.2)
+    st = np.linspace(0.0, 0.2, 2001)
+    kept = run(model.record, model.options, model.y0, sample_times=st)
+    chunks: list[np.ndarray] = []
+    streamed = run(
+        model.record, model.options, model.y0, sample_times=st, series=chunks.append, row_chunk=100
+    )
+    assert streamed.series is None
+    assert len(chunks) > 5
+    np.testing.assert_array_equal(np.concatenate(chunks), kept.series)
+
+
+def test_the_lean_path_and_the_energy_switch_change_no_bit_of_the_motion() -> None:
+    """Without series, x^2 integrals or energy quadratures, the impacts, ranges and final
+    motion are those of the full run, bit for bit (recorders only read the motion)."""
+    model = build_model(load_scenario("paper-3.3"), 0.3)
+    W = np.array([[0.0, 0.3]])
+    full = run(
+        model.record, model.options, model.y0, sample_times=np.linspace(0, 0.3, 31), windows=W
+    )
+    lean_opts = model.options._replace(energy=False, record_events=False)
+    lean = run(model.record, lean_opts, model.y0[:2], windows=W, series=False, xsq=False)
+    assert lean.series is None and lean.xsq is None
+    for name in ("t", "t_end", "velocity", "peak_force", "max_depth", "rebound_velocity"):
+        np.testing.assert_array_equal(lean.episodes[name], full.episodes[name])
+    assert np.isnan(lean.episodes["dissipated_energy"]).all()
+    np.testing.assert_array_equal(lean.ranges, full.ranges)
+    np.testing.assert_array_equal(lean.y, full.y[:2])
