@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from functools import wraps
 from typing import Any, TypeVar
 
+import click
 import typer
 
 from braidsim.errors import InputError, SimulationError, StoreError
@@ -193,8 +194,8 @@ def guarded(func: F) -> F:
             fail(_os_error_text(exc), 1)
         except MemoryError:
             fail("out of memory; reduce the size of the work (see the limits in the docs)", 1)
-        except (typer.Exit, typer.Abort, SystemExit):
-            raise
+        except (typer.Exit, typer.Abort, SystemExit, click.ClickException):
+            raise  # exit codes and usage errors: run_app answers them
         except Exception as exc:
             if os.environ.get("BRAIDSIM_TRACEBACK"):
                 raise
