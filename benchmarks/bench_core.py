@@ -252,9 +252,7 @@ def _count(v: float) -> str:
 
 
 def reference(sc: Scenario) -> Any:
-    return braidsim.simulate(
-        sc.with_overrides(TIGHT), DURATION, sample_interval=0.0, record_events=False
-    )
+    return braidsim.simulate(sc.with_overrides(TIGHT), DURATION, series=False)
 
 
 def lean_peer(sc: Scenario, ref_result: Any) -> LeanPeer:
@@ -271,8 +269,8 @@ def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
         f"{SCENARIO} x only, {DURATION} s"
     )
     print(
-        "   braidsim call: simulate(sc, 0.5, sample_interval=0.0, record_events=False) "
-        "(no sampled series, no event rows)"
+        "   braidsim call: simulate(sc, 0.5, series=False) (the lean path: impacts, ranges, "
+        "summary, final state)"
     )
     res = reference(sc)
     ref = res.impacts
@@ -582,7 +580,7 @@ CHILD = """
 import resource, sys, time
 import braidsim
 T, summary = float(sys.argv[1]), sys.argv[2] == "summary"
-kw = dict(sample_interval=0.0, record_events=False) if summary else {}
+kw = dict(series=False) if summary else {}
 # the default step budget (5e6 steps) ends a 1000-s run at ~950 s: raised for all lengths
 sc = braidsim.load_scenario("paper-3.3").with_overrides({"simulation.max_steps": 100_000_000})
 braidsim.simulate(sc, 0.01, **kw)

@@ -8,11 +8,11 @@ amplitude h_a and the basins of attraction at the section 3.3 conditions.
 Writes ``bifurcation.png``, ``basins.png`` and ``demo.json`` (regimes, transitions,
 attractors, the contact-loss bound) into ``--out`` and prints a short summary.
 
-What to look for: below the contact-loss bound h_a = a_p / omega_h^2 (MODEL_NOTES section 7,
+What to look for: below the contact-loss bound h_a = a_p / omega_h^2 (docs/model.md §7,
 dashed line) the carrier started as in section 3.3 mostly rests on the wall; above it it
 bounces on the inner wall, periodically or irregularly, until h_a is large enough to throw it
 across the 3 mm gap and it hits both walls once per cycle. The basins show that the section
-3.3 parameters hold several steady states at once (MODEL_NOTES section 8): which one a run
+3.3 parameters hold several steady states at once (docs/model.md §8): which one a run
 reports depends on where it starts.
 """
 

@@ -8,7 +8,7 @@ resumable: run it again after an interruption) and draws two heat maps over it:
   impacts on one wall, impacts on both walls);
 * the largest approach speed of those impacts (how hard the carrier hits).
 
-Over both it draws MODEL_NOTES section 7's line h_a omega_h^2 = a_p with
+Over both it draws docs/model.md §7's line h_a omega_h^2 = a_p with
 a_p = (T1 cos phi + m r_c omega^2) / m: above it the wall's acceleration exceeds the one
 pressing the carrier on, and the carrier cannot stay on the wall. The dashed line
 h_a omega_h^2 = a_p pi (1 - e) / (1 + e) is where a carrier that already bounces can keep
@@ -102,7 +102,11 @@ def main() -> None:
     )
     for ax in axes:
         ax.plot(
-            omega / RPM, h_rest * 1e3, "k-", lw=1.6, label=r"$h_a\omega_h^2 = a_p$ (MODEL_NOTES 7)"
+            omega / RPM,
+            h_rest * 1e3,
+            "k-",
+            lw=1.6,
+            label=r"$h_a\omega_h^2 = a_p$ (docs/model.md §7)",
         )
         ax.plot(
             omega / RPM,

@@ -43,11 +43,11 @@ The regime label describes the track pair over the window (:data:`REGIMES`):
 * ``one_sided_impacts`` (2): onsets on one wall only (chatter on the inner wall, or the
   bounces after a transfer);
 * ``resting_contact`` (1): no onset, but in contact during the window (the carrier stays on
-  the wall, MODEL_NOTES section 7);
+  the wall, docs/model.md §7);
 * ``no_contact`` (0): no onset and no contact;
 * ``failed`` (-1): the run failed numerically (its reason is kept in ``failure``).
 
-MODEL_NOTES section 7 predicts ``resting_contact`` on a vibrating track while
+The contact-loss bound (docs/model.md §7) predicts ``resting_contact`` on a vibrating track while
 a_p = (T1 cos phi + m r_c omega^2)/m >= h_a omega_h^2 and impacts above that line.
 """
 

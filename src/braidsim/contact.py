@@ -23,17 +23,37 @@ law ``carvalho_martins``).
 
 References
 ----------
-.. [HC] Hunt K.H., Crossley F.R.E. (1975) J. Appl. Mech. 42:440-445.
-.. [HM] Herbert R.G., McWhannell D.C. (1977) J. Eng. Ind. 99:513-518.
-.. [LW] Lee T.W., Wang A.C. (1983) J. Mech. Trans. Autom. Des. 105:534-540.
-.. [LN] Lankarani H.M., Nikravesh P.E. (1994) Nonlinear Dyn. 5:193-207.
-.. [GO] Gonthier Y., McPhee J., Lange C., Piedboeuf J.-C. (2004) Multibody Syst. Dyn. 11:209-233.
-.. [ZQ] Zhiying Q., Qishao L. (2006) J. Dyn. Control 4:294-298.
-.. [FL] Flores P., Machado M., Silva M.T., Martins J.M. (2011) Multibody Syst. Dyn. 25:357-375.
+The laws are those of the reproduced paper (Zhang, Meng, Du & Sun, Eqs. 3-13), each with its
+original source. A DOI is given where it was checked against a second, independent listing;
+the docs page *Contact and friction laws* (docs/laws.md) has the formulas and the same list.
+
+.. [HZ] Hertz H. (1882) Ueber die Beruehrung fester elastischer Koerper. J. reine angew. Math.
+   92:156-171. doi:10.1515/crll.1882.92.156
+.. [JO] Johnson K.L. (1985) Contact Mechanics. Cambridge University Press.
+   doi:10.1017/CBO9781139171731
+.. [BR] Braendlein J., Eschmann P., Hasbargen L., Weigand K. (1999) Ball and Roller Bearings:
+   Theory, Design and Application, 3rd ed. Wiley (n = 1.08 for line contact).
+.. [HC] Hunt K.H., Crossley F.R.E. (1975) Coefficient of restitution interpreted as damping in
+   vibroimpact. J. Appl. Mech. 42:440-445. doi:10.1115/1.3423596
+.. [HM] Herbert R.G., McWhannell D.C. (1977) Shape and frequency composition of pulses from an
+   impact pair. J. Eng. Ind. 99:513-518.
+.. [LW] Lee T.W., Wang A.C. (1983) On the dynamics of intermittent-motion mechanisms, Part 1:
+   Dynamic model and response. J. Mech. Trans. Autom. Des. 105:534-540.
+.. [LN] Lankarani H.M., Nikravesh P.E. (1990) A contact force model with hysteresis damping for
+   impact analysis of multibody systems. J. Mech. Des. 112(3):369-376. doi:10.1115/1.2912617
+.. [LN94] Lankarani H.M., Nikravesh P.E. (1994) Continuous contact force models for impact
+   analysis in multibody systems. Nonlinear Dyn. 5:193-207. doi:10.1007/BF00045676
+.. [GO] Gonthier Y., McPhee J., Lange C., Piedboeuf J.-C. (2004) A regularized contact model
+   with asymmetric damping and dwell-time dependent friction. Multibody Syst. Dyn. 11:209-233.
+   doi:10.1023/B:MUBO.0000029392.21648.bc
+.. [ZQ] Zhiying Q., Qishao L. (2006) Analysis of impact process based on restitution
+   coefficient. J. Dyn. Control 4:294-298 (in Chinese).
+.. [FL] Flores P., Machado M., Silva M.T., Martins J.M. (2011) On the continuous contact force
+   models for soft materials in multibody dynamics. Multibody Syst. Dyn. 25:357-375.
+   doi:10.1007/s11044-010-9237-4
 .. [CM] Carvalho A.S., Martins J.M. (2019) Exact restitution and generalizations for the
    Hunt-Crossley contact model. Mech. Mach. Theory 139:174-194.
-.. [BR] Braendlein J. et al. (1999) Ball and Roller Bearings, Wiley (n = 1.08 line contact).
-.. [JO] Johnson K.L. (1985) Contact Mechanics, Cambridge University Press.
+   doi:10.1016/j.mechmachtheory.2019.03.028
 """
 
 from __future__ import annotations
@@ -55,42 +75,65 @@ from braidsim.errors import InputError
 
 
 def damping_elastic(c_r: float) -> float:
-    """Elastic contact (Hertz, Eq. 3; Braendlein): D = 0, no dissipation."""
+    """Elastic contact (Hertz 1882, Eq. 3; Braendlein 1999): D = 0, no dissipation."""
     return 0.0
 
 
 def damping_hunt_crossley(c_r: float) -> float:
-    """Hunt & Crossley (1975), Eq. (5): D = 3 (1 - c_r) / 2."""
+    """Hunt & Crossley (1975), Eq. (5): D = 3 (1 - c_r) / 2.
+
+    doi:10.1115/1.3423596. Derived for small losses (c_r near 1).
+    """
     return 1.5 * (1.0 - c_r)
 
 
 def damping_herbert_mcwhannell(c_r: float) -> float:
-    """Herbert & McWhannell (1977), Eqs. (6)-(7): D = 6 (1 - c_r) / ((2 c_r - 1)^2 + 3)."""
+    """Herbert & McWhannell (1977), Eqs. (6)-(7): D = 6 (1 - c_r) / ((2 c_r - 1)^2 + 3).
+
+    J. Eng. Ind. 99:513-518.
+    """
     return 6.0 * (1.0 - c_r) / ((2.0 * c_r - 1.0) ** 2 + 3.0)
 
 
 def damping_lee_wang(c_r: float) -> float:
-    """Lee & Wang (1983), Eq. (8): D = 3 (1 - c_r) / 4."""
+    """Lee & Wang (1983), Eq. (8): D = 3 (1 - c_r) / 4.
+
+    J. Mech. Trans. Autom. Des. 105:534-540.
+    """
     return 0.75 * (1.0 - c_r)
 
 
 def damping_lankarani_nikravesh(c_r: float) -> float:
-    """Lankarani & Nikravesh (1994), Eq. (9): D = 3 (1 - c_r^2) / 4."""
+    """Lankarani & Nikravesh (1990), Eq. (9): D = 3 (1 - c_r^2) / 4.
+
+    J. Mech. Des. 112(3):369-376, doi:10.1115/1.2912617; the paper cites their 1994 review,
+    Nonlinear Dyn. 5:193-207, doi:10.1007/BF00045676. Energy balance for c_r near 1.
+    """
     return 0.75 * (1.0 - c_r**2)
 
 
 def damping_gonthier(c_r: float) -> float:
-    """Gonthier et al. (2004), Eq. (10): D = (1 - c_r^2) / c_r."""
+    """Gonthier et al. (2004), Eq. (10): D = (1 - c_r^2) / c_r.
+
+    Multibody Syst. Dyn. 11:209-233, doi:10.1023/B:MUBO.0000029392.21648.bc.
+    """
     return (1.0 - c_r**2) / c_r
 
 
 def damping_zhiying_qishao(c_r: float) -> float:
-    """Zhiying & Qishao (2006), Eqs. (11)-(12): D = 3 (1 - c_r^2) exp(2 (1 - c_r)) / 4."""
+    """Zhiying & Qishao (2006), Eqs. (11)-(12): D = 3 (1 - c_r^2) exp(2 (1 - c_r)) / 4.
+
+    J. Dyn. Control 4:294-298 (in Chinese).
+    """
     return 0.75 * (1.0 - c_r**2) * math.exp(2.0 * (1.0 - c_r))
 
 
 def damping_flores(c_r: float) -> float:
-    """Flores et al. (2011), Eq. (13): D = 8 (1 - c_r) / (5 c_r)."""
+    """Flores et al. (2011), Eq. (13): D = 8 (1 - c_r) / (5 c_r).
+
+    Multibody Syst. Dyn. 25:357-375, doi:10.1007/s11044-010-9237-4 (the paper's reference [25]
+    is a different Flores & Ambrosio paper, on contact detection).
+    """
     return 8.0 * (1.0 - c_r) / (5.0 * c_r)
 
 
@@ -134,6 +177,8 @@ def effective_restitution(damping_factor: float) -> float:
 
 def exact_damping_factor(c_r: float) -> float:
     """Damping factor D whose exact restitution equals ``c_r`` (Carvalho & Martins 2019).
+
+    Mech. Mach. Theory 139:174-194, doi:10.1016/j.mechmachtheory.2019.03.028.
 
     Solves ``1 - D c_r = (1 + D) exp(-D (1 + c_r))`` for D > 0 (D = 0 at c_r = 1). The root is
     bracketed because e(D) falls monotonically from 1 (D = 0) towards 0 (D -> inf).
@@ -198,17 +243,29 @@ class ContactLaw:
 _LAWS: dict[str, ContactLaw] = {
     law.name: law
     for law in (
-        ContactLaw("hertz", damping_elastic, 1.5, False, "Eq. (3)", "Johnson (1985), Hertz (1882)"),
+        ContactLaw(
+            "hertz",
+            damping_elastic,
+            1.5,
+            False,
+            "Eq. (3)",
+            "Hertz (1882) doi:10.1515/crll.1882.92.156",
+        ),
         ContactLaw(
             "brandlein",
             damping_elastic,
             1.08,
             False,
             "Eq. (3), n = 1.08",
-            "Braendlein et al. (1999)",
+            "Braendlein et al. (1999), Ball and Roller Bearings, Wiley",
         ),
         ContactLaw(
-            "hunt_crossley", damping_hunt_crossley, 1.5, True, "Eq. (5)", "Hunt & Crossley (1975)"
+            "hunt_crossley",
+            damping_hunt_crossley,
+            1.5,
+            True,
+            "Eq. (5)",
+            "Hunt & Crossley (1975) doi:10.1115/1.3423596",
         ),
         ContactLaw(
             "herbert_mcwhannell",
@@ -216,34 +273,55 @@ _LAWS: dict[str, ContactLaw] = {
             1.5,
             True,
             "Eqs. (6)-(7)",
-            "Herbert & McWhannell (1977)",
+            "Herbert & McWhannell (1977) J. Eng. Ind. 99:513",
         ),
-        ContactLaw("lee_wang", damping_lee_wang, 1.5, True, "Eq. (8)", "Lee & Wang (1983)"),
+        ContactLaw(
+            "lee_wang",
+            damping_lee_wang,
+            1.5,
+            True,
+            "Eq. (8)",
+            "Lee & Wang (1983) J. Mech. Trans. Autom. Des. 105:534",
+        ),
         ContactLaw(
             "lankarani_nikravesh",
             damping_lankarani_nikravesh,
             1.5,
             True,
             "Eq. (9)",
-            "Lankarani & Nikravesh (1994)",
+            "Lankarani & Nikravesh (1990) doi:10.1115/1.2912617",
         ),
-        ContactLaw("gonthier", damping_gonthier, 1.5, True, "Eq. (10)", "Gonthier et al. (2004)"),
+        ContactLaw(
+            "gonthier",
+            damping_gonthier,
+            1.5,
+            True,
+            "Eq. (10)",
+            "Gonthier et al. (2004) doi:10.1023/B:MUBO.0000029392.21648.bc",
+        ),
         ContactLaw(
             "zhiying_qishao",
             damping_zhiying_qishao,
             1.5,
             True,
             "Eqs. (11)-(12)",
-            "Zhiying & Qishao (2006)",
+            "Zhiying & Qishao (2006) J. Dyn. Control 4:294",
         ),
-        ContactLaw("flores", damping_flores, 1.5, True, "Eq. (13)", "Flores et al. (2011)"),
+        ContactLaw(
+            "flores",
+            damping_flores,
+            1.5,
+            True,
+            "Eq. (13)",
+            "Flores et al. (2011) doi:10.1007/s11044-010-9237-4",
+        ),
         ContactLaw(
             "carvalho_martins",
             damping_carvalho_martins,
             1.5,
             True,
             "not in the paper (exact restitution)",
-            "Carvalho & Martins (2019)",
+            "Carvalho & Martins (2019) doi:10.1016/j.mechmachtheory.2019.03.028",
         ),
     )
 }
@@ -304,7 +382,10 @@ def effective_radius(r1: float, r2: float, geometry: str) -> float:
 def hertz_stiffness(
     e1: float, nu1: float, r1: float, e2: float, nu2: float, r2: float, geometry: str
 ) -> float:
-    """Hertz contact stiffness K = 4/3 E* R^(1/2) [N/m^1.5] (Eq. 4 of the paper, Johnson 1985)."""
+    """Hertz contact stiffness K = 4/3 E* R^(1/2) [N/m^1.5] (Eq. 4 of the paper).
+
+    Johnson (1985), Contact Mechanics, Sect. 4.2, doi:10.1017/CBO9781139171731.
+    """
     return (
         4.0
         / 3.0

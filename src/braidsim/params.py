@@ -5,7 +5,9 @@ in SI or strings with units. :func:`load_scenario` reads one, applies overrides,
 key against :data:`SCHEMA` (unknown key -> the closest known name; wrong unit; out of range;
 NaN or inf) and returns a frozen :class:`Scenario` whose values are plain SI floats.
 
-The key names are the public interface of ``../shared/CONTRACT.md``.
+The key names are public: every one can be set in a scenario file, with ``--set KEY=VALUE``
+and with ``overrides=`` in Python (``braidsim scenarios --keys`` lists them; the docs page
+*Command line and scenario keys* is generated from :data:`SCHEMA`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """The immutable result of one simulation: series, impact table, window ranges, summary.
 
-Signs follow the paper (MODEL_NOTES section 3): the depth, the stiffness-related force F_kg,
+Signs follow the paper (docs/model.md §3): the depth, the stiffness-related force F_kg,
 the damping-related force F_cg and the total contact force carry the sign of the wall,
 negative on the inner (rear) wall and positive on the outer (front) wall.
 """

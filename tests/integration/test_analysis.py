@@ -97,7 +97,7 @@ def test_regimes_of_the_paper_runs() -> None:
 
 
 def test_contact_loss_bound_numbers() -> None:
-    """MODEL_NOTES section 7: a_p = 13.9 and 44.7 m/s^2 against h_a omega_h^2 = 17.1 m/s^2."""
+    """docs/model.md §7: a_p = 13.9 and 44.7 m/s^2 against h_a omega_h^2 = 17.1 m/s^2."""
     b3 = contact_loss_bound("paper-3.3")
     b4 = contact_loss_bound("paper-3.4b")
     assert b3["pressing_acceleration"] == pytest.approx(13.87, abs=0.01)
@@ -111,7 +111,7 @@ def test_contact_loss_bound_numbers() -> None:
 @pytest.mark.parametrize("friction", ["none", "arctan"])
 def test_carrier_leaves_the_wall_at_the_bound(friction: str) -> None:
     """Bisection on h_a for the change resting contact -> impacts of the simulated carrier
-    lands within 2 % of the analytic bound (frictionless: MODEL_NOTES section 7; with
+    lands within 2 % of the analytic bound (frictionless: docs/model.md §7; with
     friction: the bound with the saturated friction force).
 
     The carrier starts at rest on the wall at mid-stroke (phase pi/2: h(0) = 0, x0 = 0), the
@@ -181,7 +181,7 @@ def test_lyapunov_exponent_of_irregular_motion_is_positive_and_robust() -> None:
 
 
 def test_basins_at_the_paper_3_3_conditions() -> None:
-    """MODEL_NOTES section 8: the 3.3 parameters have several steady states."""
+    """docs/model.md §8: the 3.3 parameters have several steady states."""
     bm = basins("paper-3.3", "initial.x", [0.0, "1.5 mm"], "initial.vx", ["0 m/s", "0.3 m/s"])
     assert bm.ids.shape == (2, 2)
     assert (bm.ids >= 0).all()

@@ -1,4 +1,4 @@
-"""The command line: JSON output of CONTRACT.md, exit codes, one-line errors."""
+"""The command line: JSON output (docs/cli.md), exit codes, one-line errors."""
 
 from __future__ import annotations
 

@@ -119,7 +119,7 @@ def test_transfer_times_follow_a_speed_profile_with_the_mean_held() -> None:
     stays slow while the carrier crosses the gap lowers the centrifugal load and with it the
     approach speed of the first impact to the closed form at the slow speed. (This profile
     speeds up while the carrier still bounces, which pumps energy into the bounces: its later
-    impacts are harder; the design work of issue 7 has to weigh that.)"""
+    impacts are harder; the design studies have to weigh that.)"""
     prof = {"phase": [0.0, 0.6, 0.7, 0.9, 1.0], "factor": [0.6, 0.6, 1.8, 1.8, 0.6]}
     spec = parse_machine_spec(one_carrier(1.0, speed_profile=prof))
     const = parse_machine_spec(one_carrier(1.0))

@@ -119,7 +119,7 @@ def test_resting_carrier_rms_follows_the_quasi_static_wall_contact():
     """A carrier resting on the vibrating inner wall follows it, pressed in by the Hertz
     deflection under the load it carries: x(t) = h(t) - delta(t) with h = h_a cos(omega_h t),
     delta = (N / K)^(2/3), N = m (a_p + h''(t)) = m (a_p - h_a omega_h^2 cos(omega_h t)) and
-    a_p = (T1 cos phi + m r_c omega^2) / m (MODEL_NOTES section 7). The contact's own
+    a_p = (T1 cos phi + m r_c omega^2) / m (docs/model.md §7). The contact's own
     frequency (~6000 rad/s) is far above omega_h = 377 rad/s, so quasi-statics holds to
     (omega_h / omega_n)^2 ~ 0.4 % of the small deflection term."""
     h_a = 5e-5

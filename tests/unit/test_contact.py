@@ -78,7 +78,7 @@ def test_carvalho_martins_restitutes_exactly(c_r: float) -> None:
 
 
 def test_hertz_stiffness_eq4_calibrated_and_printed() -> None:
-    # MODEL_NOTES 1: K = 2.4904e10 N/m^1.5 at E = 200 GPa, 2.490e8 at the printed 2 GPa
+    # docs/model.md §1: K = 2.4904e10 N/m^1.5 at E = 200 GPa, 2.490e8 at the printed 2 GPa
     k200 = contact.hertz_stiffness(200e9, 0.3, 0.020, 200e9, 0.3, 0.065, "concave")
     k2 = contact.hertz_stiffness(2e9, 0.3, 0.020, 2e9, 0.3, 0.065, "concave")
     assert k200 == pytest.approx(2.4904e10, rel=1e-4)

@@ -73,7 +73,7 @@ class ImpactStatistics:
     Attributes
     ----------
     window : (float, float)
-        [t0, t1] [s].
+        Window (t0, t1) [s].
     impacts : pandas.DataFrame
         The impact sequence (columns of :attr:`braidsim.Result.impacts`).
     counts : dict

@@ -349,7 +349,7 @@ def carrier_lyapunov(
     flow = CarrierFlow(sc, max(t_tr, 1e-9 * T) + (n + 1) * tau)
     from braidsim.simulate import simulate
 
-    # the transient run applies the kernel's t = 0 contact policy (MODEL_NOTES section 4)
+    # the transient run applies the kernel's t = 0 contact policy (docs/model.md §4)
     res = simulate(sc, duration=max(t_tr, 1e-9 * T), sample_interval=0.0, record_events=False)
     start = res.final_state
     if start is None:  # pragma: no cover - simulate always sets it

@@ -37,7 +37,7 @@ The period q is also reported for ``resting_contact`` (normally 1) and ``chatter
 Rules 2-3 use the contact episodes (exact onset and exit times from the integrator), rule 4
 the stroboscopic samples. The classification describes the track pair only.
 
-Contact-loss bound (MODEL_NOTES section 7)
+Contact-loss bound (docs/model.md §7)
 ------------------------------------------
 Ignoring contact compliance and friction, a carrier pressed on the inner wall with
 acceleration a_p = (T1 cos phi + m r_c omega^2) / m [m/s^2] stays on a wall vibrating as
@@ -142,7 +142,7 @@ def wall_acceleration_amplitude(sc: Scenario) -> float:
 
 
 def contact_loss_bound(scenario: Scenario | str | Any) -> dict[str, Any]:
-    """The analytic contact-loss bound of MODEL_NOTES section 7 for any scenario.
+    """The analytic contact-loss bound of docs/model.md §7 for any scenario.
 
     The carrier stays on the vibrating inner wall while a_p >= a_w, with
     a_p = (T1 cos phi + m r_c omega^2)/m and a_w = h_a omega_h^2 the wall's acceleration
@@ -174,7 +174,7 @@ def contact_loss_bound(scenario: Scenario | str | Any) -> dict[str, Any]:
     rc = float(sc["carrier.turning_radius"])
     crit_amp = ap / (w_h * w_h) if w_h > 0.0 and ap > 0.0 else None
     # friction of Eq. (14) (saturated) pulls the carrier off the wall as soon as the wall
-    # moves away from it: a refinement of MODEL_NOTES section 7
+    # moves away from it: a refinement of docs/model.md §7
     mu_n = 0.0
     if sc["friction.law"] != "none":
         mu_n = float(sc["friction.carrier_horn_gear"]) * abs(
@@ -296,7 +296,7 @@ class SteadyState:
     parameters : dict
         The overrides of this run (as given), for sweeps; ``{}`` for a single run.
     window : (float, float)
-        [t0, t1] [s], whole excitation cycles after the transient.
+        Window (t0, t1) [s], whole excitation cycles after the transient.
     period : float
         Sampling period of the stroboscopic samples [s] (T_h, or :func:`reference_period`).
     strobe_t, strobe_x, strobe_vx, strobe_u : np.ndarray

@@ -28,9 +28,9 @@ def enabled(quiet: bool = False) -> bool:
         return False
 
 
-#: the compiled entry point of the integrator: (file under braidsim/, function name); the
-#: first that exists is checked (the core has moved before; the check must not import it)
-ENTRY_POINTS = (("core/solver/loop.py", "integrate"), ("integrate/kernel.py", "integrate"))
+#: the compiled entry point of the solver: (file under braidsim/, function name) (the check
+#: must not import it)
+ENTRY_POINTS = (("core/solver/loop.py", "integrate"),)
 
 
 def kernel_needs_compile() -> bool:

@@ -19,7 +19,7 @@ package turns it into numbers on the whole machine (:mod:`braidsim.machine`):
 * :mod:`~braidsim.design.sensitivity`: one-at-a-time swings and Morris elementary effects of
   the other levers (clearance, restitution, vibration amplitude and frequency, mass, tension);
 * :mod:`~braidsim.design.speed_limits`: the speed at which transfers hit a force limit
-  (simulated and closed form) and the chatter speed of MODEL_NOTES section 7;
+  (simulated and closed form) and the chatter speed of docs/model.md §7;
 * :mod:`~braidsim.design.spec`, :mod:`~braidsim.design.study`, :mod:`~braidsim.design.report`:
   ``braidsim design SPEC.toml --out DIR``.
 

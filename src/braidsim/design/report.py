@@ -1047,7 +1047,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
             f"{spec.speed_limit.options.low:g} to {spec.speed_limit.options.high:g} x the mean, "
             f"then {spec.speed_limit.options.refine} bisections). Chatter speed: below it the "
             "track vibration lifts the resting carrier off the wall between transfers, "
-            "sqrt(max(0, h_a omega_h^2 - T1 cos(phi)/m) / r_c) (MODEL_NOTES section 7). "
+            "sqrt(max(0, h_a omega_h^2 - T1 cos(phi)/m) / r_c) (docs/model.md §7). "
             + (
                 f"Nominal setting: {nl.speed * rpm:.4g} rpm ({nl.status})."
                 if nl is not None and nl.status == "found"

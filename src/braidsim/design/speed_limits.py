@@ -24,7 +24,7 @@ Closed-form estimate of the transfer limit
     (:func:`first_impact_speed`, :func:`transfer_speed_estimate`). It ignores later bounces
     and the vibration; the simulated limit is the reference.
 
-Chatter limit (lower bound, closed form; MODEL_NOTES section 7)
+Chatter limit (lower bound, closed form; docs/model.md §7)
     Between transfers the carrier rests on the inner wall, pressed with the acceleration
     ``a_p = (T1 cos(phi) + m r_c omega^2) / m``; a wall vibrating as ``h_a cos(omega_h t)``
     accelerates away at up to ``h_a omega_h^2``, so the carrier stays on it (no impacts

@@ -4,7 +4,7 @@ Each loaded carrier is one run of the single-carrier model (:func:`braidsim.simu
 its own ``transfer.times``: the times at which the horn-gear rotation ``Omega(t)`` reaches the
 carrier's crossings (:meth:`MachineGeometry.transfer_events` and
 :meth:`SpeedLaw.time_at_angle`). At each of them the kernel applies the transfer map of the
-paper's section 3.2 (MODEL_NOTES section 5): the carrier's position is mirrored across the
+paper's section 3.2 (docs/model.md §5): the carrier's position is mirrored across the
 track, so that the wall it leaned on becomes the far wall (on the next gear the arc curves the
 other way and the centrifugal load points to the other side of the track), its radial speed
 relative to the track is reversed and the contact speed ``transfer.contact_speed`` is added.

@@ -3,8 +3,8 @@
 - :mod:`braidsim.paper.values`: ``paper_values.toml`` (every number of sections 3.1-3.5) as
   frozen objects;
 - :mod:`braidsim.paper.compute`: our value of each item over its run and window;
-- :mod:`braidsim.paper.findings`: evidence behind the readings of MODEL_NOTES and the cause
-  of each deviation;
+- :mod:`braidsim.paper.findings`: evidence behind our readings of the paper (docs/model.md)
+  and the cause of each deviation;
 - :mod:`braidsim.paper.figures`: Figures 3-22, the added figures, Table 1;
 - :mod:`braidsim.paper.report`: the whole command (:func:`reproduce`).
 """

@@ -17,7 +17,7 @@ from braidsim.params import Scenario, load_scenario
 from braidsim.result import Result
 from braidsim.simulate import simulate
 
-#: Young's modulus printed in section 3 [Pa] (MODEL_NOTES section 1: it does not fit)
+#: Young's modulus printed in section 3 [Pa] (docs/model.md §1: it does not fit)
 PRINTED_MODULUS = 2e9
 MATERIALS = ("guide_pad", "track", "carrier", "horn_gear")
 VARIANTS = ("calibrated", "printed")

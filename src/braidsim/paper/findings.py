@@ -1,4 +1,8 @@
-"""Evidence behind the readings of MODEL_NOTES and the cause of each deviation.
+"""Evidence behind our readings of the paper and the cause of each deviation.
+
+The readings (numbered as the sections of the docs page docs/model.md, which gives the
+arithmetic behind each) are where the printed paper does not agree with itself and the
+project had to choose.
 
 Everything stated here is measured when ``braidsim paper`` runs: the main runs of
 :mod:`braidsim.paper.report` plus a few short *evidence runs* (the same scenarios with one
@@ -393,7 +397,7 @@ def gather_evidence(
         starts[k] = rows
     ev["starts"] = starts
 
-    # leaving the wall (MODEL_NOTES 7) and bonding in 3.4b
+    # leaving the wall (docs/model.md §7) and bonding in 3.4b
     leave = {}
     for k in ("3.3", "3.4a", "3.4b"):
         res = results[(k, "calibrated")]
@@ -430,7 +434,10 @@ def gather_evidence(
 
 @dataclass(frozen=True)
 class Reading:
-    """One reading of the paper taken from MODEL_NOTES, with the evidence we measured."""
+    """One reading of the paper, with the evidence we measured.
+
+    ``note`` names the section of docs/model.md that explains the reading.
+    """
 
     note: str
     title: str
@@ -448,7 +455,7 @@ def _dev_summary(outcomes: Mapping[str, Outcome], prefix: str) -> str:
 
 
 def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence) -> list[Reading]:
-    """The readings of MODEL_NOTES that the project follows, each with measured evidence."""
+    """The readings of the paper that the project follows, each with measured evidence."""
     K, Kp, n = ev["K"], ev["K_printed"], ev["n"]
     out = []
     o33 = outcomes.get("3.3.stiffness_force.initially.min")
@@ -480,7 +487,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
             )
     out.append(
         Reading(
-            "MODEL_NOTES 1",
+            "docs/model.md §1",
             "Contact stiffness: E_i = 200 GPa, not the printed 2 GPa",
             "The calibrated preset (all built-in paper scenarios) uses E_i = 200 GPa; the "
             "printed 2 GPa "
@@ -493,7 +500,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     d4b = outcomes.get("3.4b.depth.initially.min")
     out.append(
         Reading(
-            "MODEL_NOTES 2",
+            "docs/model.md §2",
             "Track vibration moves the walls",
             "The inner wall is at x = h(t) = h_a cos(omega_h t), the outer wall at h(t) + eps_g; "
             "depth and its "
@@ -511,7 +518,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     o32 = outcomes.get("3.2.depth.initially.max")
     out.append(
         Reading(
-            "MODEL_NOTES 3",
+            "docs/model.md §3",
             "Signs",
             "Depth, F_kg and F_cg carry the sign of the wall: negative on the inner wall (x < "
             "h), positive on "
@@ -536,7 +543,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     veq = ev["v_eq"]
     out.append(
         Reading(
-            "MODEL_NOTES 4",
+            "docs/model.md §4",
             "Approach speed latched at each contact onset; policy for a contact present at t = 0",
             "v0 of Eqs. (5)-(13) is the relative normal speed when the depth becomes non-zero, "
             "floored at "
@@ -559,7 +566,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     )
     out.append(
         Reading(
-            "MODEL_NOTES 5",
+            "docs/model.md §5",
             "Section 3.2 is the transfer: x0 = eps_g = 3 mm, dx0/dt = 2 mm/s",
             "After a transfer the wall the carrier rested on becomes the far wall; it starts at "
             "x0 = eps_g with "
@@ -601,7 +608,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
             )
     out.append(
         Reading(
-            "MODEL_NOTES 6",
+            "docs/model.md §6",
             "Table 1: the 3.1 conditions for the dissipative laws; the Hertz row released at rest",
             "Dissipative rows: section 3.1's start (x0 = 0, 0.5 m/s) with the printed damping "
             "factors, "
@@ -616,7 +623,7 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     b = ev["bond"]
     out.append(
         Reading(
-            "MODEL_NOTES 7",
+            "docs/model.md §7",
             "Leaving the wall: a_p against h_a omega_h^2",
             "A carrier pressed on the inner wall with a_p = (T1 cos(phi) + m r_c omega^2)/m "
             "stays on a wall "
@@ -637,13 +644,13 @@ def readings(values: PaperValues, outcomes: Mapping[str, Outcome], ev: Evidence)
     st = ev["starts"]
     out.append(
         Reading(
-            "MODEL_NOTES 8",
+            "docs/model.md §8",
             "What the paper does not give, and our choices",
             "Friction regularisation speed x_hat: the schema default; R4: flat slot wall (the "
             "x-only runs "
             "do not use it); Braendlein stiffness: Eq. (4)'s K; durations and windows: stated "
             "per run; "
-            "approach speed at t = 0: elastic release (note 4); several steady states can coexist.",
+            "approach speed at t = 0: elastic release (§4); several steady states can coexist.",
             (
                 f"x_hat = {vh['default']:g} m/s (default) against {vh['alt']:g} m/s, 3.2: F_kg max "
                 f"{vh['Fkg_max']:.5g} N vs {vh['Fkg_max_alt']:.5g} N, depth max "
@@ -722,7 +729,7 @@ def _cause_33_later(
     inside = min(vals) <= o.item.value <= max(vals)
     parts = [
         "Several steady impact patterns coexist once the first impacts have died down "
-        f"(MODEL_NOTES 8): from x0 = {starts} mm the same parameters settle into patterns with "
+        f"(docs/model.md §8): from x0 = {starts} mm the same parameters settle into patterns with "
         f"{o.item.symbol} {o.item.statistic} = {listed} {unit} in the later window, and the "
         f"unstated friction regularisation speed x_hat = {vh['alt33']:g} m/s (instead of "
         f"{vh['default']:g}) moves the paper's own start to {fmt(alt, 4)} {unit}. "
@@ -802,7 +809,7 @@ def _cause_34b_later(
     times = ", ".join(f"{t:.4g}" for t in b["last_peak_times"])
     s = (
         f"Our carrier stays on the inner wall from t = {b['t_bond']:.4g} s (a_p > h_a omega_h^2, "
-        "MODEL_NOTES 7); "
+        "docs/model.md §7); "
         f"a carrier bonded to the vibrating wall carries m (a_p -/+ h_a omega_h^2) = {lo:.3g} to "
         f"{hi:.3g} N, "
         f"which is what we measure in [{o.window[0]:g}, {o.window[1]:g}] s. The paper's later "
@@ -825,7 +832,7 @@ def _cause_hertz(o: Outcome, values: PaperValues, outs: Mapping[str, Outcome], e
         f"and lowers the dynamic peak; without it the peak is {nf:.4g} N = (n+1) x "
         f"{ev['load']:.4g} N "
         f"({_pct(-nf / o.item.value - 1.0)} from the paper's -43 N). The paper does not say "
-        "how its Hertz row was started (MODEL_NOTES 6)."
+        "how its Hertz row was started (docs/model.md §6)."
     )
 
 
@@ -863,7 +870,7 @@ def _cause_table1_damping(
         "our measured D -> ratio curve of the seven dissipative laws means D = "
         f"{v['D_implied']:.3g}. The paper "
         "must have used a different damping factor for this row; we keep the printed formula "
-        "(MODEL_NOTES 6)."
+        "(docs/model.md §6)."
     )
 
 

@@ -10,7 +10,7 @@ Format (every quantity a number in SI or a string with units)::
     "friction.law" = "tanh"                 # dotted keys, or nested tables [overrides.track]
 
     [[axes]]                                # one grid dimension per [[axes]] table
-    key = "horn_gear.angular_velocity"      # a scenario key (CONTRACT.md)
+    key = "horn_gear.angular_velocity"      # a scenario key (braidsim scenarios --keys)
     name = "omega"                          # dimension name; default: the key
     values = ["120 rpm", "240 rpm"]         # explicit values ...
 
@@ -350,7 +350,9 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
     t = expect_table(f"axes[{i}]", table)
     check_keys(where, t, AXIS_KEYS)
     if "key" not in t:
-        raise InputError(f"{where}key: missing; allowed any scenario key (CONTRACT.md)")
+        raise InputError(
+            f"{where}key: missing; allowed any scenario key (braidsim scenarios --keys)"
+        )
     key = _param_key(f"{where}key", t["key"])
     spec = SCHEMA[key]
     if spec.kind not in AXIS_KINDS:

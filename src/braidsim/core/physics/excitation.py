@@ -20,7 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from braidsim.core.generic import helper
+from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import wall_accel_bound, wall_motion
 
 
@@ -90,7 +90,7 @@ def _profile_integral(tau, hg, period):
     return om, k * pi_[npf - 1] + pi_[j] + w0 * dt + 0.5 * slope * dt * dt
 
 
-@helper
+@inline_helper
 def horn_gear_state(hg, t):
     """(omega(t) [rad/s], s(t) = r_c int_0^t omega [m])."""
     rc = hg.turning_radius
