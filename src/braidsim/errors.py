@@ -6,6 +6,8 @@ Two kinds of failure reach a user, and the command line maps them to exit codes:
   names the parameter and the allowed range or the closest known name.
 * :class:`SimulationError` (exit code 1): the numbers went wrong. The message says what
   failed, at what simulated time, and what to change.
+* :class:`StoreError` (exit code 1): stored data cannot be read back as written (a checksum
+  fails, a file is damaged). The message names the path and how to recover.
 """
 
 from __future__ import annotations
@@ -16,7 +18,17 @@ class BraidsimError(Exception):
 
 
 class InputError(BraidsimError, ValueError):
-    """Bad input: unknown key, wrong unit, value out of range, malformed file."""
+    """Bad input: unknown key, wrong unit, value out of range, malformed file.
+
+    The message is kept to one line: line breaks and tabs that a quoted user value brings in
+    are turned into spaces.
+    """
+
+    def __init__(self, message: object = "") -> None:
+        text = str(message)
+        if any(c in text for c in "\n\r\t\v\f"):
+            text = " ".join(text.split())
+        super().__init__(text)
 
 
 class SimulationError(BraidsimError, RuntimeError):
@@ -31,3 +43,7 @@ class SimulationError(BraidsimError, RuntimeError):
     def __init__(self, message: str, time: float = float("nan")) -> None:
         super().__init__(message)
         self.time = time
+
+
+class StoreError(BraidsimError, RuntimeError):
+    """Stored data is damaged or unreadable (a checksum fails); the message names the path."""

@@ -7,6 +7,7 @@ half-written output behind.
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator
@@ -27,11 +28,93 @@ FILE_MODE = 0o666 & ~_UMASK
 DIR_MODE = 0o777 & ~_UMASK
 
 
+def _prefix(p: Path) -> str:
+    """Prefix of the hidden temporaries beside ``p``; it holds our process id so that a later
+    run can remove the ones a killed process left (:func:`remove_stale`)."""
+    return f".{p.name}.braidsim-{os.getpid()}-"
+
+
+def remove_stale(p: Path) -> int:
+    """Remove the hidden temporaries beside ``p`` left by braidsim processes that are gone
+    (killed before they could clean up); return how many."""
+    pat = re.compile(re.escape(f".{p.name}.braidsim-") + r"(\d+)-.*")
+    n = 0
+    try:
+        entries = list(p.parent.iterdir())
+    except OSError:
+        return 0
+    for e in entries:
+        m = pat.fullmatch(e.name)
+        if m is None:
+            continue
+        pid = int(m.group(1))
+        try:
+            os.kill(pid, 0)
+            continue  # alive: another braidsim is writing
+        except ProcessLookupError:
+            pass
+        except PermissionError:
+            continue
+        if e.is_dir() and not e.is_symlink():
+            shutil.rmtree(e, ignore_errors=True)
+        else:
+            e.unlink(missing_ok=True)
+        n += 1
+    return n
+
+
+def check_output_target(
+    path: str | Path, option: str, directory: bool, suffixes: tuple[str, ...] = ()
+) -> None:
+    """Refuse an output path that cannot be written, before any work starts.
+
+    Checks that ``path`` is not an existing entry of the other kind (a file where a directory
+    is written, or the reverse), that its nearest existing ancestor is a writable directory
+    (not a file, not read-only), and, for files, that the name ends with one of ``suffixes``.
+
+    Raises
+    ------
+    InputError
+        One line naming ``option``, the path and what is allowed.
+    """
+    from braidsim.errors import InputError
+
+    p = Path(path)
+    what = "a directory" if directory else "a file"
+    if suffixes and (directory or p.suffix.lower() not in suffixes):
+        raise InputError(
+            f"{option}: {str(p)!r} has no known extension; allowed {', '.join(suffixes)}"
+        )
+    if p.exists() or p.is_symlink():
+        if directory and not p.is_dir():
+            raise InputError(f"{option}: {str(p)!r} exists and is not a directory; allowed {what}")
+        if not directory and p.is_dir():
+            raise InputError(f"{option}: {str(p)!r} is a directory; allowed {what} path")
+        if not os.access(p, os.W_OK):
+            raise InputError(f"{option}: {str(p)!r} is not writable; allowed a writable {what}")
+    parent = p.parent
+    while not parent.exists():
+        if parent.is_symlink():
+            raise InputError(f"{option}: {str(parent)!r} is a broken link; allowed {what} path")
+        parent = parent.parent
+    if not parent.is_dir():
+        raise InputError(
+            f"{option}: {str(p)!r} is under {str(parent)!r}, which is not a directory; "
+            f"allowed {what} in a directory"
+        )
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError(
+            f"{option}: {str(parent)!r} is not writable (read-only or not ours), so "
+            f"{str(p)!r} cannot be written; allowed a writable location"
+        )
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
+    remove_stale(p)
+    fd, tmp = tempfile.mkstemp(prefix=_prefix(p), suffix=".tmp", dir=p.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
@@ -52,7 +135,8 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     """Let ``writer(tmp_path)`` produce a file (e.g. ``fig.savefig``), then rename it into place."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.stem}.", suffix=p.suffix, dir=p.parent)
+    remove_stale(p)
+    fd, tmp = tempfile.mkstemp(prefix=_prefix(p), suffix=p.suffix, dir=p.parent)
     os.close(fd)
     try:
         writer(Path(tmp))
@@ -86,14 +170,15 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     p = Path(path)
     check_output_directory(p, kind)
     p.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent))
+    remove_stale(p)
+    tmp = Path(tempfile.mkdtemp(prefix=_prefix(p), suffix=".tmp", dir=p.parent))
     try:
         yield tmp
         (tmp / MARKER).write_text(kind + "\n", encoding="utf-8")
         os.chmod(tmp, DIR_MODE)  # mkdtemp makes 0700
         if p.exists():
             check_output_directory(p, kind)
-            old = Path(tempfile.mkdtemp(prefix=f".{p.name}.", suffix=".old", dir=p.parent))
+            old = Path(tempfile.mkdtemp(prefix=_prefix(p), suffix=".old", dir=p.parent))
             os.replace(p, old / p.name)
             os.replace(tmp, p)
             shutil.rmtree(old, ignore_errors=True)
@@ -110,6 +195,7 @@ def check_output_directory(path: str | Path, kind: str = "output") -> None:
     from braidsim.errors import InputError
 
     p = Path(path)
+    check_output_target(p, "--out", directory=True)
     if not p.exists():
         return
     if not p.is_dir():
@@ -119,7 +205,11 @@ def check_output_directory(path: str | Path, kind: str = "output") -> None:
     if not any(p.iterdir()):
         return
     marker = p / MARKER
-    if marker.is_file() and marker.read_text(encoding="utf-8").strip() == kind:
+    try:
+        ok = marker.is_file() and marker.read_text(encoding="utf-8").strip() == kind
+    except (OSError, UnicodeDecodeError):
+        ok = False
+    if ok:
         return
     raise InputError(
         f"--out: {str(p)!r} is not empty and is not an earlier braidsim {kind}; "

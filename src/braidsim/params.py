@@ -15,7 +15,6 @@ from __future__ import annotations
 import difflib
 import itertools
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -297,6 +296,7 @@ SCHEMA_LIST: list[ParamSpec] = [
         5_000_000,
         "budget of integration steps before a run is declared stuck",
         low=1,
+        high=2**62,  # a 64-bit step counter
     ),
     ParamSpec("transfer.times", "floats", "s", (), "times of transfers to the next horn gear [s]"),
     _nonneg(
@@ -329,47 +329,97 @@ def _closest(key: str) -> str:
 
 
 def _unknown(key: str) -> InputError:
+    shown = key if key.isprintable() and len(key) <= 80 else repr(key[:80])
     return InputError(
-        f"{key}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all"
+        f"{shown}: unknown parameter{_closest(key)}; `braidsim scenarios --keys` lists all"
     )
 
 
-def flatten(table: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested TOML tables -> dotted keys (tables that are values, like profiles, stay whole)."""
+#: deepest nesting of tables accepted in a scenario (the deepest key, contact.track.model,
+#: needs 3)
+MAX_DEPTH = 8
+
+
+def flatten(table: Mapping[str, Any], prefix: str = "", depth: int = 0) -> dict[str, Any]:
+    """Nested TOML tables -> dotted keys (tables that are values, like profiles, stay whole).
+
+    Raises
+    ------
+    InputError
+        Tables nested deeper than :data:`MAX_DEPTH`, or a key that is not a string.
+    """
+    if depth > MAX_DEPTH:
+        raise InputError(
+            f"{prefix.rstrip('.')[:60]}: tables nested {depth} deep; allowed at most {MAX_DEPTH}"
+        )
     out: dict[str, Any] = {}
     for k, v in table.items():
+        if not isinstance(k, str):
+            raise InputError(f"{prefix}{k!r}: a parameter key must be a string, got {k!r}")
         key = f"{prefix}{k}"
         if isinstance(v, Mapping) and key not in _TABLE_KEYS:
-            out.update(flatten(v, key + "."))
+            out.update(flatten(v, key + ".", depth + 1))
         else:
             out[key] = v
     return out
 
 
+def _list(key: str, value: Any, what: str) -> list[Any]:
+    """``value`` as a list (a list, tuple or 1-D numpy array), else an :class:`InputError`."""
+    if isinstance(value, list | tuple):
+        return list(value)
+    if hasattr(value, "tolist") and getattr(value, "ndim", 0) == 1:
+        return list(value.tolist())
+    raise InputError(f"{key}: expected {what}, got {type(value).__name__} {str(value)[:60]}")
+
+
 def _convert_list(spec: ParamSpec, value: Any) -> tuple[float, ...]:
     if isinstance(value, str):
         value = [v for v in value.replace(";", ",").split(",") if v.strip()]
-    if not isinstance(value, list | tuple):
-        raise InputError(f"{spec.key}: expected a list of quantities in {spec.unit}, got {value!r}")
-    out = tuple(spec.check_number(to_si(spec.key, v, spec.unit)) for v in value)
+    items = _list(spec.key, value, f"a list of quantities in {spec.unit}")
+    out = tuple(spec.check_number(to_si(spec.key, v, spec.unit)) for v in items)
     return out
 
 
 def convert(spec: ParamSpec, value: Any) -> Any:
-    """Convert one raw value (number, unit string, list, table) to SI and validate it."""
+    """Convert one raw value (number, unit string, list, table) to SI and validate it.
+
+    ``None`` means "absent" and is accepted only for keys that are absent by default (such as
+    ``contact.track.stiffness``); for every other key it is an :class:`InputError`. Any value
+    of the wrong type gives an :class:`InputError` naming the key, never another exception.
+    """
+    if value is None:
+        if spec.default is None:
+            return None
+        raise InputError(
+            f"{spec.key}: None is not a value; allowed {spec.range_text()} "
+            "(leave the key out for its default)"
+        )
+    try:
+        return _convert(spec, value)
+    except InputError:
+        raise
+    except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError) as exc:
+        raise InputError(
+            f"{spec.key}: cannot read {str(value)[:60]!r} ({exc.__class__.__name__}); "
+            f"allowed {spec.range_text()}"
+        ) from None
+
+
+def _convert(spec: ParamSpec, value: Any) -> Any:
     key = spec.key
     if spec.kind == "float":
-        if value is None:
-            return None
         return spec.check_number(to_si(key, value, spec.unit))
     if spec.kind == "int":
         v = to_si(key, value, "")
-        if v != int(v):
-            raise InputError(f"{key}: {value!r} is not an integer; allowed {spec.range_text()}")
+        if not math.isfinite(v) or v != int(v):
+            raise InputError(
+                f"{key}: {str(value)[:40]} is not a finite integer; allowed {spec.range_text()}"
+            )
         return int(spec.check_number(v))
     if spec.kind == "bool":
-        if isinstance(value, bool):
-            return value
+        if isinstance(value, bool) or type(value).__name__ == "bool_":
+            return bool(value)
         if isinstance(value, str) and value.lower() in ("true", "false", "1", "0", "yes", "no"):
             return value.lower() in ("true", "1", "yes")
         raise InputError(f"{key}: {value!r} is not a boolean; allowed true or false")
@@ -385,10 +435,8 @@ def convert(spec: ParamSpec, value: Any) -> Any:
             raise InputError(f"{key}: times must be >= 0 s, got {vals}")
         return tuple(sorted(vals))
     if spec.kind == "harmonics":
-        if not isinstance(value, list | tuple):
-            raise InputError(f"{key}: expected [[amplitude, frequency, phase], ...], got {value!r}")
         terms = []
-        for term in value:
+        for term in _list(key, value, "[[amplitude, frequency, phase], ...]"):
             if not isinstance(term, list | tuple) or len(term) not in (2, 3):
                 raise InputError(f"{key}: each term is [amplitude, frequency, phase], got {term!r}")
             amp = to_si(key, term[0], spec.unit)
@@ -408,8 +456,8 @@ def convert(spec: ParamSpec, value: Any) -> Any:
             raise InputError(
                 f"{key}: expected a table {{times = [...], speeds = [...]}}, got {value!r}"
             )
-        times = [to_si(key, v, "s") for v in value["times"]]
-        speeds = [to_si(key, v, "rad/s") for v in value["speeds"]]
+        times = [to_si(key, v, "s") for v in _list(key, value["times"], "times = [...]")]
+        speeds = [to_si(key, v, "rad/s") for v in _list(key, value["speeds"], "speeds = [...]")]
         if len(times) != len(speeds) or len(times) < 2:
             raise InputError(f"{key}: times and speeds need the same length >= 2")
         if any(not math.isfinite(v) for v in times + speeds):
@@ -452,9 +500,16 @@ class Scenario:
         self, overrides: Mapping[str, Any] | None = None, name: str | None = None
     ) -> Scenario:
         """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied."""
+        if overrides is not None and not isinstance(overrides, Mapping):
+            raise InputError(
+                f"overrides: expected a mapping {{dotted key: value}}, got "
+                f"{type(overrides).__name__}"
+            )
         raw: dict[str, Any] = dict(self.values)
         explicit = set(self.explicit)
         for key, value in (overrides or {}).items():
+            if not isinstance(key, str):
+                raise InputError(f"{key!r}: a parameter key must be a string")
             if key not in SCHEMA:
                 raise _unknown(key)
             raw[key] = convert(SCHEMA[key], value)
@@ -510,40 +565,48 @@ def builtin_names() -> list[str]:
     )
 
 
-def _read_toml_text(text: str, origin: str) -> dict[str, Any]:
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{origin}: malformed TOML ({exc})") from None
-
-
 def _raw_scenario(
-    name_or_path: str | Path, depth: int = 0
+    name_or_path: str | Path, depth: int = 0, base_dir: Path | None = None
 ) -> tuple[str, dict[str, Any], dict[str, str]]:
-    """Read a scenario (following ``extends``) into dotted raw values and metadata."""
+    """Read a scenario (following ``extends``) into dotted raw values and metadata.
+
+    A relative ``extends`` path is read relative to the folder of the file that names it
+    (``base_dir``), like an include; a built-in name always means the built-in scenario.
+    """
+    from braidsim.specfile import parse_toml, read_text
+
     if depth > 8:
         raise InputError(f"{name_or_path}: `extends` chain is too deep (a cycle?)")
     name = str(name_or_path)
     if name in builtin_names():
-        text = (_builtin_dir() / f"{name}.toml").read_text()
+        text = (_builtin_dir() / f"{name}.toml").read_text(encoding="utf-8")
         origin = f"scenario {name}"
     else:
         path = Path(name)
+        if base_dir is not None and not path.is_absolute():
+            path = base_dir / path
         if not path.is_file():
             close = difflib.get_close_matches(name, builtin_names(), n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
+            where = f" (relative to {str(base_dir)!r})" if base_dir is not None else ""
             raise InputError(
-                f"scenario: {name!r} is neither a built-in scenario{hint} nor a TOML file; "
-                "`braidsim scenarios` lists the built-in ones"
+                f"scenario: {name!r}{where} is neither a built-in scenario{hint} nor a TOML "
+                "file; `braidsim scenarios` lists the built-in ones"
             )
-        text = path.read_text()
+        text = read_text(path, "scenario")
         origin = str(path)
         name = path.stem
-    table = _read_toml_text(text, origin)
+        base_dir = path.parent
+    table = parse_toml(text, origin)
     meta = {k: str(table.pop(k)) for k in _META_KEYS if k in table}
+    if not table and "extends" not in meta:
+        raise InputError(
+            f"{origin}: the scenario sets no parameter; allowed at least one key or "
+            'extends = "<scenario>" (`braidsim scenarios --keys` lists the keys)'
+        )
     raw: dict[str, Any] = {}
     if "extends" in meta:
-        _, raw, parent_meta = _raw_scenario(meta["extends"], depth + 1)
+        _, raw, parent_meta = _raw_scenario(meta["extends"], depth + 1, base_dir)
         for k in ("description", "source"):
             meta.setdefault(k, parent_meta.get(k, ""))
     raw.update(flatten(table))
@@ -577,6 +640,11 @@ def load_scenario(
     if isinstance(scenario, Mapping):
         meta: dict[str, str] = {}
         name, raw = "custom", flatten(scenario)
+    elif not isinstance(scenario, str | Path):
+        raise InputError(
+            f"scenario: expected a built-in name, a TOML path or a mapping, got "
+            f"{type(scenario).__name__}"
+        )
     else:
         name, raw, meta = _raw_scenario(scenario)
     values: dict[str, Any] = {k: s.default for k, s in SCHEMA.items()}
@@ -610,7 +678,11 @@ def parse_assignment(text: str) -> tuple[str, str]:
 
 def parse_set_value(key: str, value: str) -> Any:
     """Interpret the text of ``--set KEY=VALUE`` (TOML literal if it parses, else a string)."""
+    import tomllib
+
+    from braidsim.specfile import toml_float
+
     try:
-        return tomllib.loads(f"v = {value}")["v"]
-    except tomllib.TOMLDecodeError:
+        return tomllib.loads(f"v = {value}", parse_float=toml_float)["v"]
+    except (ValueError, RecursionError):  # TOMLDecodeError, or an integer of 4300+ digits
         return value

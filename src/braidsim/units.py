@@ -3,21 +3,54 @@
 Inside braidsim every quantity is a plain float in SI units. This module is the only place
 where unit strings ("3 mm", "200 GPa", "120 rpm", "60 Hz", "30 deg") are read.
 
+A quantity string is read by a small grammar, never by evaluating it: a decimal number
+(``3``, ``-2.5e-3``, ``inf``, or a ratio such as ``5/9``) followed by an optional unit
+expression made of unit names (``pi`` included), ``*``, ``/``, parentheses, small constant
+exponents (``^1.5`` or ``**2``, at most :data:`MAX_EXPONENT` in size) and small divisors
+(``pi/6 rad``). Anything else (``9**9**9 m``, ``1 m == 0.002``, ``10**400 m``) is refused
+with a message naming the parameter before pint sees it, so no input can make braidsim
+compute a huge number or run code. Only the checked unit expression is handed to pint, which
+looks its names up in its registry.
+
 Angular frequencies need care: pint treats ``Hz`` as ``1/s``, so "60 Hz" converted to
 ``rad/s`` would give 60. For keys whose unit is ``rad/s`` a pure frequency (Hz, 1/s, 1/min)
 is read as cycles per unit time and multiplied by 2 pi, so "60 Hz" is 120 pi rad/s, the
 paper's omega_h; "120 rpm" is 4 pi rad/s through pint's revolution unit.
+
+Bare numbers
+------------
+A bare number (``3``, or the string ``"3"``) is taken as already in SI: this is the rule of
+the Python API and of scenario files. The command line says so in a one-line notice on
+stderr whenever a bare number is given for a dimensional quantity
+(:func:`braidsim.cli.common.quantity_option`); ``docs/units.md`` states the policy.
 """
 
 from __future__ import annotations
 
 import functools
 import math
+import numbers
+import re
 from typing import Any
 
 import pint
 
 from braidsim.errors import InputError
+
+#: largest |exponent| accepted in a unit expression (m^3, s^-2, N/m^1.5 need far less)
+MAX_EXPONENT = 12.0
+#: longest quantity string read (a unit string is a few words)
+MAX_LENGTH = 200
+
+_NUMBER = re.compile(
+    r"[+-]?(?:(?:\d+(?:_\d+)*)(?:\.\d*(?:_\d+)*)?|\.\d+(?:_\d+)*)(?:[eE][+-]?\d+)?"
+    r"|[+-]?(?:infinity|inf|nan)(?![A-Za-z_])",
+    re.IGNORECASE,
+)
+_TOKEN = re.compile(
+    r"\s*(?:(?P<name>[^\W\d][\w]*|%)|(?P<pow>\*\*|\^)"
+    r"|(?P<num>[+-]?\d+(?:\.\d+)?|\([+-]?\d+(?:\.\d+)?\))|(?P<op>[*/()]))"
+)
 
 
 def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
@@ -34,6 +67,182 @@ def registry() -> pint.UnitRegistry:
     return ureg
 
 
+def is_number(value: object) -> bool:
+    """True for a real number (Python or numpy), False for booleans and everything else."""
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
+        return False
+    return isinstance(value, numbers.Real)
+
+
+def _float(key: str, value: object) -> float:
+    """A real number as a float; an :class:`InputError` if it does not fit a 64-bit float."""
+    try:
+        x = float(value)  # type: ignore[arg-type]
+    except (OverflowError, ValueError, TypeError):
+        raise InputError(
+            f"{key}: {str(value)[:40]} cannot be represented as a 64-bit float; "
+            "allowed |value| < 1.8e308"
+        ) from None
+    return x
+
+
+def _check_unit_text(key: str, value: str, text: str) -> str:
+    """Validate the unit part of a quantity string by the grammar of the module docstring;
+    return it in pint's spelling (``^`` becomes ``**``)."""
+    pos, out, prev = 0, [], ""
+    if re.match(r"1\s*/", text):  # "1/s", "1/min": a reciprocal unit
+        text = text[text.index("/") :]
+    while pos < len(text):
+        m = _TOKEN.match(text, pos)
+        if m is None or m.end() == pos:
+            raise InputError(
+                f"{key}: cannot read {value!r} as a quantity (unexpected "
+                f"{text[pos:].strip()[:12]!r}); allowed a number and a unit, e.g. '3 mm'"
+            )
+        pos = m.end()
+        if m.group("name") is not None:
+            out.append("percent" if m.group("name") == "%" else m.group("name"))
+            prev = "name"
+        elif m.group("pow") is not None:
+            if prev not in ("name", ")"):
+                raise InputError(f"{key}: cannot read {value!r}: a power needs a unit before it")
+            out.append("**")
+            prev = "pow"
+        elif (
+            m.group("num") is not None
+            and prev == "/"
+            and re.fullmatch(r"\d{1,8}(?:\.\d{1,8})?", m.group("num"))
+        ):
+            out.append(m.group("num"))  # a small divisor, as in "pi/6 rad"
+            prev = "name"
+        elif m.group("num") is not None:
+            if prev != "pow":
+                raise InputError(
+                    f"{key}: cannot read {value!r}: a number inside the unit is allowed only "
+                    "as an exponent (write the value first, e.g. '1e9 N/m^1.5')"
+                )
+            exp = float(m.group("num").strip("()"))
+            if abs(exp) > MAX_EXPONENT:
+                raise InputError(
+                    f"{key}: exponent {exp:g} in {value!r} is out of range; "
+                    f"allowed |exponent| <= {MAX_EXPONENT:g}"
+                )
+            out.append(f"({exp!r})")
+            prev = "num"
+        else:
+            op = m.group("op")
+            if op in "*/" and prev in ("", "pow", "*", "/") and not (op == "/" and prev == ""):
+                raise InputError(f"{key}: cannot read {value!r}: misplaced {op!r}")
+            out.append(op)
+            prev = ")" if op == ")" else op
+    if prev in ("pow", "*", "/"):
+        raise InputError(f"{key}: cannot read {value!r}: the unit ends with an operator")
+    joined = " ".join(out)
+    return "1 " + joined if joined.startswith("/") else joined
+
+
+def parse_unit(key: str, text: str) -> Any:
+    """A unit expression alone (``"mm"``, ``"kN"``, ``"m/s^2"``) as a pint unit, read by the
+    grammar of the module docstring (never evaluated).
+
+    Raises
+    ------
+    InputError
+        Empty, not a unit expression, or an unknown unit name.
+    """
+    if not isinstance(text, str) or not text.strip() or len(text) > MAX_LENGTH:
+        raise InputError(f"{key}: {str(text)[:40]!r} is not a unit; allowed e.g. 'mm', 'kN'")
+    unit_text = _check_unit_text(key, text, text.strip())
+    if any(ch.isdigit() for ch in unit_text.replace("**", "").split("(")[0]) and "/" in text:
+        raise InputError(f"{key}: {text!r} is not a unit; allowed e.g. 'mm', 'kN'")
+    try:
+        return registry().parse_units(unit_text)
+    except Exception as exc:  # pint raises several exception types for unknown names
+        raise InputError(
+            f"{key}: unknown unit {text!r} ({exc.__class__.__name__}); allowed e.g. 'mm', 'kN'"
+        ) from None
+
+
+def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
+    """Read ``value`` as a quantity in ``unit``; return ``(SI value, was a bare number)``.
+
+    See :func:`to_si`; the second item tells whether no unit was given (a number, or a string
+    holding only a number), which the command line reports for dimensional quantities.
+    """
+    if is_number(value):
+        return _float(key, value), True
+    if not isinstance(value, str):
+        got = "None" if value is None else f"{type(value).__name__} {str(value)[:40]}"
+        raise InputError(
+            f"{key}: expected a number or a quantity string in {unit or 'no unit'}, got {got}"
+        )
+    if len(value) > MAX_LENGTH:
+        raise InputError(
+            f"{key}: the quantity string is {len(value)} characters long; "
+            f"allowed at most {MAX_LENGTH}"
+        )
+    text = value.strip()
+    m = _NUMBER.match(text)
+    if m is None:
+        if not re.match(r"[^\W\d]", text):  # not even a unit name ("pi/6 rad", "mm")
+            raise InputError(
+                f"{key}: cannot read {value!r} as a quantity; allowed a number followed by a "
+                f"unit in {unit or 'no unit'}, e.g. '3 mm'"
+            )
+        mag, rest = 1.0, text
+    else:
+        mag = _float(key, m.group(0).replace("_", ""))
+        if math.isinf(mag) and "inf" not in m.group(0).lower():
+            raise InputError(
+                f"{key}: {m.group(0)} cannot be represented as a 64-bit float; "
+                "allowed |value| < 1.8e308"
+            )
+        rest = text[m.end() :].strip()
+    frac = re.match(r"/\s*(\d+(?:\.\d*)?(?:[eE][+-]?\d+)?)(?![\w.])", rest)
+    if frac is not None:  # a ratio of two numbers, like "5/9"
+        denom = float(frac.group(1))
+        if denom == 0.0:
+            raise InputError(f"{key}: {value!r} divides by zero; allowed a finite value")
+        mag = mag / denom
+        rest = rest[frac.end() :].strip()
+    if not rest:
+        return mag, True
+    ureg = registry()
+    unit_text = _check_unit_text(key, value, rest)
+    try:
+        # the text passed the grammar: unit names, small exponents and divisors only
+        u: Any = ureg.parse_expression(unit_text)
+    except Exception as exc:  # pint raises several exception types for unknown names
+        raise InputError(
+            f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
+        ) from None
+    q = mag * (u if isinstance(u, pint.Quantity) else ureg.Quantity(float(u), ""))
+    target = ureg.Unit(unit) if unit else ureg.dimensionless
+    try:
+        if unit == "rad/s" and q.dimensionality == ureg.Unit("1/s").dimensionality:
+            names = [ureg.get_name(n) for n, _ in q.unit_items()]
+            if all(_is_time_or_hertz(ureg, n) for n in names):
+                # A pure frequency: cycles per unit time.
+                out = float(q.to("1/s").magnitude) * 2.0 * math.pi
+            else:
+                out = float(q.to(target).magnitude)
+        else:
+            out = float(q.to(target).magnitude)
+    except pint.DimensionalityError:
+        want = unit or "no unit"
+        raise InputError(
+            f"{key}: {value!r} has the wrong unit; expected a quantity in {want}"
+        ) from None
+    except (OverflowError, ZeroDivisionError):
+        out = math.inf
+    if math.isfinite(mag) and not math.isfinite(out):
+        raise InputError(
+            f"{key}: {value!r} is {'not a number' if math.isnan(out) else 'too large'} in "
+            f"{unit or 'no unit'}; allowed a value a 64-bit float can hold"
+        )
+    return out, False
+
+
 def to_si(key: str, value: object, unit: str) -> float:
     """Convert ``value`` (a number in SI or a string with units) to a float in ``unit``.
 
@@ -42,44 +251,15 @@ def to_si(key: str, value: object, unit: str) -> float:
     key : str
         Parameter name, used in error messages.
     value : float or str
-        A bare number (taken as already in SI) or a string such as ``"3 mm"``.
+        A bare number (Python or numpy; taken as already in SI) or a string such as
+        ``"3 mm"`` (read by the grammar of the module docstring, never evaluated).
     unit : str
         Target SI unit as a pint expression (``"m"``, ``"N/m**1.5"``, ``"rad/s"``, ``""``).
 
     Raises
     ------
     InputError
-        The string does not parse, or its dimension does not match ``unit``.
+        The string does not parse, its dimension does not match ``unit``, or the number does
+        not fit a 64-bit float.
     """
-    if isinstance(value, bool):
-        raise InputError(
-            f"{key}: expected a number or a quantity in {unit or 'no unit'}, got {value!r}"
-        )
-    if isinstance(value, int | float):
-        return float(value)
-    if not isinstance(value, str):
-        raise InputError(
-            f"{key}: expected a number or a quantity string in {unit or 'no unit'}, got {value!r}"
-        )
-    ureg = registry()
-    try:
-        q: Any = ureg.Quantity(value.strip())
-    except Exception as exc:  # pint raises several exception types for bad strings
-        raise InputError(
-            f"{key}: cannot read {value!r} as a quantity ({exc.__class__.__name__})"
-        ) from None
-    if not isinstance(q, pint.Quantity):  # a bare number inside a string
-        return float(q)
-    target = ureg.Unit(unit) if unit else ureg.dimensionless
-    if unit == "rad/s" and q.dimensionality == ureg.Unit("1/s").dimensionality:
-        names = [ureg.get_name(u) for u, _ in q.unit_items()]
-        if all(_is_time_or_hertz(ureg, n) for n in names):
-            # A pure frequency: cycles per unit time.
-            return float(q.to("1/s").magnitude) * 2.0 * math.pi
-    try:
-        return float(q.to(target).magnitude)
-    except pint.DimensionalityError:
-        want = unit or "no unit"
-        raise InputError(
-            f"{key}: {value!r} has the wrong unit; expected a quantity in {want}"
-        ) from None
+    return parse_quantity(key, value, unit)[0]

@@ -378,7 +378,8 @@ def test_progress_is_off_under_json_and_without_a_terminal(capsys) -> None:
 
     assert not enabled(quiet=True)
     assert not enabled()  # pytest captures stderr: not a terminal
-    code, out, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01", "--json")
+    # a unit given: no notice either (a bare number would add one line, docs/units.md)
+    code, out, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01 s", "--json")
     assert code == 0 and err == "" and json.loads(out)
 
 
@@ -445,7 +446,8 @@ def test_sigterm_stops_the_worker_processes(tmp_path) -> None:
     finally:
         if p.poll() is None:
             p.kill()
-    assert p.returncode == 130 and "interrupted" in err and "Traceback" not in err
+    # 128 + 15: the exit code of a command stopped by SIGTERM (docs/guarantees.md)
+    assert p.returncode == 143 and "interrupted by SIGTERM" in err and "Traceback" not in err
     time.sleep(0.5)
     alive = {k for k in kids if Path(f"/proc/{k}").exists()}
     # a killed worker may linger as a zombie for a moment only if nobody reaps it

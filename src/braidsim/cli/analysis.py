@@ -14,7 +14,7 @@ from typing import Annotated, Any
 
 import typer
 
-from braidsim.cli.common import app, guarded, parse_sets, print_json
+from braidsim.cli.common import app, guarded, parse_sets, print_json, quantity_option
 from braidsim.errors import InputError
 
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
@@ -45,6 +45,14 @@ def _write_outputs(
         (tmp / f"{kind}.json").write_text(json.dumps(_clean(payload), indent=1), encoding="utf-8")
         for name, make in figures.items():
             save(make(), tmp / name)
+
+
+def _check_out(out: Path | None, kind: str) -> None:
+    """Refuse an unusable --out before the work starts (not after it)."""
+    if out is not None:
+        from braidsim.io import check_output_directory
+
+        check_output_directory(out, kind=f"analysis-{kind}")
 
 
 def _console() -> Any:
@@ -107,8 +115,10 @@ def restitution(
     c_min: Annotated[float, typer.Option(help="Smallest nominal c_r.")] = 0.1,
     c_max: Annotated[float, typer.Option(help="Largest nominal c_r.")] = 1.0,
     points: Annotated[int, typer.Option(help="Number of c_r values.")] = 10,
-    velocity: Annotated[float, typer.Option(help="Approach speed [m/s].")] = 0.5,
-    mass: Annotated[float, typer.Option(help="Mass [kg].")] = 1.2,
+    velocity: Annotated[
+        str, typer.Option(help="Approach speed [m/s], e.g. '0.5 m/s'.")
+    ] = "0.5 m/s",
+    mass: Annotated[str, typer.Option(help="Mass [kg], e.g. '1.2 kg'.")] = "1.2 kg",
     out: OutOpt = None,
     json_: JsonOpt = False,
 ) -> None:
@@ -118,6 +128,7 @@ def restitution(
 
     from braidsim.analysis.restitution import restitution_table
 
+    _check_out(out, "restitution")
     for name, v in (("--c-min", c_min), ("--c-max", c_max)):
         if not (0.0 < v <= 1.0):
             raise InputError(f"{name}: {v!r} is out of range; allowed 0 < c_r <= 1")
@@ -125,21 +136,27 @@ def restitution(
         raise InputError(f"--c-min: {c_min!r} is above --c-max {c_max!r}; allowed c_min <= c_max")
     if points < 1:
         raise InputError(f"--points: {points!r} is out of range; allowed >= 1")
-    if not velocity > 0:
-        raise InputError(f"--velocity: {velocity!r} m/s is out of range; allowed > 0 m/s")
-    if not mass > 0:
-        raise InputError(f"--mass: {mass!r} kg is out of range; allowed > 0 kg")
+    from braidsim import limits
+    from braidsim.contact import law_names
+
+    limits.check("runs", points * len(law or law_names()), "--points x --law (simulated impacts)")
+    v = quantity_option("--velocity", velocity, "m/s")
+    m = quantity_option("--mass", mass, "kg")
+    if not v > 0:
+        raise InputError(f"--velocity: {v!r} m/s is out of range; allowed > 0 m/s")
+    if not m > 0:
+        raise InputError(f"--mass: {m!r} kg is out of range; allowed > 0 kg")
     from braidsim.cli.progress import progress_status
 
     with progress_status("simulating the impacts of every law", quiet=json_):
-        table = restitution_table(law, np.linspace(c_min, c_max, points), velocity, mass)
+        table = restitution_table(law, np.linspace(c_min, c_max, points), v, m)
     settings = {
         "laws": list(table.laws),
         "c_min": c_min,
         "c_max": c_max,
         "points": points,
-        "velocity": velocity,
-        "mass": mass,
+        "velocity": v,
+        "mass": m,
     }
     payload = _with_provenance(table.to_dict(), None, settings)
     if out is not None:
@@ -168,6 +185,24 @@ def restitution(
 # ----------------------------------------------------------------------------------------
 
 
+def _check_grid(runs: int, workers: int, option: str) -> None:
+    """Refuse a negative --workers and a grid over the run limit, before any work."""
+    from braidsim import limits
+
+    if workers < 0:
+        raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
+    if runs < 1:
+        raise InputError(f"{option}: {runs} is out of range; allowed >= 1")
+    limits.check("runs", runs, option)
+
+
+def _axis_value(option: str, key: str, text: str) -> float:
+    """A value of a scalar scenario key given on the command line (unit policy applies)."""
+    from braidsim.params import SCHEMA, parse_set_value
+
+    return quantity_option(option, parse_set_value(key, text), SCHEMA[key].unit)
+
+
 @app.command()
 @guarded
 def bifurcation(
@@ -188,14 +223,15 @@ def bifurcation(
     """Stroboscopic bifurcation diagram of the settled motion against one parameter."""
     import braidsim
     from braidsim.analysis.bifurcation import bifurcation as run_bifurcation
-    from braidsim.analysis.bifurcation import parameter_values
+    from braidsim.analysis.bifurcation import check_scalar_key, parameter_values
     from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
+    _check_out(out, "bifurcation")
+    _check_grid(points, workers, "--points")
+    check_scalar_key(param)
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
-    from braidsim.params import parse_set_value
-
     values = parameter_values(
-        param, parse_set_value(param, start), parse_set_value(param, stop), points
+        param, _axis_value("--from", param, start), _axis_value("--to", param, stop), points
     )
     with (
         sigterm_as_interrupt(),
@@ -272,14 +308,17 @@ def basins(
     """Basins of attraction: the steady state reached from each start of a 2-D grid."""
     import braidsim
     from braidsim.analysis.basins import basins as run_basins
-    from braidsim.analysis.bifurcation import parameter_values
-    from braidsim.params import parse_set_value
+    from braidsim.analysis.bifurcation import check_scalar_key, parameter_values
 
     if x == y:
         raise InputError(f"--x, --y: both are {x!r}; allowed two different parameters")
+    _check_out(out, "basins")
+    _check_grid(nx * ny, workers, "--nx x --ny")
+    check_scalar_key(x)
+    check_scalar_key(y)
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
-    xs = parameter_values(x, parse_set_value(x, x_from), parse_set_value(x, x_to), nx)
-    ys = parameter_values(y, parse_set_value(y, y_from), parse_set_value(y, y_to), ny)
+    xs = parameter_values(x, _axis_value("--x-from", x, x_from), _axis_value("--x-to", x, x_to), nx)
+    ys = parameter_values(y, _axis_value("--y-from", y, y_from), _axis_value("--y-to", y, y_to), ny)
     from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
     with (
@@ -345,9 +384,11 @@ def lyapunov(
     transient_cycles: TransientOpt = 100.0,
     cycles: Annotated[float, typer.Option(help="Measuring time [excitation cycles].")] = 100.0,
     interval: Annotated[
-        float | None, typer.Option(help="Renormalisation interval [s] (default T_h/16).")
+        str | None, typer.Option(help="Renormalisation interval [s] (default T_h/16).")
     ] = None,
-    d0: Annotated[float, typer.Option(help="Separation of the two trajectories [m].")] = 1e-9,
+    d0: Annotated[
+        str, typer.Option(help="Separation of the two trajectories [m], e.g. '1 nm'.")
+    ] = "1 nm",
     curve: Annotated[
         bool,
         typer.Option(
@@ -364,17 +405,25 @@ def lyapunov(
     from braidsim.analysis.lyapunov import carrier_lyapunov
     from braidsim.cli.progress import progress_status
 
+    _check_out(out, "lyapunov")
     sets = parse_sets(set_)
     sc = braidsim.load_scenario(scenario, overrides=sets)
+    d0_m = quantity_option("--d0", d0, "m")
+    if not (0 < d0_m <= 1e-3):
+        raise InputError(
+            f"--d0: {d0_m:g} m is out of range; allowed 0 < d0 <= 1 mm (a small separation, "
+            "e.g. '1 nm')"
+        )
+    tau = None if interval is None else quantity_option("--interval", interval, "s")
     with progress_status(f"two trajectories of {sc.name}", quiet=json_):
         res = carrier_lyapunov(
-            sc, transient_cycles=transient_cycles, cycles=cycles, interval=interval, d0=d0
+            sc, transient_cycles=transient_cycles, cycles=cycles, interval=tau, d0=d0_m
         )
     settings = {
         "transient_cycles": transient_cycles,
         "cycles": cycles,
         "interval": res.estimate.interval,
-        "d0": d0,
+        "d0": d0_m,
         "transient": res.transient,
         "window_rule": (
             f"the first {transient_cycles:g} periods ({res.transient:.6g} s) are discarded; "
@@ -426,15 +475,23 @@ def _run_source(run: str) -> tuple[Any, float | None]:
                 f"RUN: folder {run!r} has no summary.json; allowed a folder written by "
                 "`braidsim run --out` or a scenario"
             )
-        data = json.loads(summary.read_text(encoding="utf-8"))
-        # Scenario.to_dict writes an infinite value (a flat body's radius) as "inf"
-        params = {
-            k: (math.inf if v == "inf" else v)
-            for k, v in data["parameters"].items()
-            if v is not None
-        }
-        sc = braidsim.load_scenario(params).with_overrides(None, name=data.get("scenario", "run"))
-        return sc, float(data["final"]["t"])
+        try:
+            data = json.loads(summary.read_text(encoding="utf-8"))
+            # Scenario.to_dict writes an infinite value (a flat body's radius) as "inf"
+            params = {
+                k: (math.inf if v == "inf" else v)
+                for k, v in data["parameters"].items()
+                if v is not None
+            }
+            t_end = float(data["final"]["t"])
+            name = str(data.get("scenario", "run"))
+        except (ValueError, KeyError, TypeError, AttributeError, UnicodeDecodeError) as exc:
+            raise InputError(
+                f"RUN: {str(summary)!r} is damaged or incomplete ({exc.__class__.__name__}); "
+                "allowed a folder written whole by `braidsim run --out` (run it again)"
+            ) from None
+        sc = braidsim.load_scenario(params).with_overrides(None, name=name)
+        return sc, t_end
     return braidsim.load_scenario(run), None
 
 
@@ -450,13 +507,13 @@ def analyze(
     ],
     set_: SetOpt = None,
     duration: Annotated[
-        float | None,
+        str | None,
         typer.Option(
             help="Simulated time [s] (default: the scenario's, at least 150 excitation periods)."
         ),
     ] = None,
     transient: Annotated[
-        float | None,
+        str | None,
         typer.Option(
             help="Start of the steady-state window [s] (default: after 100 excitation periods, "
             "at least half the run, leaving 50 periods)."
@@ -469,15 +526,19 @@ def analyze(
     from braidsim.analysis.report import analyze as run_analyze
     from braidsim.cli.progress import progress_status
 
+    _check_out(out, "analyze")
     sc, dur = _run_source(run)
     sets = parse_sets(set_)
     if sets:
         sc = sc.with_overrides(sets)
+    if duration is not None:
+        dur = quantity_option("--duration", duration, "s")
+    t0 = None if transient is None else quantity_option("--transient", transient, "s")
     with progress_status(f"simulating and analysing {sc.name}", quiet=json_):
-        a = run_analyze(sc, duration=duration if duration is not None else dur, transient=transient)
+        a = run_analyze(sc, duration=dur, transient=t0)
     settings = {
         "duration": float(a.result.model.duration),
-        "transient": a.window[0] if transient is None else transient,
+        "transient": a.window[0] if t0 is None else t0,
         "window": list(a.window),
         "window_rule": a.window_rule,
     }

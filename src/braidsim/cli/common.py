@@ -1,17 +1,29 @@
-"""Shared pieces of the command line: the Typer app, JSON output, error handling."""
+"""Shared pieces of the command line: the Typer app, JSON output, error handling, signals and
+the unit policy of options.
+
+Exit codes: 0 success, 2 bad input (:class:`~braidsim.errors.InputError`, usage errors), 1 a
+numerical, storage or I/O failure (with its cause and the path), 128 + N after signal N
+(130 SIGINT, 143 SIGTERM, 129 SIGHUP). Every failure is one line on stderr, never a
+traceback; an unexpected exception is reported as an internal error in one line (set
+``BRAIDSIM_TRACEBACK=1`` to see the traceback).
+"""
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from functools import wraps
 from typing import Any, TypeVar
 
+import click
 import typer
 
-from braidsim.errors import InputError, SimulationError
+from braidsim.errors import InputError, SimulationError, StoreError
 
 app = typer.Typer(
     name="braidsim",
@@ -19,6 +31,8 @@ app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    # help texts are plain text: "[s]", "[m/s]" are units, not rich markup
+    rich_markup_mode=None,
 )
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -70,36 +84,176 @@ def print_json(obj: Any) -> None:
 
 def fail(message: str, code: int) -> None:
     """One line on stderr and exit with ``code``."""
-    sys.stderr.write(f"braidsim: error: {message}\n")
+    line = " ".join(str(message).split())  # one line, whatever the message holds
+    sys.stderr.write(f"braidsim: error: {line}\n")
+    sys.stderr.flush()
     raise typer.Exit(code)
 
 
+_NOTICES: list[str] = []
+
+
+def notice(message: str) -> None:
+    """An informational line for stderr (stdout stays clean for ``--json``).
+
+    Notices are held until the command's input is accepted (:func:`flush_notices`, called
+    before long work and at the end of every command): a command refused for bad input
+    prints its one error line only.
+    """
+    _NOTICES.append(f"braidsim: note: {message}\n")
+
+
+def flush_notices() -> None:
+    """Write the notices held so far to stderr."""
+    while _NOTICES:
+        sys.stderr.write(_NOTICES.pop(0))
+    sys.stderr.flush()
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT, SIGTERM or SIGHUP received: handled like Ctrl-C (see :func:`signals_handled`)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _end_children() -> None:
+    """Kill this process's worker processes (pools, a local Dask cluster) so none outlives
+    an interrupted command; a pool then reports them dead instead of waiting for them."""
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
+        child.kill()
+
+
+def _on_signal(signum: int, frame: Any) -> None:
+    # ignore further signals while we stop: the first one decides the exit code
+    for sig in _SIGNALS:
+        signal.signal(sig, signal.SIG_IGN)
+    _end_children()
+    raise Interrupted(signum)
+
+
+_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
+@contextmanager
+def signals_handled() -> Iterator[None]:
+    """SIGINT, SIGTERM and SIGHUP raise :class:`Interrupted` in the main thread (after killing
+    the worker processes), so every verb unwinds the same way: temporary outputs removed,
+    stores left resumable, one line on stderr."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {sig: signal.getsignal(sig) for sig in _SIGNALS}
+    for sig in _SIGNALS:
+        signal.signal(sig, _on_signal)
+    try:
+        yield
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)
+
+
+def _os_error_text(exc: OSError) -> str:
+    path = exc.filename if exc.filename is not None else "output"
+    why = exc.strerror or exc.__class__.__name__
+    hint = ""
+    if exc.errno in (28, 27, 122):  # ENOSPC, EFBIG, EDQUOT
+        hint = "; free space (or raise the file-size limit), then run again"
+    return f"{path}: {why}{hint}"
+
+
 def guarded(func: F) -> F:
-    """Turn braidsim's errors into one-line messages and exit codes (2 input, 1 numerics)."""
+    """Turn braidsim's errors into one-line messages and exit codes (2 input, 1 failures)."""
 
     @wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
+        _NOTICES.clear()
         try:
-            return func(*args, **kwargs)
+            with signals_handled():
+                out = func(*args, **kwargs)
+            flush_notices()
+            return out
         except InputError as exc:
+            _NOTICES.clear()  # the error line names the value and its unit
             fail(str(exc), 2)
         except SimulationError as exc:
+            flush_notices()
             fail(f"simulation failed: {exc}", 1)
+        except StoreError as exc:
+            fail(str(exc), 1)
+        except Interrupted as exc:
+            fail(f"interrupted by {exc.args[0]}; no output was written", 128 + exc.signum)
         except KeyboardInterrupt:
-            fail("interrupted", 130)
+            fail("interrupted by SIGINT; no output was written", 130)
+        except OSError as exc:
+            fail(_os_error_text(exc), 1)
+        except MemoryError:
+            fail("out of memory; reduce the size of the work (see the limits in the docs)", 1)
+        except (typer.Exit, typer.Abort, SystemExit, click.ClickException):
+            raise  # exit codes and usage errors: run_app answers them
+        except Exception as exc:
+            if os.environ.get("BRAIDSIM_TRACEBACK"):
+                raise
+            text = str(exc).splitlines()[0][:200] if str(exc) else ""
+            fail(
+                f"internal error: {exc.__class__.__name__}: {text} (a bug: please report it "
+                "with the command; BRAIDSIM_TRACEBACK=1 shows the traceback)",
+                1,
+            )
         return None
 
     return wrapper  # type: ignore[return-value]
 
 
+def quantity_option(option: str, value: Any, unit: str) -> float:
+    """The unit policy of the command line for one dimensional option.
+
+    ``value`` is a number or a string with a unit (``"1 nm"``, ``"0.5 m/s"``); a unit
+    string is converted to ``unit`` (SI). A bare number is taken as SI and, unless it is 0
+    (which needs no unit) or ``unit`` is dimensionless, a one-line notice on stderr says
+    which unit was assumed.
+    """
+    from braidsim.units import parse_quantity
+
+    v, bare = parse_quantity(option, value, unit)
+    if bare and unit and v != 0 and math.isfinite(v):
+        notice(f"{option} {value} taken as {v:g} {unit} (SI); write e.g. '{value} {unit}'")
+    return v
+
+
+def _has_bare_number(value: Any) -> bool:
+    from braidsim.units import is_number
+
+    if is_number(value):
+        return value != 0
+    if isinstance(value, list | tuple):
+        return any(_has_bare_number(v) for v in value)
+    if isinstance(value, dict):
+        return any(_has_bare_number(v) for v in value.values())
+    return False
+
+
 def parse_sets(sets: list[str] | None) -> dict[str, Any]:
     """``--set KEY=VALUE`` options to an overrides mapping."""
-    from braidsim.params import parse_assignment, parse_set_value
+    from braidsim.params import SCHEMA, parse_assignment, parse_set_value
 
     out: dict[str, Any] = {}
     for item in sets or []:
         key, value = parse_assignment(item)
-        out[key] = parse_set_value(key, value)
+        parsed = parse_set_value(key, value)
+        unit = SCHEMA[key].unit
+        if unit and SCHEMA[key].kind != "choice" and _has_bare_number(parsed):
+            example = value if isinstance(parsed, int | float) else "VALUE"
+            notice(
+                f"--set {key}={value}: a bare number is taken in SI ({unit}); "
+                f"write the unit, e.g. '{example} {unit}'"
+            )
+        out[key] = parsed
     return out
 
 
@@ -121,6 +275,10 @@ def run_app(argv: list[str] | None) -> int:
         return 130
     except typer.TyperException as exc:
         message = exc.format_message() if hasattr(exc, "format_message") else str(exc)
-        sys.stderr.write(f"braidsim: error: {message}\n")
+        line = " ".join(str(message).split())
+        sys.stderr.write(f"braidsim: error: {line}\n")
         return 2
+    except KeyboardInterrupt:  # a signal outside a verb (while parsing the arguments)
+        sys.stderr.write("braidsim: error: interrupted\n")
+        return 130
     return 0

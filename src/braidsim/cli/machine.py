@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json
+from braidsim.cli.common import app, guarded, print_json, quantity_option
 
 
 @app.command()
@@ -16,8 +16,8 @@ def machine(
     spec: Annotated[Path, typer.Argument(help="Machine spec TOML (see braidsim.machine.spec).")],
     out: Annotated[Path, typer.Option("--out", help="Report directory to write.")],
     duration: Annotated[
-        float | None,
-        typer.Option(help="Simulated time in s (default: the spec's duration or revolutions)."),
+        str | None,
+        typer.Option(help="Simulated time [s] (default: the spec's duration or revolutions)."),
     ] = None,
     workers: Annotated[
         int | None,
@@ -33,6 +33,7 @@ def machine(
 ) -> None:
     """Simulate every carrier of a braiding machine through its transfers; write tables,
     figures and an animation of the carriers coloured by contact force into --out."""
+    from braidsim import limits
     from braidsim.errors import InputError
     from braidsim.io import check_output_directory
     from braidsim.machine import load_machine_spec, run_machine, write_report
@@ -40,14 +41,17 @@ def machine(
 
     if frames is not None and frames < 0:
         raise InputError(f"--frames: {frames} is out of range; allowed >= 0")
+    if frames is not None:
+        limits.check("frames", frames, "--frames")
     if workers is not None and workers < 0:
         raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
     s = load_machine_spec(spec)
     check_output_directory(out, REPORT_KIND)  # fail before the run, not after it
+    dur = None if duration is None else quantity_option("--duration", duration, "s")
     from braidsim.cli.progress import progress_status
 
     with progress_status(f"simulating every carrier of {s.name}", quiet=json_):
-        run = run_machine(s, duration=duration, workers=workers, frames=frames)
+        run = run_machine(s, duration=dur, workers=workers, frames=frames)
     what = "tables, figures and the animation (machine.gif)" if frames != 0 else "the report"
     with progress_status(f"writing {what} into {out}", quiet=json_):
         data = write_report(run, out, animation=frames != 0)

@@ -156,6 +156,14 @@ def sigterm_as_interrupt() -> Iterator[None]:
         yield
         return
 
+    from braidsim.cli.common import _on_signal
+
+    if signal.getsignal(signal.SIGTERM) is _on_signal:
+        # the command line's own handler (cli.common.signals_handled) is in place: it stops
+        # the workers and raises a KeyboardInterrupt that keeps the signal's exit code
+        yield
+        return
+
     def handler(signum: int, frame: FrameType | None) -> None:
         raise KeyboardInterrupt
 

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 
 import typer
 
-from braidsim.cli.common import app, guarded, parse_sets, print_json
+from braidsim.cli.common import app, guarded, parse_sets, print_json, quantity_option
 
 
 @app.command()
@@ -17,9 +17,11 @@ def run(
     set_: Annotated[
         list[str] | None, typer.Option("--set", help="KEY=VALUE override (repeatable).")
     ] = None,
-    duration: Annotated[float | None, typer.Option(help="Simulated time [s].")] = None,
+    duration: Annotated[
+        str | None, typer.Option(help="Simulated time [s], e.g. 0.5 or '500 ms'.")
+    ] = None,
     window: Annotated[
-        tuple[float, float] | None, typer.Option(help="T0 T1: ranges over this window [s].")
+        tuple[str, str] | None, typer.Option(help="T0 T1: ranges over this window [s].")
     ] = None,
     out: Annotated[
         Path | None,
@@ -37,16 +39,25 @@ def run(
     import braidsim
     from braidsim.cli.progress import progress_status
 
-    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
     if out is not None:
         from braidsim.io import check_output_directory
 
         check_output_directory(out, "run")  # refuse before the run, not after
-    windows = [window] if window else None
-    T = float(sc["simulation.duration"] if duration is None else duration)
+    sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
+    dur = None if duration is None else quantity_option("--duration", duration, "s")
+    win = (
+        None
+        if window is None
+        else (
+            quantity_option("--window", window[0], "s"),
+            quantity_option("--window", window[1], "s"),
+        )
+    )
+    windows = [win] if win else None
+    T = float(sc["simulation.duration"] if dur is None else dur)
     with progress_status(f"simulating {sc.name}, {T:g} s", quiet=json_):
-        res = braidsim.simulate(sc, duration=duration, windows=windows)
-    summary = res.summary(window=window)
+        res = braidsim.simulate(sc, duration=dur, windows=windows)
+    summary = res.summary(window=win)
     if out is not None:
         with progress_status(f"writing {out}", quiet=json_):
             _write_run(res, summary, out, csv)
@@ -152,9 +163,13 @@ def impact(
     restitution: Annotated[
         str, typer.Option(help="Coefficient of restitution in (0, 1].")
     ] = "0.5555555555555556",
-    velocity: Annotated[str, typer.Option(help="Approach speed, e.g. 0.5 or '0.5 m/s'.")] = "0.5",
-    mass: Annotated[str, typer.Option(help="Mass, e.g. 1.2 or '1.2 kg'.")] = "1.2",
-    stiffness: Annotated[float | None, typer.Option(help="K [N/m^n]; Eq. (4) by default.")] = None,
+    velocity: Annotated[
+        str, typer.Option(help="Approach speed [m/s], e.g. '0.5 m/s'.")
+    ] = "0.5 m/s",
+    mass: Annotated[str, typer.Option(help="Mass [kg], e.g. '1.2 kg'.")] = "1.2 kg",
+    stiffness: Annotated[
+        str | None, typer.Option(help="K [N/m^n], e.g. '1e9 N/m^1.5'; Eq. (4) by default.")
+    ] = None,
     exponent: Annotated[float | None, typer.Option(help="Force exponent n.")] = None,
     json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
@@ -167,7 +182,20 @@ def impact(
         except ValueError:
             return text
 
-    res = single_impact(model, num(restitution), num(velocity), num(mass), stiffness, exponent)
+    k_si = None
+    if stiffness is not None:
+        from braidsim.contact import get_law
+
+        n = exponent if exponent is not None else get_law(model).default_exponent
+        k_si = quantity_option("--stiffness", stiffness, f"N/m**{n!r}")
+    res = single_impact(
+        model,
+        num(restitution),
+        quantity_option("--velocity", num(velocity), "m/s"),
+        quantity_option("--mass", num(mass), "kg"),
+        k_si,
+        exponent,
+    )
     if json_:
         print_json(res)
         return
@@ -253,11 +281,15 @@ def scenarios(
             print_json({"keys": rows})
             return
         from rich.console import Console
+        from rich.markup import escape
         from rich.table import Table
 
         tab = Table("key", "unit", "default", "allowed", "meaning")
         for r in rows:
-            tab.add_row(r["key"], r["unit"], str(r["default"]), r["allowed"], r["doc"])
+            tab.add_row(
+                *(escape(str(c)) for c in (r["key"], r["unit"], r["default"], r["allowed"])),
+                escape(r["doc"]),
+            )
         Console().print(tab)
         return
     rows = []

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, fail, guarded, print_json
+from braidsim.cli.common import app, fail, flush_notices, guarded, print_json
 
 
 @app.command()
@@ -36,9 +36,15 @@ def sweep(
     json_: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
 ) -> None:
     """Run a parameter study: every run of SPEC into the zarr store --out (resumable)."""
+    from braidsim.cli.common import Interrupted
+    from braidsim.io import check_output_target
     from braidsim.sweep import SweepError, export_netcdf, load_spec, run_sweep
 
     s = load_spec(spec)
+    if netcdf is not None:
+        check_output_target(netcdf, "--netcdf", directory=False, suffixes=(".nc",))
+    resume_hint = f"the chunks done are kept in {out}; finish with --resume"
+    flush_notices()
     try:
         summary = run_sweep(
             s,
@@ -50,7 +56,18 @@ def sweep(
             progress=not no_progress,
         )
     except SweepError as exc:
-        fail(f"sweep failed: {exc}; the chunks done are kept, finish with --resume", 1)
+        fail(f"sweep failed: {exc}; {resume_hint}", 1)
+        return
+    except Interrupted as exc:
+        fail(f"interrupted by {exc.args[0]}; {resume_hint}", 128 + exc.signum)
+        return
+    except KeyboardInterrupt:
+        fail(f"interrupted by SIGINT; {resume_hint}", 130)
+        return
+    except OSError as exc:
+        from braidsim.cli.common import _os_error_text
+
+        fail(f"{_os_error_text(exc)}; {resume_hint}", 1)
         return
     if netcdf is not None:
         summary["netcdf"] = str(export_netcdf(out, netcdf))
@@ -105,6 +122,9 @@ def sweep_plot(
             outd[k.strip()] = v.strip()
         return outd
 
+    from braidsim.io import check_output_target
+
+    check_output_target(out, "--out", directory=False, suffixes=(".png", ".pdf", ".svg"))
     ds = open_sweep(store)
     fig = plot_sweep(
         ds, metric, x, y, sel=pairs(sel, "--sel"), units=pairs(unit, "--unit"), log=log

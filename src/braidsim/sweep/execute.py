@@ -48,12 +48,35 @@ from braidsim.errors import BraidsimError, InputError
 from braidsim.model import build_model
 from braidsim.sweep.spec import SweepSpec
 from braidsim.sweep.store import (
+    StoreLock,
     StoreWriter,
+    corrupt_chunks,
     create_store,
     done_chunks,
+    mark_undone,
     remove_partial_files,
     store_attrs,
 )
+
+
+def die_with_parent() -> None:
+    """Worker initializer: ask Linux to kill this process when its parent dies.
+
+    Without it, a sweep process killed with SIGKILL (which no handler sees) leaves its worker
+    processes waiting forever for tasks. ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; a no-op where
+    prctl does not exist.
+    """
+    import ctypes
+    import signal
+
+    parent = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        return
+    if os.getppid() != parent:  # the parent died before the request took effect
+        os._exit(1)
 
 
 class SweepError(BraidsimError, RuntimeError):
@@ -182,7 +205,9 @@ class LocalProcesses:
             if self.mp_context is None
             else multiprocessing.get_context(self.mp_context)
         )
-        return ProcessPoolExecutor(max_workers=self.processes, mp_context=ctx)
+        return ProcessPoolExecutor(
+            max_workers=self.processes, mp_context=ctx, initializer=die_with_parent
+        )
 
     def start(self) -> None:
         """Start the worker processes now.
@@ -194,9 +219,14 @@ class LocalProcesses:
             self._pool = self._new_pool()
             self._pool.submit(os.getpid).result()  # launches the workers
 
-    def close(self) -> None:
-        """Stop the worker processes."""
+    def close(self, kill: bool = False) -> None:
+        """Stop the worker processes; with ``kill`` end them now instead of letting the chunk
+        tasks in flight finish (an interrupted sweep)."""
         if self._pool is not None:
+            if kill:
+                # the pool has no public way to stop a running task: end its processes
+                for proc in list(getattr(self._pool, "_processes", {}).values()):
+                    proc.kill()
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
 
@@ -207,8 +237,10 @@ class LocalProcesses:
             return
         try:
             self._run_pool(base, tasks, on_result)
-        finally:
-            self.close()
+        except BaseException:
+            self.close(kill=True)
+            raise
+        self.close()
 
     def _serial(self, base: tuple[Any, ...], task: ChunkTask, on_result: OnResult) -> None:
         for attempt in range(self.retries + 1):
@@ -241,11 +273,18 @@ class LocalProcesses:
 
         self.start()
         while pending or inflight:
+            broken = False
             while pending and len(inflight) < 2 * self.processes:
                 task = pending.popleft()
-                inflight[self._pool.submit(self.task, base, task)] = task
-            done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
-            broken = False
+                try:
+                    inflight[self._pool.submit(self.task, base, task)] = task
+                except BrokenProcessPool:  # a worker died since the last wait
+                    pending.appendleft(task)
+                    broken = True
+                    break
+            done: set[Future[ChunkOutput]] = set()
+            if inflight and not broken:
+                done, _ = wait(list(inflight), return_when=FIRST_COMPLETED)
             for fut in done:
                 task = inflight.pop(fut)
                 try:
@@ -319,9 +358,11 @@ class DaskExecutor:
         if self.scheduler is not None:
             try:
                 client = Client(self.scheduler, timeout="20s")
-            except (OSError, TimeoutError) as exc:
+            except Exception as exc:  # a bad address raises ValueError, TypeError or OSError
+                text = str(exc).splitlines()[0][:120] if str(exc) else exc.__class__.__name__
                 raise InputError(
-                    f"--scheduler: cannot connect to {self.scheduler} ({exc})"
+                    f"--scheduler: cannot connect to {self.scheduler!r} ({text}); allowed the "
+                    "address of a running Dask scheduler, e.g. tcp://host:8786"
                 ) from None
             return client, [client]
         cluster = LocalCluster(
@@ -334,10 +375,27 @@ class DaskExecutor:
         client = Client(cluster)
         return client, [client, cluster]
 
+    _conn: tuple[Any, list[Any]] | None = None
+
+    def start(self) -> None:
+        """Connect to the cluster (or start the local one) now: :func:`run_sweep` calls this
+        before it creates the store, so a failed connection leaves no empty store behind."""
+        if self._conn is None:
+            self._conn = self._connect()
+
+    def close(self) -> None:
+        """Close what :meth:`start` opened (a client, a local cluster)."""
+        if self._conn is not None:
+            for obj in self._conn[1]:
+                obj.close()
+            self._conn = None
+
     def run(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
         from distributed import as_completed
 
-        client, owned = self._connect()
+        if self._conn is None:
+            self._conn = self._connect()
+        client = self._conn[0]
         try:
             (base_f,) = client.scatter([base], broadcast=True)  # one object, on every worker
             futs = {
@@ -355,8 +413,7 @@ class DaskExecutor:
                 on_result(out)
                 fut.release()
         finally:
-            for obj in owned:
-                obj.close()
+            self.close()
 
 
 def _tasks(spec: SweepSpec, chunks: Iterable[int]) -> list[ChunkTask]:
@@ -482,6 +539,11 @@ def run_sweep(
         raise InputError(
             f"--out: {path} exists; pass --resume to finish it, or choose another path"
         )
+    from braidsim.io import check_output_target
+
+    check_output_target(path, "--out", directory=True)
+    if path.exists():
+        store_attrs(path)  # a store, before any worker starts
     start = getattr(executor, "start", None)
     if start is not None:
         start()  # before the first zarr call (see LocalProcesses.start)
@@ -523,9 +585,29 @@ def _execute(
             raise InputError(
                 f"--resume: {path} was made from a different spec; allowed the same spec"
             )
-        remove_partial_files(path)
+        lock = StoreLock(path)
     else:
         create_store(spec, path)
+        lock = StoreLock(path)
+    try:
+        return _execute_locked(spec, path, executor, progress)
+    finally:
+        lock.release()
+
+
+def _execute_locked(
+    spec: SweepSpec, path: Path, executor: Executor, progress: bool
+) -> tuple[float, int, int, list[int], int]:
+    import sys
+
+    remove_partial_files(path)
+    bad = corrupt_chunks(path)
+    if bad:
+        sys.stderr.write(
+            f"braidsim: note: {len(bad)} chunk(s) of {path} fail their checksum "
+            f"(first: chunk {next(iter(bad))}); computing them again\n"
+        )
+        mark_undone(path, sorted(bad))
     done = done_chunks(path)
     todo = [int(c) for c in np.flatnonzero(~done)]
     n_before = int(done.sum())

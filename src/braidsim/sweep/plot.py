@@ -28,11 +28,12 @@ def _factor(name: str, si_unit: str, unit: str | None) -> tuple[float, str]:
     """Scale from the SI unit of a coordinate to the display unit, and the unit's label."""
     if not unit:
         return 1.0, si_unit
-    from braidsim.units import registry
+    from braidsim.units import parse_unit, registry
 
     ureg = registry()
+    target = parse_unit(f"--unit {name}", unit)
     try:
-        f = float(ureg.Quantity(1.0, si_unit or "dimensionless").to(unit).magnitude)
+        f = float(ureg.Quantity(1.0, si_unit or "dimensionless").to(target).magnitude)
     except Exception as exc:  # pint raises several types for bad or incompatible units
         raise InputError(
             f"--unit: cannot show {name} [{si_unit}] in {unit!r} ({exc.__class__.__name__})"
@@ -115,9 +116,20 @@ def plot_sweep(
             f"--metric: {metric!r} is not in the sweep{hint}; "
             f"allowed {', '.join(map(str, ds.data_vars))}"
         )
+    if ds[metric].dtype.kind not in "biuf":
+        numeric = [str(v) for v in ds.data_vars if ds[v].dtype.kind in "biuf"]
+        raise InputError(
+            f"--metric: {metric!r} holds text, not numbers; allowed {', '.join(numeric)}"
+        )
     units = dict(units or {})
-    da = _select(ds, ds[metric], sel)
     names = [x] if y is None else [x, y]
+    for n in units:
+        if n not in (*names, metric):
+            raise InputError(
+                f"--unit: {n!r} is neither an axis plotted (--x/--y) nor the metric; allowed "
+                f"{', '.join([*names, metric])}"
+            )
+    da = _select(ds, ds[metric], sel)
     for n in names:
         if n not in ds.variables:
             raise InputError(

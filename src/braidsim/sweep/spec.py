@@ -60,7 +60,7 @@ import difflib
 import hashlib
 import json
 import math
-import tomllib
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,6 +68,7 @@ from typing import Any
 
 import numpy as np
 
+from braidsim import limits
 from braidsim.batch import METRIC_NAMES, SERIES_VARIABLES, RunOptions, check_options
 from braidsim.errors import InputError
 from braidsim.params import SCHEMA, Scenario, builtin_names, convert, flatten, load_scenario
@@ -97,6 +98,11 @@ SPACINGS = ("linear", "log")
 AXIS_KINDS = ("float", "int", "choice", "bool")
 RUN_DIM = "run"
 TIME_DIM = "t"
+#: an axis name: letters, digits and underscores in dot-separated words, starting with a
+#: letter (it names a folder of the store, so no "/", "..", hidden or reserved names)
+AXIS_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]{0,63}(\.[A-Za-z][A-Za-z0-9_]{0,63}){0,7}")
+#: names used by the store itself
+RESERVED_NAMES = ("failure", "zarr.json", "run", "t")
 MIN_AUTO_CHUNK = 64
 MAX_AUTO_CHUNK = 256
 
@@ -356,10 +362,17 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
             "choice or boolean"
         )
     name = t.get("name", key)
-    if not isinstance(name, str) or not name or name in (RUN_DIM, TIME_DIM) or name in METRIC_NAMES:
+    if (
+        not isinstance(name, str)
+        or not AXIS_NAME.fullmatch(name)
+        or name in RESERVED_NAMES
+        or name in METRIC_NAMES
+        or (name in SCHEMA and name != key)
+    ):
         raise InputError(
-            f"{where}name: {name!r} is not allowed; allowed a non-empty name other than "
-            f"{RUN_DIM!r}, {TIME_DIM!r} and the metric names"
+            f"{where}name: {str(name)[:40]!r} is not allowed; allowed a name of letters, digits "
+            "and underscores (dots between words) starting with a letter, other than "
+            f"{', '.join(RESERVED_NAMES)}, the metric names and other keys"
         )
     has_range = any(k in t for k in ("start", "stop", "num", "spacing"))
     if "values" in t and has_range:
@@ -368,6 +381,7 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         raw = t["values"]
         if not isinstance(raw, list) or not raw:
             raise InputError(f"{where}values: empty; allowed a non-empty list of values of {key}")
+        limits.check("values", len(raw), f"{where}values")
         try:
             vals: list[Any] = [convert(spec, v) for v in raw]
         except InputError as exc:
@@ -384,6 +398,7 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         num = t["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
             raise InputError(f"{where}num: {num!r} gives an empty range; allowed an integer >= 1")
+        limits.check("values", num, f"{where}num")
         start = spec.check_number(to_si(f"{where}start ({key})", t["start"], spec.unit))
         stop = spec.check_number(to_si(f"{where}stop ({key})", t["stop"], spec.unit))
         spacing = t.get("spacing", "linear")
@@ -397,6 +412,11 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
             raise InputError(
                 f"{where}stop: equals start ({start:g}), an empty range; allowed stop != start"
             )
+        if num > 1 and stop < start:
+            raise InputError(
+                f"{where}stop: {stop:g} is below start ({start:g}), a reversed range; "
+                "allowed stop > start (list values = [...] for another order)"
+            )
         if spacing == "log":
             if start <= 0.0 or stop <= 0.0:
                 raise InputError(
@@ -407,10 +427,14 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
             arr = np.linspace(start, stop, num)
         if spec.kind == "int":
             arr = np.round(arr)
-        vals = [convert(spec, float(v)) for v in arr]
+        # start and stop passed the range check, and the range is an interval: every value
+        # between them passes too, so only the two ends go through the scenario checks below
+        vals = [int(v) for v in arr] if spec.kind == "int" else [float(v) for v in arr]
     if len(set(vals)) != len(vals):
-        raise InputError(f"{where}values: repeated values in {vals}; allowed distinct values")
-    for v in vals:
+        raise InputError(
+            f"{where}values: repeated values in {str(vals)[:80]}; allowed distinct values"
+        )
+    for v in vals if spacing == "values" else (vals[0], vals[-1]):
         try:
             base.with_overrides({key: v})
         except InputError as exc:
@@ -442,6 +466,7 @@ def _samples(table: Any, base: Scenario) -> Samples:
     if "n" not in t:
         raise InputError("samples.n: missing; allowed an integer >= 1")
     n = _int("samples.n", t["n"], 1)
+    limits.check("values", n, "samples.n")
     seed = _int("samples.seed", t.get("seed", 0), 0)
     ranges = _flatten_ranges(expect_table("samples.ranges", t.get("ranges", {})))
     if not ranges:
@@ -548,6 +573,7 @@ def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np
         raw = t["times"]
         if not isinstance(raw, list) or not raw:
             raise InputError("series.times: empty; allowed a non-empty list of times")
+        limits.check("series_points", len(raw), "series.times")
         times = np.array([_time("series.times", v) for v in raw])
     else:
         for k in ("start", "stop", "num"):
@@ -556,6 +582,7 @@ def _series(table: Any, durations: Sequence[float]) -> tuple[tuple[str, ...], np
                     f"series.{k}: missing; the series needs times = [...] or start, stop and num"
                 )
         num = _int("series.num", t["num"], 1)
+        limits.check("series_points", num, "series.num")
         a, b = _time("series.start", t["start"]), _time("series.stop", t["stop"])
         if num > 1 and not b > a:
             raise InputError(f"series.stop: {b:g} s is not after start ({a:g} s), an empty range")
@@ -657,6 +684,11 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     series_times = None
     if "series" in data:
         series_names, series_times = _series(data["series"], durations)
+    for a in axes:
+        if a.name in series_names:
+            raise InputError(
+                f"axes: name {a.name!r} is also a series variable kept; allowed another name"
+            )
     try:
         opts = check_options(durations, window, series_names, series_times)
     except InputError as exc:
@@ -666,13 +698,18 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
     ex = expect_table("execution", data.get("execution", {}))
     check_keys("execution.", ex, EXECUTION_KEYS)
     shape = partial.shape
-    n_runs = int(np.prod(shape, dtype=np.int64))
+    n_runs = math.prod(shape)  # exact (Python integers): no overflow for absurd grids
+    limits.check("runs", n_runs, f"sweep {'x'.join(map(str, shape))}")
+    n_t = 0 if series_times is None else int(series_times.size)
+    per_run = 8 * (len(metrics) + len(series_names) * n_t) + 64  # float64s and a failure text
+    limits.check("bytes", n_runs * per_run, "sweep store (estimated size)")
     size = (
         _int("execution.chunk_size", ex["chunk_size"], 1)
         if "chunk_size" in ex
         else auto_chunk_size(n_runs)
     )
     retries = _int("execution.retries", ex.get("retries", 2), 0)
+    limits.check("memory", min(size, n_runs) * per_run * 2, "execution.chunk_size (memory)")
     name = data.get("name", path.stem if path else "sweep")
     return SweepSpec(
         path,
@@ -698,12 +735,13 @@ def load_spec(path: str | Path) -> SweepSpec:
     InputError
         Missing or malformed file, or any problem listed in the module docstring.
     """
+    from braidsim.specfile import parse_toml, read_text
+
     p = Path(path)
     if not p.is_file():
         raise InputError(f"SPEC: {str(p)!r} is not a file; allowed a sweep spec TOML file")
-    text = p.read_text()
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"{p}: malformed TOML ({exc})") from None
+    text = read_text(p)
+    data = parse_toml(text, str(p))
+    if not data:
+        raise InputError(f"{p}: the sweep spec is empty; allowed a spec with scenario and axes")
     return parse_spec(data, text, p)

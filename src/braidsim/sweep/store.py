@@ -18,12 +18,21 @@ chunk without its flag is simply computed and written again on resume. Runs are
 deterministic, so the rewritten bytes equal the ones an uninterrupted sweep writes. The
 store is created whole under a temporary name and renamed into place, and it holds no
 timestamps, so a resumed store equals an uninterrupted one.
+
+Integrity: every chunk file ends with a CRC-32C checksum (zarr's ``crc32c`` codec after the
+``zstd`` compressor), so a file changed after it was written (a flipped bit, a truncated
+copy) is detected when it is read: :func:`open_sweep` checks every chunk marked done and
+``--resume`` recomputes the chunks that fail. One process writes a store at a time: the
+writer holds an exclusive lock (``flock``) on ``_sweep/.lock`` for as long as it runs, the
+operating system releases it when the process ends (also after SIGKILL), and a second writer
+is refused with a message instead of deleting the first one's files in flight.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import uuid
 from collections.abc import Mapping
@@ -33,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.batch import METRICS, REGIME_FAILED, REGIMES
-from braidsim.errors import InputError
+from braidsim.errors import InputError, StoreError
 from braidsim.params import SCHEMA
 from braidsim.result import UNITS as SERIES_UNITS
 from braidsim.sweep.spec import RUN_DIM, TIME_DIM, SweepSpec
@@ -42,7 +51,10 @@ if TYPE_CHECKING:
     import xarray as xr
     import zarr
 
-STORE_FORMAT = "braidsim-sweep/1"
+STORE_FORMAT = "braidsim-sweep/2"
+#: formats this version reads (format 1 stores have no checksums)
+READ_FORMATS = ("braidsim-sweep/1", STORE_FORMAT)
+LOCK = "_sweep/.lock"
 _METRIC = {m.name: m for m in METRICS}
 
 
@@ -50,6 +62,81 @@ def _zarr() -> Any:
     import zarr
 
     return zarr
+
+
+def _codecs() -> dict[str, Any]:
+    """zstd compression, then a CRC-32C checksum of every chunk file. (:class:`StoreWriter`
+    writes every chunk as a file, even one of fill values only, so a missing file of a
+    finished chunk is damage.)"""
+    from zarr.codecs import Crc32cCodec, ZstdCodec
+
+    return {"compressors": [ZstdCodec(level=0), Crc32cCodec()]}
+
+
+def _damaged(path: str | Path, what: str) -> StoreError:
+    return StoreError(
+        f"STORE: {path} is damaged ({what}); recompute its damaged chunks with `braidsim "
+        f"sweep SPEC --out {path} --resume`, or run the sweep again into a new store"
+    )
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_temporaries(final: Path) -> int:
+    """Remove the hidden folders ``.NAME.creating-PID-*`` that a killed process left beside
+    the store ``NAME`` (only those whose process is gone); return how many."""
+    n = 0
+    pat = re.compile(re.escape(f".{final.name}.creating-") + r"(\d+)-[0-9a-f]+")
+    if not final.parent.is_dir():
+        return 0
+    for p in final.parent.iterdir():
+        m = pat.fullmatch(p.name)
+        if m and not _pid_alive(int(m.group(1))):
+            shutil.rmtree(p, ignore_errors=True)
+            n += 1
+    return n
+
+
+class StoreLock:
+    """An exclusive lock on a store for the life of one writer (``flock`` on ``_sweep/.lock``).
+
+    Raises
+    ------
+    InputError
+        Another process holds the lock (it is writing the store now).
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        import fcntl
+
+        self.path = Path(path)
+        lock = self.path / LOCK
+        try:
+            self.fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644 & ~0o022)
+        except OSError as exc:
+            raise StoreError(f"{lock}: cannot open the lock file ({exc.strerror})") from None
+        try:
+            fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self.fd)
+            raise InputError(
+                f"--out: {self.path} is being written by another braidsim sweep now; wait for "
+                "it to finish (or stop it), then --resume"
+            ) from None
+
+    def release(self) -> None:
+        """Release the lock."""
+        if self.fd >= 0:
+            os.close(self.fd)  # closing the descriptor releases the flock
+            self.fd = -1
 
 
 def _coord_dtype(values: tuple[Any, ...]) -> Any:
@@ -85,6 +172,7 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
             {str(REGIME_FAILED): "failed", **{str(i): r for i, r in enumerate(REGIMES)}}
         ),
         "dims": list(spec.dims),
+        "arrays": [*spec.metrics, "failure", *o.series],
         "chunk_shape": list(spec.chunk_shape),
         "n_runs": spec.n_runs,
         "n_chunks": spec.n_chunks,
@@ -107,7 +195,8 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             f"--out: {final} exists; pass --resume to finish it, or choose another path"
         )
     final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = final.parent / f".{final.name}.creating-{uuid.uuid4().hex[:8]}"
+    remove_stale_temporaries(final)
+    tmp = final.parent / f".{final.name}.creating-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
         g = zarr.open_group(str(tmp), mode="w", zarr_format=3, attributes=_root_attrs(spec))
         dims = spec.dims
@@ -173,6 +262,7 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
                 fill_value=m.fill,
                 dimension_names=list(dims),
                 attributes=attrs,
+                **_codecs(),
             )
         g.create_array(
             "failure",
@@ -182,6 +272,7 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             fill_value="",
             dimension_names=list(dims),
             attributes={"description": "why a run failed (empty: it finished)", **extra},
+            **_codecs(),
         )
         o = spec.options
         if o.series:
@@ -208,6 +299,7 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
                         "description": f"sampled {name}",
                         **extra,
                     },
+                    **_codecs(),
                 )
         sub = g.create_group(
             "_sweep", attributes={"description": "progress of the sweep (chunks done)"}
@@ -219,8 +311,18 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
             dtype=np.int8,
             fill_value=0,
             dimension_names=["chunk"],
+            **_codecs(),
         )
-        os.rename(tmp, final)
+        (tmp / LOCK).touch()
+        try:
+            os.rename(tmp, final)
+        except OSError:
+            if final.exists():  # another sweep created it between our check and now
+                raise InputError(
+                    f"--out: {final} was just created by another process; choose another "
+                    "path, or --resume once that sweep is done"
+                ) from None
+            raise
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
@@ -239,8 +341,14 @@ def store_attrs(path: str | Path) -> Mapping[str, Any]:
     p = Path(path)
     if not (p / "zarr.json").is_file():
         raise InputError(f"STORE: {p} is not a sweep store (no zarr.json)")
-    attrs = dict(zarr.open_group(str(p), mode="r").attrs)
-    if attrs.get("format") != STORE_FORMAT:
+    try:
+        attrs = dict(zarr.open_group(str(p), mode="r").attrs)
+    except Exception as exc:  # zarr raises several types for damaged metadata
+        raise StoreError(
+            f"STORE: {p}/zarr.json cannot be read ({exc.__class__.__name__}); the store is "
+            "damaged: run the sweep again into a new store"
+        ) from None
+    if attrs.get("format") not in READ_FORMATS:
         raise InputError(
             f"STORE: {p} is not a braidsim sweep store (format {attrs.get('format')!r})"
         )
@@ -256,11 +364,117 @@ def remove_partial_files(path: str | Path) -> int:
     return n
 
 
-def done_chunks(path: str | Path) -> np.ndarray:
-    """Boolean array: which chunks are complete."""
+def check_store(path: str | Path) -> Any:
+    """Open a sweep store and check its structure: the progress array and every data array
+    the store was created with are present and readable. Returns the zarr group.
+
+    Raises
+    ------
+    StoreError
+        A part of the store is missing or its metadata cannot be read.
+    """
+    attrs = store_attrs(path)
     zarr = _zarr()
-    g = zarr.open_group(str(path), mode="r")
-    return np.asarray(g["_sweep/done"][:]) == 1
+    try:
+        g = zarr.open_group(str(path), mode="r")
+    except Exception as exc:  # zarr raises several types for damaged metadata
+        raise _damaged(path, f"root: {exc.__class__.__name__}") from None
+    for name in ["_sweep/done", *attrs.get("arrays", [])]:
+        try:
+            g[name]
+        except Exception as exc:  # a missing array (KeyError) or damaged metadata
+            raise _damaged(path, f"array {name!r}: {exc.__class__.__name__}") from None
+    return g
+
+
+def done_chunks(path: str | Path, strict: bool = False) -> np.ndarray:
+    """Boolean array: which chunks are complete.
+
+    A flag whose file fails its checksum counts as not done (the chunk is computed again on
+    resume); with ``strict`` it is a :class:`StoreError` instead (reading a store).
+    """
+    g = check_store(path)
+    arr = g["_sweep/done"]
+    try:
+        return np.asarray(arr[:]) == 1
+    except ValueError:
+        if strict:
+            raise _damaged(path, "a chunk's done flag fails its checksum") from None
+        out = np.zeros(arr.shape[0], dtype=bool)
+        for c in range(arr.shape[0]):
+            try:
+                out[c] = int(arr[c]) == 1
+            except ValueError:
+                out[c] = False
+        return out
+
+
+def _data_arrays(group: Any) -> list[str]:
+    """The arrays chunked like the work (metrics, failure, series), as the store lists them."""
+    return [str(n) for n in group.attrs.get("arrays", [])]
+
+
+def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
+    """Chunks marked done whose files are missing or fail their checksum:
+    ``{chunk: array name}``.
+
+    Reads every done chunk of every data array (metrics, failure, series). Stores of format
+    1 have no checksums and report nothing.
+    """
+    p = Path(path)
+    g = check_store(p)
+    if g.attrs.get("format") != STORE_FORMAT:
+        return {}
+    done = done_chunks(p, strict=strict)
+    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
+    names = _data_arrays(g)
+    bad: dict[int, str] = {}
+    if not names:
+        return bad
+    shape = g[names[0]].shape[: len(chunk_shape)]
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    for c in np.flatnonzero(done):
+        idx = np.unravel_index(int(c), grid)
+        region = tuple(
+            slice(int(i) * k, min((int(i) + 1) * k, s))
+            for i, k, s in zip(idx, chunk_shape, shape, strict=True)
+        )
+        key = "/".join(str(int(i)) for i in idx)
+        for name in names:
+            f = p / name / "c" / key
+            if g[name].ndim > len(chunk_shape):
+                f = f / "0"  # the series' time dimension is one chunk
+            if not f.is_file():
+                bad[int(c)] = name
+                break
+            try:
+                g[name][region]
+            except ValueError:
+                bad[int(c)] = name
+                break
+    return bad
+
+
+def mark_undone(path: str | Path, chunks: list[int]) -> None:
+    """Clear the done flag of ``chunks`` and remove their (damaged) files: they are computed
+    and written again."""
+    p = Path(path)
+    g = _zarr().open_group(str(p), mode="r+")
+    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
+    names = _data_arrays(g)
+    shape = g[names[0]].shape[: len(chunk_shape)] if names else ()
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    for c in chunks:
+        g["_sweep/done"][c] = 0
+        key = "/".join(str(int(i)) for i in np.unravel_index(int(c), grid))
+        for name in names:
+            f = p / name / "c" / key
+            if f.is_dir() and g[name].ndim > len(chunk_shape):
+                f = f / "0"
+            if f.is_dir() and not f.is_symlink():
+                shutil.rmtree(f)
+            elif f.exists() or f.is_symlink():
+                f.unlink()
 
 
 class StoreWriter:
@@ -268,11 +482,14 @@ class StoreWriter:
 
     def __init__(self, path: str | Path, spec: SweepSpec) -> None:
         self.spec = spec
-        self.group: zarr.Group = _zarr().open_group(str(path), mode="r+")
-        self.arrays = {
-            name: self.group[name] for name in (*spec.metrics, "failure", *spec.options.series)
-        }
-        self.done = self.group["_sweep/done"]
+        zr = _zarr()
+        # every chunk is written as a file, even one of fill values only (see _codecs)
+        with zr.config.set({"array.write_empty_chunks": True}):
+            self.group: zarr.Group = zr.open_group(str(path), mode="r+")
+            self.arrays = {
+                name: self.group[name] for name in (*spec.metrics, "failure", *spec.options.series)
+            }
+            self.done = self.group["_sweep/done"]
 
     def write_chunk(
         self,
@@ -296,7 +513,14 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     fill values: NaN, -1 or "")."""
     import xarray as xr
 
-    store_attrs(path)
+    bad = corrupt_chunks(path, strict=True)
+    if bad:
+        c, name = next(iter(bad.items()))
+        raise StoreError(
+            f"STORE: {path}: chunk {c} of {name!r} is missing or fails its checksum "
+            f"({len(bad)} chunk(s) damaged after they were written); recompute them with "
+            f"`braidsim sweep SPEC --out {path} --resume`"
+        )
     return xr.open_zarr(str(path), consolidated=False, chunks=None)
 
 

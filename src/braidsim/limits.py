@@ -1,0 +1,59 @@
+"""Resource limits checked before any work starts, each raisable by the user.
+
+A typo in a spec (``num = 1000000000``), a huge ``--points`` or a series of every run can ask
+for more runs, memory or disk than a machine has; braidsim then refuses up front with an
+estimate instead of running for hours or growing until the out-of-memory killer strikes.
+Each limit has a default that suits a workstation and an environment variable that raises
+it (for example ``BRAIDSIM_MAX_RUNS=100000000``). The values below are defaults, not
+physics.
+"""
+
+from __future__ import annotations
+
+import os
+
+from braidsim.errors import InputError
+
+#: name -> (default, unit, what it bounds)
+DEFAULTS: dict[str, tuple[float, str, str]] = {
+    "runs": (10_000_000, "runs", "simulations of one command (sweep, restitution, grids)"),
+    "values": (1_000_000, "values", "values of one sweep axis or samples of a sweep"),
+    "series_points": (1_000_000, "times", "sample times of a sweep's stored series"),
+    "bytes": (50e9, "bytes", "size of a sweep store on disk"),
+    "memory": (4e9, "bytes", "memory of one chunk of work or of an animation"),
+    "frames": (10_000, "frames", "frames of an animation"),
+}
+
+
+def env_name(name: str) -> str:
+    """The environment variable that raises limit ``name``."""
+    return f"BRAIDSIM_MAX_{name.upper()}"
+
+
+def limit(name: str) -> float:
+    """The current value of limit ``name`` (its environment variable, else the default)."""
+    default = DEFAULTS[name][0]
+    text = os.environ.get(env_name(name))
+    if text is None or not text.strip():
+        return float(default)
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise InputError(f"{env_name(name)}: {text!r} is not allowed; allowed a number > 0")
+    return value
+
+
+def check(name: str, amount: float, what: str) -> None:
+    """Raise an :class:`InputError` when ``amount`` exceeds limit ``name``.
+
+    The message gives the estimate, the limit and the variable that raises it.
+    """
+    cap = limit(name)
+    if amount > cap:
+        unit = DEFAULTS[name][1]
+        raise InputError(
+            f"{what}: {amount:.4g} {unit} exceeds the limit of {cap:.4g} {unit}; "
+            f"reduce it, or raise the limit with {env_name(name)}=N"
+        )
