@@ -225,11 +225,6 @@ def test_machine_spec_parser_refuses_cleanly():
     _refuses_cleanly(parse_machine_spec)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="design spec: a non-table [machine] (machine = '0' or None) reaches "
-    "design.evaluate.machine_for and raises ValueError/TypeError (design/* is not ours)",
-)
 def test_design_spec_parser_refuses_cleanly():
     from braidsim.design.spec import parse_design_spec
 

@@ -92,7 +92,6 @@ slot walls, so the slot contact belongs in every figure.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -108,7 +107,7 @@ from braidsim.design.speed_limits import SpeedLimitOptions
 from braidsim.errors import InputError
 from braidsim.machine.spec import TOP_KEYS as MACHINE_TOP_KEYS
 from braidsim.machine.spec import MachineSpec
-from braidsim.specfile import check_keys, expect_table, read_toml_file
+from braidsim.specfile import check_keys, expect_table, parse_toml, read_text, read_toml_file
 from braidsim.units import to_si
 
 TOP_KEYS = ("name", "description", "machine_spec", "design", *MACHINE_TOP_KEYS)
@@ -347,10 +346,8 @@ def _machine_table(
         mp = path.parent / mp
     if not mp.is_file():
         raise InputError(f"machine_spec: {str(mp)!r} is not a file; allowed a machine spec TOML")
-    try:
-        table = tomllib.loads(mp.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise InputError(f"machine_spec: {mp}: malformed TOML ({exc})") from None
+    # the spec readers' checks: UTF-8, nesting depth, numbers a float can hold
+    table = parse_toml(read_text(mp, "machine_spec"), f"machine_spec: {mp}")
     return table, mp
 
 
@@ -366,8 +363,8 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     name = str(data.get("name", path.stem if path else "design"))
     description = str(data.get("description", ""))
     table, mpath = _machine_table(data, path)
-    mt = table.get("machine", {})
-    if isinstance(mt, Mapping) and "speed_profile" in mt:
+    mt = expect_table("machine", table.get("machine", {}))
+    if "speed_profile" in mt:
         raise InputError(
             "machine.speed_profile: set by the design study (the baseline is constant speed); "
             "allowed: leave it out of the machine spec"
