@@ -359,7 +359,7 @@ def test_dask_worker_killed_mid_sweep(spec_path, reference, tmp_path):
         n_workers=2,
         threads_per_worker=1,
         processes=True,
-        dashboard_address=None,
+        dashboard_address=":0",
         silence_logs=logging.CRITICAL,
     )
     client = Client(cluster)

@@ -369,7 +369,7 @@ class DaskExecutor:
             n_workers=self.workers,
             threads_per_worker=1,
             processes=True,
-            dashboard_address=None,
+            dashboard_address=":0",  # a free port (None means 8787, maybe taken)
             silence_logs=logging.ERROR,
         )
         client = Client(cluster)
