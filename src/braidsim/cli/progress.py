@@ -15,7 +15,7 @@ from types import FrameType
 from typing import Any
 
 #: what the first call of the integrator says while numba compiles it
-COMPILE_NOTE = "compiling the integrator (about 20 s, once; cached afterwards)"
+COMPILE_NOTE = "compiling the integrator (about a minute, once; cached afterwards)"
 
 
 def enabled(quiet: bool = False) -> bool:
@@ -35,7 +35,7 @@ ENTRY_POINTS = (("core/solver/loop.py", "integrate"),)
 
 def kernel_needs_compile() -> bool:
     """True when numba's cache holds no usable compiled integrator, i.e. the first run will
-    compile it (~20 s on 2 cores).
+    compile it (about 50 s of CPU for `braidsim run` on 2 cores).
 
     Reads numba's cache index of the integrator's entry point (:data:`ENTRY_POINTS`) from
     the file system, as numba does: in ``NUMBA_CACHE_DIR`` when set, else in ``__pycache__``
