@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from braidsim.core.generic import generic
+from braidsim.core.generic import generic, inline_helper
 
 # What each model writes: its series columns (``kind`` last) and the names of its energy
 # quadratures in state order. Filled by :func:`describe_model`, read by :func:`series_columns`.
@@ -38,6 +38,21 @@ def series_columns(model: Any) -> tuple[str, ...]:
 def quadrature_names(model: Any) -> tuple[str, ...]:
     """The energy quadratures of ``model`` in state order."""
     return _QUADS[model if isinstance(model, type) else type(model)]
+
+
+@inline_helper
+def penetration(mode, g_in, g_out, rate):
+    """(p, p') into the wall of ``mode`` (-1 inner, +1 outer) from the pair's gaps and
+    rate (the convention above), p clamped at 0."""
+    if mode < 0:
+        p = -g_in
+        pd = -rate
+    else:
+        p = -g_out
+        pd = rate
+    if p < 0.0:
+        p = 0.0
+    return p, pd
 
 
 # =======================================================================================

@@ -50,6 +50,7 @@ from braidsim.core.interfaces import (
     pair_law,
     pair_law_rates,
     pair_onset_step,
+    penetration,
     series_row,
     wall_accel_bound,
     wall_motion,
@@ -154,16 +155,7 @@ def _track_contact(model, t, y, mode, v0):
     if mode == 0:
         return 0.0, 0.0, 0.0, h, hd
     u = y[0] - h
-    if mode > 0:
-        u = u - model.track_clearance
-    if mode < 0:
-        p = -u
-        pd = -(y[1] - hd)
-    else:
-        p = u
-        pd = y[1] - hd
-    if p < 0.0:
-        p = 0.0
+    p, pd = penetration(mode, u, model.track_clearance - u, y[1] - hd)
     fk, _, nn = contact_forces(model.track_law, p, pd, v0)
     return pd, fk, nn, h, hd
 
@@ -174,17 +166,9 @@ def _slot_contact(model, t, y, mode, v0, om, s):
     if mode == 0:
         return 0.0, 0.0, 0.0
     u = y[2] - s
-    ud = y[3] - model.horn_gear.turning_radius * om
-    if mode > 0:
-        u = u - model.slot_clearance
-    if mode < 0:
-        p = -u
-        pd = -ud
-    else:
-        p = u
-        pd = ud
-    if p < 0.0:
-        p = 0.0
+    p, pd = penetration(
+        mode, u, model.slot_clearance - u, y[3] - model.horn_gear.turning_radius * om
+    )
     fk, _, nn = contact_forces(model.slot_law, p, pd, v0)
     return pd, fk, nn
 
@@ -329,14 +313,7 @@ def _diss_xy(model, pair):
 def _signed_forces(law, mode, g_in, g_out, rate, v0):
     if mode == 0:
         return 0.0, 0.0, 0.0, 0.0
-    if mode < 0:
-        p = -g_in
-        pd = -rate
-    else:
-        p = -g_out
-        pd = rate
-    if p < 0.0:
-        p = 0.0
+    p, pd = penetration(mode, g_in, g_out, rate)
     fk, fc, nn = contact_forces(law, p, pd, v0)
     s = float(mode)
     return s * p, s * fk, s * fc, s * nn

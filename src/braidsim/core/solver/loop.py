@@ -67,6 +67,19 @@ def _energy(y, idx, n):
 
 
 @njit(cache=True, error_model="numpy")
+def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep):
+    """Open row ``nep`` of the impact table for a contact of ``pair`` starting at t (approach
+    speed ``vel``, latched ``v0``) and fold its first values in; returns the new row count."""
+    open_ep[pair] = nep
+    e0 = _energy(y, dissipation_index(model, pair), n)
+    nep = open_episode(EP, nep, t, pair, mode, vel, v0, initial, e0)
+    # a contact present at the start may have its largest force there, and a law whose
+    # force jumps at onset (a dashpot) has its first extremes there
+    episode_start_values(model, EP, nep - 1, t, y, pair, mode, v0)
+    return nep
+
+
+@njit(cache=True, error_model="numpy")
 def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n):
     """The contact policy at the start and right after a transfer, for the first ``npair``
     pairs.
@@ -101,10 +114,8 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n):
             v0 = pd if pd > vmin else vmin
         modes[pair] = mode
         v0s[pair] = v0
-        open_ep[pair] = nep
-        e0 = _energy(y, dissipation_index(model, pair), n)
-        nep = open_episode(EP, nep, t, pair, mode, pd, v0, 1.0 if p > 0.0 else 0.0, e0)
-        episode_start_values(model, EP, open_ep[pair], t, y, pair, mode, v0)
+        initial = 1.0 if p > 0.0 else 0.0
+        nep = _open(model, EP, nep, t, y, pair, mode, pd, v0, initial, n, open_ep)
     return nep
 
 
@@ -193,10 +204,10 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             for pair in range(n_pairs):
                 open_ep[pair] = -1
                 if modes[pair] != 0:
-                    open_ep[pair] = nep
-                    e0 = _energy(y, dissipation_index(model, pair), n)
-                    nep = open_episode(EP, nep, t, pair, modes[pair], math.nan, v0s[pair], 1.0, e0)
-                    episode_start_values(model, EP, nep - 1, t, y, pair, modes[pair], v0s[pair])
+                    mode = modes[pair]
+                    nep = _open(
+                        model, EP, nep, t, y, pair, mode, math.nan, v0s[pair], 1.0, n, open_ep
+                    )
         nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_START, rec)
         update_ranges(model, n_pairs, t, y, modes, v0s, WIN, RANGES)
         while isamp < ST.shape[0] and ST[isamp] <= t:
@@ -384,11 +395,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                 vlat = rate if rate > vmin else vmin
                 modes[pair] = side
                 v0s[pair] = vlat
-                open_ep[pair] = nep
-                e0 = _energy(y, dissipation_index(model, pair), n)
-                nep = open_episode(EP, nep, t_ev, pair, side, rate, vlat, 0.0, e0)
-                # a law whose force jumps at onset (a dashpot) has its first extremes there
-                episode_start_values(model, EP, open_ep[pair], t_ev, y, pair, side, vlat)
+                nep = _open(model, EP, nep, t_ev, y, pair, side, rate, vlat, 0.0, n, open_ep)
                 nrow = write_row(model, rows, nrow, t_ev, y, modes, v0s, n, KIND_ONSET, rec)
                 # start the contact with a step of a fraction of its duration estimated from
                 # the elastic closed form, and rescale a rejected first step by its own law

@@ -12,8 +12,14 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from braidsim.core.generic import helper, inline_helper
-from braidsim.core.interfaces import pair_gap_accel, pair_gaps, pair_law, pair_law_rates
+from braidsim.core.generic import helper
+from braidsim.core.interfaces import (
+    pair_gap_accel,
+    pair_gaps,
+    pair_law,
+    pair_law_rates,
+    penetration,
+)
 
 INFO_FIELDS = (
     "g_in",  # gap to the inner wall [m]
@@ -33,20 +39,6 @@ I_GIN, I_GOUT, I_RATE, I_ACC, I_P, I_PD, I_PDD, I_FK, I_FC, I_N, I_DN, I_DFC = r
     len(INFO_FIELDS)
 )
 NI = len(INFO_FIELDS)
-
-
-@inline_helper
-def penetration(mode, g_in, g_out, rate):
-    """(p, p') into the wall of ``mode`` (-1 inner, +1 outer), p clamped at 0."""
-    if mode < 0:
-        p = -g_in
-        pd = -rate
-    else:
-        p = -g_out
-        pd = rate
-    if p < 0.0:
-        p = 0.0
-    return p, pd
 
 
 @helper
