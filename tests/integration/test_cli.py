@@ -217,3 +217,21 @@ def test_unknown_option_is_one_line_exit_2(capsys) -> None:
     code, out, err = run_cli(capsys, "run", "paper-3.1", "--bogus")
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "--bogus" in err
+
+
+def test_the_package_imports_no_click_of_its_own() -> None:
+    """typer vendors click (``typer._click``) and does not install it: a direct ``import
+    click`` works where something else installed click (dask, mkdocs) and breaks a plain
+    ``pip install .`` (the README's main job)."""
+    import re
+    from pathlib import Path
+
+    import braidsim
+
+    src = Path(braidsim.__file__).parent
+    offenders = [
+        str(p.relative_to(src))
+        for p in src.rglob("*.py")
+        if re.search(r"^\s*(import click\b|from click\b)", p.read_text(), re.MULTILINE)
+    ]
+    assert offenders == []

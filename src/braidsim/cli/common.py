@@ -20,7 +20,6 @@ from contextlib import contextmanager
 from functools import wraps
 from typing import Any, TypeVar
 
-import click
 import typer
 
 from braidsim.errors import InputError, SimulationError, StoreError
@@ -194,7 +193,7 @@ def guarded(func: F) -> F:
             fail(_os_error_text(exc), 1)
         except MemoryError:
             fail("out of memory; reduce the size of the work (see the limits in the docs)", 1)
-        except (typer.Exit, typer.Abort, SystemExit, click.ClickException):
+        except (typer.Exit, typer.Abort, SystemExit, typer.TyperException):
             raise  # exit codes and usage errors: run_app answers them
         except Exception as exc:
             if os.environ.get("BRAIDSIM_TRACEBACK"):
