@@ -181,11 +181,12 @@ def main() -> None:
     )
     print(
         f"   {rate_s:8.2f} runs/s wall ({ka / cpu_s if ka else float('nan'):.2f} runs/s of CPU "
-        f"time) on those; braidsim on the same sets, one process: {ka / wall_b:.1f} runs/s"
+        f"time) on those; braidsim on the same sets, one process: "
+        f"{ka / wall_b if ka else float('nan'):.1f} runs/s"
     )
 
-    # 4. ratios and targets
-    per_core = (ka / wall_b) / rate_s
+    # 4. ratios and targets (NaN when SciPy got no sampled set right)
+    per_core = (ka / wall_b) / rate_s if ka else float("nan")
     ratio = per_core * rate2 / rate1
     # for the record: all k sets, SciPy's wrong (cheaper) runs included
     per_core_all = sum(r[0] for r in scipy_runs) / sum(o[0] for o in ours)

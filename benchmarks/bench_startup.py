@@ -2,11 +2,12 @@
 
 Run: ``python benchmarks/bench_startup.py [--repeats 3] [--delete-installed-cache]``
 
-* cold: the numba cache is empty, so every kernel function is compiled; targets < 20 s;
+* cold: the numba cache is empty, so every compiled function of the core is compiled (target
+  < 10 s; the core measured 52 s of CPU with ``bench_core --part startup``);
 * warm: the cache written by the cold run is reused; target < 2 s.
 
 By default the cold run points ``NUMBA_CACHE_DIR`` at a new empty directory, so the cache
-next to the installed package (``braidsim/integrate/__pycache__/*.nbi, *.nbc``) is neither
+next to the installed package (``braidsim/core/**/__pycache__/*.nbi, *.nbc``) is neither
 used nor touched (other processes may be using it); the warm runs reuse that directory. With
 ``--delete-installed-cache`` the ``*.nbi``/``*.nbc`` files under the installed package's
 ``__pycache__`` directories are deleted instead and the default cache location is used, which
