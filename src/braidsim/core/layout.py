@@ -46,7 +46,6 @@ END_ONGOING = 1.0  # still in contact at the end of the run
 END_TRANSFER = 2.0  # cut by a transfer to the next horn gear
 
 MAX_PAIRS = 2  # contact pairs a model may have (track and slot)
-MAX_STATE = 16  # longest state vector (coordinates, speeds and energy quadratures)
 
 
 class SolverOptions(NamedTuple):
