@@ -314,3 +314,31 @@ def test_grazing_contact_is_refused() -> None:
     err = braidsim.sensitivity.sensitivity_error(raw.t)
     assert isinstance(err, SensitivityError)
     assert "t = 1 s" in str(err) and "grazing" in str(err)
+
+
+def test_cli_sensitivity_json_and_bad_key(capsys) -> None:
+    """``braidsim run --sensitivity KEY --json``: the derivatives in each impact and in
+    ``final``, the same numbers as the Python API; a law name is refused in one line."""
+    import json
+
+    from braidsim.cli import main
+
+    def cli(*argv: str) -> tuple[int, str, str]:
+        with pytest.raises(SystemExit) as exc:
+            main(list(argv))
+        out, err = capsys.readouterr()
+        return int(exc.value.code or 0), out, err
+
+    args = ("run", "paper-3.3", "--duration", "0.02 s", "--sensitivity", "track.clearance")
+    code, out, err = cli(*args, "--json")
+    assert code == 0, err
+    data = json.loads(out)
+    res = braidsim.simulate("paper-3.3", duration=0.02, sensitivities=["track.clearance"])
+    d = data["final"]["sensitivity"]["track.clearance"]
+    assert d["x"] == pytest.approx(res.sensitivity.final[0, 0], rel=1e-12)
+    imp = data["impacts"][1]["sensitivity"]["track.clearance"]
+    assert set(imp) == {"t", "velocity", "peak_force", "max_depth", "t_end"}
+    assert imp["peak_force"] == pytest.approx(res.sensitivity.impacts[1, 0, 2], rel=1e-12)
+    code, out, err = cli("run", "paper-3.3", "--sensitivity", "contact.track.model", "--json")
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and "contact.track.model" in err
