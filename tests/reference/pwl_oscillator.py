@@ -58,13 +58,12 @@ Jacobian of the stroboscopic map z(t0) -> z(t0 + k T), T = 2 pi / Omega
 Balachandran, B. (1995), Applied Nonlinear Dynamics, Wiley, chapter 7,
 doi:10.1002/9783527617548), which do not depend on t0.
 
-Parameter sets for other tests (SI units, ``PARAMETER_SETS``), period-1 orbits with one
-impact per period, their multipliers from this module (section at t = 0):
+Parameter sets for other tests (SI units, ``PARAMETER_SETS``; the orbits' times, speeds and
+multipliers are written beside them, guesses in ``ORBIT_GUESSES``):
 
-- ``"stable_p1"``: a stable period-1 orbit, complex multipliers (see the module's tests for
-  the values);
+- ``"stable_p1"``: a stable period-1 orbit with one impact, complex multipliers;
 - ``"stable_p1_stiff"``: the same forcing against a ten times stiffer wall, stable;
-- ``"period_doubled"``: beyond a period-doubling: the period-1 orbit is unstable with a real
+- ``"period_doubled"``: past a period doubling: the period-1 orbit is unstable with a real
   multiplier below -1, and a stable period-2 orbit with two impacts per two periods exists.
 
 Nothing here imports braidsim: the module is the independent side of the comparison.
@@ -596,9 +595,12 @@ def periodic_orbit(
             "give a closer guess"
         )
     t_on, t_off, v_on, v_off = (a.copy() for a in _unpack(u, n))
-    shift = math.floor(t_on[0] / P) * P
-    t_on -= shift
-    t_off -= shift
+    # onsets into [0, k T), in increasing order (a cyclic shift of the impacts)
+    shifts = np.floor(t_on / P) * P
+    t_on -= shifts
+    t_off -= shifts
+    order = np.argsort(t_on)
+    t_on, t_off, v_on, v_off = t_on[order], t_off[order], v_on[order], v_off[order]
     orbit = PeriodicOrbit(params, period_k, t_on, t_off, v_on, v_off, t_section, np.zeros(2), res)
     if check:
         _check_admissible(orbit)
@@ -625,9 +627,10 @@ def _check_admissible(orbit: PeriodicOrbit) -> None:
         ):
             ts = ph.first_switch(t_a, (g, v), t_b + tol, on_surface=True)
             if ts is None or abs(ts - t_b) > tol:
+                found = "never" if ts is None else f"at t = {ts:.9g}"
                 raise ValueError(
-                    f"not admissible: the {what} phase from t = {t_a:.9g} switches at {ts} "
-                    f"before its matched end {t_b:.9g}"
+                    f"not admissible: the {what} phase from t = {t_a:.9g} meant to end at "
+                    f"t = {t_b:.9g} switches {found}"
                 )
 
 
@@ -671,6 +674,63 @@ def floquet_multipliers(orbit: PeriodicOrbit, t_section: float | None = None) ->
     return mult[np.argsort(-np.abs(mult))]
 
 
+def bifurcation_function(orbit: PeriodicOrbit, kind: str) -> float:
+    """A smooth function of the monodromy M that vanishes at a bifurcation of the orbit.
+
+    ``"period_doubling"``: det(M + I) = 1 + tr M + det M = (1 + m1)(1 + m2), zero when a
+    multiplier is -1; ``"fold"``: det(M - I) = 1 - tr M + det M, zero when one is +1. Both
+    are real and smooth even where the multipliers are a complex pair (Kuznetsov, Y. A.
+    (2004), Elements of Applied Bifurcation Theory, 3rd ed., Springer, section 9.5,
+    doi:10.1007/978-1-4757-3978-7).
+    """
+    M = monodromy(orbit)
+    sign = {"period_doubling": 1.0, "fold": -1.0}.get(kind)
+    if sign is None:
+        raise ValueError(f"kind {kind!r}; allowed 'period_doubling' or 'fold'")
+    return float(1.0 + sign * np.trace(M) + np.linalg.det(M))
+
+
+def critical_parameter(
+    params: PWLParams,
+    name: str,
+    lo: float,
+    hi: float,
+    kind: str = "period_doubling",
+    period_k: int = 1,
+    steps: int = 20,
+    guess: PeriodicOrbit | None = None,
+) -> tuple[float, PeriodicOrbit]:
+    """The value of parameter ``name`` in [lo, hi] where the orbit meets ``kind``.
+
+    The orbit is followed from lo to hi in ``steps`` equal steps (each solved from the
+    previous one; at lo from ``guess`` or a transient), the first sign change of
+    :func:`bifurcation_function` is refined by Brent's method (each evaluation solves the
+    matching equations anew). Returns the value and the orbit there.
+    """
+    if name not in PWLParams._fields:
+        raise ValueError(f"parameter {name!r}; allowed one of {PWLParams._fields}")
+
+    def orbit_at(value: float, near: PeriodicOrbit | None) -> PeriodicOrbit:
+        return periodic_orbit(params._replace(**{name: value}), period_k, near)
+
+    values = np.linspace(lo, hi, steps + 1)
+    prev = orbit_at(values[0], guess)
+    f_prev = bifurcation_function(prev, kind)
+    for a, b in pairwise(values):
+        cur = orbit_at(b, prev)
+        f_cur = bifurcation_function(cur, kind)
+        if f_prev * f_cur <= 0.0:
+            value = brentq(
+                lambda x, near=prev: bifurcation_function(orbit_at(x, near), kind),
+                a,
+                b,
+                xtol=1e-13 * max(abs(a), abs(b)),
+            )
+            return float(value), orbit_at(value, prev)
+        prev, f_prev = cur, f_cur
+    raise ValueError(f"no {kind} of the orbit for {name} in [{lo}, {hi}]")
+
+
 def stroboscopic_jacobian_fd(
     params: PWLParams, z: Sequence[float], t0: float = 0.0, period_k: int = 1, rel: float = 1e-6
 ) -> np.ndarray:
@@ -691,4 +751,46 @@ def stroboscopic_jacobian_fd(
 
 # ---- documented parameter sets -----------------------------------------------------------------
 
-PARAMETER_SETS: dict[str, PWLParams] = {}
+_BASE = PWLParams(
+    mass=1.0,
+    stiffness=1.0,
+    damping=0.1,
+    force_amplitude=1.0,
+    force_frequency=1.8,
+    force_phase=0.0,
+    gap=0.1,
+    contact_stiffness=20.0,
+    contact_damping=1.0,
+)
+
+PARAMETER_SETS: dict[str, PWLParams] = {
+    # m = k = 1 (natural frequency 1 rad/s), damping ratio 0.05, wall 0.1 m out, contact
+    # 20 times stiffer than the spring; Omega = 1.8 rad/s. Period-1, one impact: onset
+    # t = 1.0899800713 s at 2.0739328214 m/s, exit t = 1.7318009285 s at -1.556348289 m/s;
+    # z(0) = (-1.7630593803 m, 0.6983689386 m/s); multipliers 0.4740320334 +- 0.3828067247 i.
+    "stable_p1": _BASE,
+    # the same forcing against a wall 200 times stiffer than the spring. Period-1, one
+    # impact: onset t = 0.5580063095 s at 4.1587073322 m/s, exit t = 0.7808890821 s at
+    # -3.3036377614 m/s; z(0) = (-2.0622073357 m, 3.3370572989 m/s); multipliers
+    # 0.661381077 +- 0.119299836 i.
+    "stable_p1_stiff": _BASE._replace(contact_stiffness=200.0, contact_damping=2.0),
+    # Omega = 2.4 rad/s, past the period doubling of the period-1 orbit at Omega =
+    # 2.29213915 rad/s (:func:`critical_parameter` from Omega = 2.2). Period-1 (unstable),
+    # one impact: onset t = 1.0215863895 s at 0.4421789492 m/s, exit t = 1.4842287957 s at
+    # -0.3723038292 m/s; z(0) = (-0.3713677184 m, 0.0483261473 m/s); multipliers
+    # -1.7517583583 and -0.2766334723. Period-2 (stable, the attractor), two impacts:
+    # onsets t = 0.5562863993, 3.9471932136 s at 0.4743414522, 0.5194618765 m/s, exits
+    # t = 1.1389674533, 4.458803213 s at -0.4724404205, -0.3507294674 m/s;
+    # z(0) = (-0.0810019893 m, 0.0820999881 m/s); multipliers -0.5775914739, -0.3433512249.
+    "period_doubled": _BASE._replace(force_frequency=2.4),
+}
+"""Parameter sets with known orbits (values computed by this module, section t = 0)."""
+
+ORBIT_GUESSES: dict[tuple[str, int], tuple[tuple[float, ...], ...]] = {
+    ("stable_p1", 1): ((1.09,), (1.73,), (2.07,), (-1.56,)),
+    ("stable_p1_stiff", 1): ((0.558,), (0.781,), (4.16,), (-3.30,)),
+    ("period_doubled", 1): ((1.02,), (1.48,), (0.442,), (-0.372,)),
+    ("period_doubled", 2): ((0.556, 3.947), (1.139, 4.459), (0.474, 0.519), (-0.472, -0.351)),
+}
+"""Guesses (t_on, t_off, v_on, v_off) of the orbits above, keyed by (set, period_k): the
+unstable period-1 orbit of "period_doubled" cannot be reached by a transient."""
