@@ -85,6 +85,8 @@ FREE = 0  # phase index: away from the wall
 CONTACT = 1  # phase index: in contact with the wall
 SAMPLES_PER_SCALE = 64  # samples of a switching function per shortest time scale
 
+StateLike = Sequence[float] | np.ndarray  # a state (x [m], v [m/s])
+
 
 class PWLParams(NamedTuple):
     """Parameters of the forced oscillator against one spring-dashpot wall (SI units).
@@ -189,25 +191,25 @@ class Phase:
         out = ch[..., None, None] * np.eye(2) + sh[..., None, None] * B
         return g[..., None, None] * out
 
-    def solution(self, t0: float, z0: Sequence[float], t: np.ndarray | float) -> np.ndarray:
+    def solution(self, t0: float, z0: StateLike, t: np.ndarray | float) -> np.ndarray:
         """The state z(t) = z_p(t) + exp(A (t - t0)) (z0 - z_p(t0)), shape (2,) + shape(t)."""
         t = np.asarray(t, dtype=float)
         w = np.asarray(z0, dtype=float) - self.steady(t0)
         E = self.expm(t - t0)
         return self.steady(t) + np.moveaxis(E @ w, -1, 0)
 
-    def field(self, t: float, z: Sequence[float]) -> np.ndarray:
+    def field(self, t: float, z: StateLike) -> np.ndarray:
         """The vector field (v, a) of the phase at (t, z)."""
         force = self.F * math.cos(self.Omega * t + self.phi) + self.d
         return np.array([z[1], (force - self.C * z[1] - self.K * z[0]) / self.mass])
 
-    def switching(self, t0: float, z0: Sequence[float], t: np.ndarray) -> tuple[np.ndarray, ...]:
+    def switching(self, t0: float, z0: StateLike, t: np.ndarray) -> tuple[np.ndarray, ...]:
         """The switching function s = sign (x - gap) and its rate at the times t."""
         z = self.solution(t0, z0, t)
         return self.sign * (z[0] - self.gap), self.sign * z[1]
 
     def first_switch(
-        self, t0: float, z0: Sequence[float], t_max: float, on_surface: bool
+        self, t0: float, z0: StateLike, t_max: float, on_surface: bool
     ) -> float | None:
         """The first time in (t0, t_max] where the switching function turns <= 0, or None.
 
@@ -269,7 +271,7 @@ def phases(params: PWLParams) -> tuple[Phase, Phase]:
 
 
 def phase_solution(
-    params: PWLParams, phase: int, t0: float, z0: Sequence[float], t: np.ndarray | float
+    params: PWLParams, phase: int, t0: float, z0: StateLike, t: np.ndarray | float
 ) -> np.ndarray:
     """State (x, v) at the time(s) t of the phase ``phase`` (FREE or CONTACT) started at
     (t0, z0), in closed form; shape (2,) + shape(t). It ignores the switching surfaces."""
@@ -280,7 +282,7 @@ def switching_time(
     params: PWLParams,
     phase: int,
     t0: float,
-    z0: Sequence[float],
+    z0: StateLike,
     t_max: float,
     on_surface: bool = True,
 ) -> float | None:
@@ -307,7 +309,7 @@ def saltation_matrix(params: PWLParams, kind: str) -> np.ndarray:
     return np.array([[1.0, 0.0], [s * params.contact_damping / params.mass, 1.0]])
 
 
-def saltation_from_fields(params: PWLParams, kind: str, t: float, z: Sequence[float]) -> np.ndarray:
+def saltation_from_fields(params: PWLParams, kind: str, t: float, z: StateLike) -> np.ndarray:
     """The saltation matrix from the two vector fields at a switching point (t, z) on the
     wall: the general formula, for checking :func:`saltation_matrix`."""
     free, contact = phases(params)
@@ -345,7 +347,7 @@ class Trajectory:
         return np.array([e[0] for e in self.events if e[1] == "exit"])
 
 
-def initial_phase(params: PWLParams, z: Sequence[float]) -> int:
+def initial_phase(params: PWLParams, z: StateLike) -> int:
     """CONTACT beyond the wall or on it moving in, else FREE (the rule braidsim's solver
     applies at the start of a run)."""
     x, v = float(z[0]), float(z[1])
@@ -355,7 +357,7 @@ def initial_phase(params: PWLParams, z: Sequence[float]) -> int:
 def simulate(
     params: PWLParams,
     t0: float,
-    z0: Sequence[float],
+    z0: StateLike,
     t_end: float,
     phase: int | None = None,
     max_events: int = 100_000,
@@ -387,7 +389,7 @@ def simulate(
 
 
 def stroboscopic_map(
-    params: PWLParams, z: Sequence[float], t0: float = 0.0, period_k: int = 1
+    params: PWLParams, z: StateLike, t0: float = 0.0, period_k: int = 1
 ) -> np.ndarray:
     """z(t0) -> z(t0 + k T) along the hybrid flow (T the forcing period)."""
     return simulate(params, t0, z, t0 + period_k * params.period).z
@@ -508,7 +510,7 @@ def _matching_jacobian(
 
 
 def _transient_guess(
-    params: PWLParams, period_k: int, seed: Sequence[float], periods: int
+    params: PWLParams, period_k: int, seed: StateLike, periods: int
 ) -> tuple[np.ndarray, ...]:
     """Onsets and exits of the last k periods of a long run from the seed state at t = 0."""
     T = params.period
@@ -538,10 +540,10 @@ def _transient_guess(
 def periodic_orbit(
     params: PWLParams,
     period_k: int = 1,
-    guess: PeriodicOrbit | tuple[Sequence[float], ...] | None = None,
+    guess: PeriodicOrbit | tuple[StateLike, ...] | None = None,
     *,
     t_section: float = 0.0,
-    seed: Sequence[float] = (0.0, 0.0),
+    seed: StateLike = (0.0, 0.0),
     transient_periods: int = 200,
     check: bool = True,
 ) -> PeriodicOrbit:
@@ -591,7 +593,8 @@ def periodic_orbit(
     res = float(np.max(np.abs(_matching_residual(u, *args))))
     if res > 1e-10:
         raise ValueError(
-            f"the matching equations did not converge (residual {res:.2e}: {sol.message}); "
+            f"the matching equations did not converge (residual {res:.2e}: "
+            f"{' '.join(sol.message.split())}); "
             "give a closer guess"
         )
     t_on, t_off, v_on, v_off = (a.copy() for a in _unpack(u, n))
@@ -732,7 +735,7 @@ def critical_parameter(
 
 
 def stroboscopic_jacobian_fd(
-    params: PWLParams, z: Sequence[float], t0: float = 0.0, period_k: int = 1, rel: float = 1e-6
+    params: PWLParams, z: StateLike, t0: float = 0.0, period_k: int = 1, rel: float = 1e-6
 ) -> np.ndarray:
     """Central finite difference of :func:`stroboscopic_map` at z (for checks; it involves
     no saltation matrix and no matrix exponential)."""
