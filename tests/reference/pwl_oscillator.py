@@ -13,10 +13,7 @@ p returns to zero from above (the sign of the normal force plays no part). In co
 equation is m x'' + (c + c_c) x' + (k + k_c) x = F cos(Omega t + phi) + k_c g, again linear
 with constant coefficients. This is the piecewise-linear impact oscillator of Shaw, S. W. and
 Holmes, P. J. (1983), A periodically forced piecewise linear oscillator, J. Sound Vib. 90(1),
-129-155, doi:10.1016/0022-460X(83)90407-8, with a soft (spring-dashpot) wall as in
-Ing, J., Pavlovskaia, E., Wiercigroch, M. and Banerjee, S. (2008), Experimental study of
-impact oscillator with one-sided elastic constraint, Phil. Trans. R. Soc. A 366, 679-705,
-doi:10.1098/rsta.2007.2122.
+129-155, doi:10.1016/0022-460X(83)90407-8, here with a soft (spring-dashpot) wall.
 
 Each phase, z = (x, v), solves z' = A z + e_2 (F cos(Omega t + phi) + d) / m with
 
@@ -50,13 +47,12 @@ exp(A dt) and of the saltation matrices at the switchings,
 
 where f- and f+ are the vector fields just before and after (di Bernardo, M., Budd, C. J.,
 Champneys, A. R. and Kowalczyk, P. (2008), Piecewise-smooth Dynamical Systems: Theory and
-Applications, Springer, section 2.5, doi:10.1007/978-1-84628-708-4). The dashpot makes the
+Applications, Springer, doi:10.1007/978-1-84628-708-4). The dashpot makes the
 force jump by c_c v at the wall, so S = [[1, 0], [-c_c/m, 1]] at onset and
 [[1, 0], [+c_c/m, 1]] at exit, whatever the speed there. The monodromy from a time t0 is the
 Jacobian of the stroboscopic map z(t0) -> z(t0 + k T), T = 2 pi / Omega
-(:func:`stroboscopic_map`); its eigenvalues are the Floquet multipliers (Nayfeh, A. H. and
-Balachandran, B. (1995), Applied Nonlinear Dynamics, Wiley, chapter 7,
-doi:10.1002/9783527617548), which do not depend on t0.
+(:func:`stroboscopic_map`); its eigenvalues are the Floquet multipliers (di Bernardo et al.
+2008), which do not depend on t0.
 
 Parameter sets for other tests (SI units, ``PARAMETER_SETS``; the orbits' times, speeds and
 multipliers are written beside them, guesses in ``ORBIT_GUESSES``):
@@ -300,7 +296,7 @@ def saltation_matrix(params: PWLParams, kind: str) -> np.ndarray:
     """Saltation matrix at an ``"onset"`` or an ``"exit"`` of contact.
 
     S = I + (f+ - f-) n^T / (n^T f-) with n = (1, 0); f+ - f- = (0, -/+ c_c v / m) and
-    n^T f- = v, so S = [[1, 0], [-/+ c_c / m, 1]] (di Bernardo et al. 2008, section 2.5,
+    n^T f- = v, so S = [[1, 0], [-/+ c_c / m, 1]] (di Bernardo et al. 2008,
     doi:10.1007/978-1-84628-708-4).
     """
     if kind not in ("onset", "exit"):
@@ -677,13 +673,26 @@ def floquet_multipliers(orbit: PeriodicOrbit, t_section: float | None = None) ->
     return mult[np.argsort(-np.abs(mult))]
 
 
+def grazing_force_amplitude(params: PWLParams) -> float:
+    """The forcing amplitude F [N] at which the orbit without impacts grazes the wall.
+
+    Its steady state x = Re(X e^{i(Omega t + phi)}) peaks at |X| = F / |k - m Omega^2 +
+    i c Omega|, so it touches x = g (> 0) at F = g |k - m Omega^2 + i c Omega|; below, it is
+    an orbit of the impact oscillator, above it is not.
+    """
+    if not params.gap > 0.0:
+        raise ValueError(f"gap {params.gap!r}; the grazing amplitude needs gap > 0")
+    w = params.force_frequency
+    return params.gap * abs(complex(params.stiffness - params.mass * w * w, params.damping * w))
+
+
 def bifurcation_function(orbit: PeriodicOrbit, kind: str) -> float:
     """A smooth function of the monodromy M that vanishes at a bifurcation of the orbit.
 
     ``"period_doubling"``: det(M + I) = 1 + tr M + det M = (1 + m1)(1 + m2), zero when a
     multiplier is -1; ``"fold"``: det(M - I) = 1 - tr M + det M, zero when one is +1. Both
     are real and smooth even where the multipliers are a complex pair (Kuznetsov, Y. A.
-    (2004), Elements of Applied Bifurcation Theory, 3rd ed., Springer, section 9.5,
+    (2004), Elements of Applied Bifurcation Theory, 3rd ed., Springer,
     doi:10.1007/978-1-4757-3978-7).
     """
     M = monodromy(orbit)

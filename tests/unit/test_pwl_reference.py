@@ -23,6 +23,7 @@ from reference.pwl_oscillator import (
     bifurcation_function,
     critical_parameter,
     floquet_multipliers,
+    grazing_force_amplitude,
     monodromy,
     periodic_orbit,
     phase_jacobian,
@@ -161,6 +162,24 @@ def test_orbit_without_contact_is_the_harmonic_steady_state() -> None:
     np.testing.assert_allclose(np.sort_complex(fd), expected, rtol=1e-8)
     with pytest.raises(ValueError, match="reaches the wall"):
         periodic_orbit(BASE, 1, ((), (), (), ()))
+
+
+def test_grazing_amplitude_of_the_orbit_without_impacts() -> None:
+    """Just below F = g |k - m Omega^2 + i c Omega| the harmonic orbit stays off the wall
+    (its peak is (F / F_g) g) and never switches; just above it touches the wall within a
+    period."""
+    p = BASE._replace(force_frequency=2.6)
+    f_g = grazing_force_amplitude(p)
+    below = p._replace(force_amplitude=f_g * (1.0 - 1e-6))
+    orbit = periodic_orbit(below, 1, ((), (), (), ()))
+    peak = np.max(phases(below)[FREE].steady(np.linspace(0.0, below.period, 20001))[0])
+    assert peak == pytest.approx(below.gap * (1.0 - 1e-6), rel=5e-8)  # sampled peak
+    assert simulate(below, 0.0, orbit.z_section, 5 * below.period).events == []
+    above = p._replace(force_amplitude=f_g * (1.0 + 1e-6))
+    with pytest.raises(ValueError, match="reaches the wall"):
+        periodic_orbit(above, 1, ((), (), (), ()))
+    z = phases(above)[FREE].steady(0.0)
+    assert simulate(above, 0.0, z, above.period).onsets.size == 1
 
 
 @pytest.mark.parametrize(("name", "k"), ORBITS)
