@@ -9,7 +9,8 @@ may pull (so that each phase is exactly linear)::
 
 m [kg], c [N s/m], k [N/m], F [N], Omega [rad/s], phi [rad], g [m], k_c [N/m], c_c [N s/m].
 A contact begins where the gap g - x reaches zero from above and ends where the penetration
-p returns to zero from above (the sign of the normal force plays no part). In contact the
+p returns to zero from above (the sign of the normal force plays no part): the surfaces at
+which braidsim's solver switches a contact with a Kelvin-Voigt law that may pull. In contact the
 equation is m x'' + (c + c_c) x' + (k + k_c) x = F cos(Omega t + phi) + k_c g, again linear
 with constant coefficients. This is the piecewise-linear impact oscillator of Shaw, S. W. and
 Holmes, P. J. (1983), A periodically forced piecewise linear oscillator, J. Sound Vib. 90(1),
@@ -59,8 +60,9 @@ multipliers are written beside them, guesses in ``ORBIT_GUESSES``):
 
 - ``"stable_p1"``: a stable period-1 orbit with one impact, complex multipliers;
 - ``"stable_p1_stiff"``: the same forcing against a ten times stiffer wall, stable;
-- ``"period_doubled"``: past a period doubling: the period-1 orbit is unstable with a real
-  multiplier below -1, and a stable period-2 orbit with two impacts per two periods exists.
+- ``"period_doubled"``: past the period doubling at Omega = 2.29213915 rad/s: the period-1
+  orbit is unstable with a real multiplier below -1, and a stable period-2 orbit with two
+  impacts per two periods exists.
 
 Nothing here imports braidsim: the module is the independent side of the comparison.
 """
