@@ -347,3 +347,48 @@ def test_cli_sensitivity_json_and_bad_key(capsys) -> None:
     code, out, err = cli("run", "paper-3.3", "--sensitivity", "contact.track.model", "--json")
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and "contact.track.model" in err
+
+
+@pytest.mark.parametrize(
+    ("name", "k"), [("stable_p1", 1), ("period_doubled", 1), ("period_doubled", 2)]
+)
+def test_tangents_give_the_closed_form_monodromy(name: str, k: int) -> None:
+    """The tangents of braidsim's run from a periodic orbit of a piecewise-linear impact
+    oscillator (a linear spring-dashpot wall: the field jumps at onset and exit) over its
+    period are the orbit's monodromy, as the closed form gives it (phase exponentials and
+    saltation matrices, ``tests/reference``); its multipliers too."""
+    from reference.pwl_oscillator import (
+        ORBIT_GUESSES,
+        PARAMETER_SETS,
+        floquet_multipliers,
+        monodromy,
+        periodic_orbit,
+    )
+
+    orbit = periodic_orbit(PARAMETER_SETS[name], k, ORBIT_GUESSES[(name, k)])
+    p = orbit.params
+    law = KelvinVoigtContact(p.contact_stiffness, p.contact_damping, allow_tension=True)
+    model = ImpactOscillator(
+        p.mass,
+        p.stiffness,
+        p.damping,
+        p.force_amplitude,
+        p.force_frequency,
+        p.force_phase,
+        math.inf,
+        p.gap,
+        law,
+    )
+    z = zero_tangent(model)
+    opts = L.SolverOptions(1e-12, 1e-15, 1e-14, 0.05, 10**6, orbit.period, energy=False)
+    tg = Tangents([z, z], np.eye(2), np.zeros((2, 2)), np.zeros((2, 0)), np.ones(2), False)
+    raw = run(model, opts, np.array(orbit.z_section), series=False, tangents=tg)
+    assert raw.status == L.ST_OK
+    M_braidsim = raw.sensitivity.S.T  # column j: d z(kT) / d z_j(0)
+    M = monodromy(orbit)
+    np.testing.assert_allclose(M_braidsim, M, rtol=0.0, atol=1e-8 * np.abs(M).max())
+    np.testing.assert_allclose(
+        np.sort_complex(np.linalg.eigvals(M_braidsim)),
+        np.sort_complex(floquet_multipliers(orbit)),
+        rtol=1e-7,
+    )
