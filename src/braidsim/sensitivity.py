@@ -452,7 +452,9 @@ def flow_map(
         scale[n + 2 :] = dirs.scale
         if y0 is None:
             S0[n + 2 :] = dirs.S0
-    tangents = Tangents(records, S0, DV0, DTR, scale, series=False)
+    # series tangents are not needed, but asking for them shares the compiled solver with
+    # simulate(..., sensitivities=...) and its series (one compile less)
+    tangents = Tangents(records, S0, DV0, DTR, scale, series=True)
     restart = L.new_restart()
     r = restart[0]
     r["t"] = t0
