@@ -1,0 +1,103 @@
+"""What the start of the package and of the command line imports.
+
+A warm ``braidsim run`` spends most of its CPU time importing; these tests keep the heavy
+modules out of the paths that do not need them (each check runs in a fresh interpreter and
+reads its ``sys.modules``). Times are measured by ``benchmarks/bench_startup.py``, not here.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from braidsim.cli import VERBS
+
+#: modules of outputs, plots and parallel runs: never needed to start or to run one simulation
+HEAVY = ("matplotlib", "xarray", "zarr", "dask", "netCDF4", "h5netcdf", "rich.progress")
+
+
+def _modules_after(code: str, *argv: str) -> set[str]:
+    """The names in ``sys.modules`` when a fresh interpreter that ran ``code`` exits (read at
+    exit, so that a command line ending in ``sys.exit`` is covered)."""
+    prelude = (
+        "import atexit, json, sys\n"
+        "def _report(): sys.stderr.write('\\nMODULES ' + json.dumps(sorted(sys.modules)))\n"
+        "atexit.register(_report)\n"
+        f"sys.argv = ['braidsim', *{list(argv)!r}]\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", prelude + code],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    line = proc.stderr.rsplit("MODULES ", 1)[-1]
+    return set(json.loads(line))
+
+
+def _loaded(modules: set[str], names: tuple[str, ...]) -> list[str]:
+    return sorted(n for n in names if n in modules)
+
+
+def test_import_braidsim_loads_no_dependency() -> None:
+    """``import braidsim`` imports its exceptions only; the public names load on first use."""
+    mods = _modules_after("import braidsim")
+    heavy = (*HEAVY, "numba", "numpy", "pint", "pandas", "scipy", "typer")
+    assert _loaded(mods, heavy) == []
+    assert "braidsim.simulate" not in mods
+
+
+def test_public_api_after_lazy_import() -> None:
+    """The public names resolve to the objects of their modules; ``braidsim.simulate`` is the
+    function even when its submodule is imported first."""
+    code = (
+        "import braidsim.simulate, braidsim.params, braidsim.result\n"
+        "import braidsim\n"
+        "assert callable(braidsim.simulate)\n"
+        "assert braidsim.simulate is braidsim.simulate.__globals__['simulate']\n"
+        "assert braidsim.load_scenario is braidsim.params.load_scenario\n"
+        "assert braidsim.Result is braidsim.result.Result\n"
+        "assert set(braidsim.__all__) <= set(dir(braidsim))\n"
+        "for name in braidsim.__all__: getattr(braidsim, name)\n"
+    )
+    _modules_after(code)
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["--version"]])
+def test_cli_start_loads_no_heavy_module(argv: list[str]) -> None:
+    """Help and version load neither the compiled core nor any output library."""
+    mods = _modules_after("from braidsim.cli import main\nmain()", *argv)
+    heavy = (*HEAVY, "numba", "pint", "pandas", "scipy")
+    assert _loaded(mods, heavy) == []
+
+
+def test_cli_run_loads_no_output_module() -> None:
+    """``braidsim run SCENARIO --json`` loads no plotting, storage or dask module, and neither
+    ``scipy.special`` nor another verb's module."""
+    mods = _modules_after(
+        "from braidsim.cli import main\nmain()", "run", "paper-3.3", "--duration", "0.01", "--json"
+    )
+    assert _loaded(mods, (*HEAVY, "scipy.special", "scipy.integrate")) == []
+    assert "braidsim.cli.run" in mods
+    others = {f"braidsim.cli.{m}" for m in VERBS.values()} - {"braidsim.cli.run"}
+    assert sorted(others & mods) == []
+
+
+def test_verb_table_matches_registrations() -> None:
+    """``braidsim.cli.VERBS`` names every registered verb with the module that registers it."""
+    code = (
+        "import json\n"
+        "from braidsim.cli import VERBS, _register, app\n"
+        "_register()\n"
+        "found = {}\n"
+        "for c in app.registered_commands:\n"
+        "    name = c.name or c.callback.__name__.replace('_', '-')\n"
+        "    found[name] = c.callback.__module__.rsplit('.', 1)[-1]\n"
+        "assert found == VERBS, (found, VERBS)\n"
+    )
+    _modules_after(code)
