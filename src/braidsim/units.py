@@ -61,6 +61,25 @@ _TOKEN = re.compile(
 )
 
 
+#: SI factors of the unit expressions that the built-in scenarios and the usual options use,
+#: keyed by (unit text as the grammar returns it, target unit): a quantity in one of them is
+#: ``magnitude * factor``, which is what pint computes (each factor is pint's, bit for bit,
+#: and the tests compare both paths), without importing pint and building its registry
+#: (about 0.1 s of CPU at every start of the command line). pint reads every other unit.
+_SI_FACTORS: dict[tuple[str, str], float] = {
+    ("m", "m"): 1.0,
+    ("mm", "m"): 0.001,
+    ("s", "s"): 1.0,
+    ("ms", "s"): 0.001,
+    ("m / s", "m/s"): 1.0,
+    ("mm / s", "m/s"): 0.001,
+    ("GPa", "Pa"): 1e9,
+    ("rpm", "rad/s"): 0.10471975511965977,  # 2 pi / 60, rounded as pint rounds it
+}
+#: frequencies for a target in rad/s, read as cycles per time: factor to 1/s, times 2 pi
+_FREQUENCY_FACTORS: dict[str, float] = {"Hz": 1.0}
+
+
 def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
     """True for a unit of time or of hertz; False for rpm, deg/s and other angular rates."""
     if name.endswith("hertz"):
@@ -257,10 +276,15 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
         rest = rest[frac.end() :].strip()
     if not rest:
         return mag, True
+    unit_text = _check_unit_text(key, value, rest)
+    if (unit_text, unit) in _SI_FACTORS:
+        return _checked(key, value, unit, mag, mag * _SI_FACTORS[unit_text, unit]), False
+    if unit == "rad/s" and unit_text in _FREQUENCY_FACTORS:  # as the pure frequency below
+        out = mag * _FREQUENCY_FACTORS[unit_text] * 2.0 * math.pi
+        return _checked(key, value, unit, mag, out), False
     ureg = registry()  # imports pint
     import pint
 
-    unit_text = _check_unit_text(key, value, rest)
     try:
         # the text passed the grammar: unit names, small exponents and divisors only
         u: Any = ureg.parse_expression(unit_text)
@@ -287,12 +311,18 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
         ) from None
     except (OverflowError, ZeroDivisionError):
         out = math.inf
+    return _checked(key, value, unit, mag, out), False
+
+
+def _checked(key: str, value: str, unit: str, mag: float, out: float) -> float:
+    """``out``, the quantity ``value`` (magnitude ``mag``) in ``unit``, unless a finite
+    magnitude became infinite or NaN in the conversion (an :class:`InputError`)."""
     if math.isfinite(mag) and not math.isfinite(out):
         raise InputError(
             f"{key}: {value!r} is {'not a number' if math.isnan(out) else 'too large'} in "
             f"{unit or 'no unit'}; allowed a value a 64-bit float can hold"
         )
-    return out, False
+    return out
 
 
 def to_si(key: str, value: object, unit: str) -> float:

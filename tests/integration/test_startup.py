@@ -8,12 +8,16 @@ reads its ``sys.modules``). Times are measured by ``benchmarks/bench_startup.py`
 from __future__ import annotations
 
 import json
+import math
+import struct
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from braidsim.cli import VERBS
+from braidsim.errors import InputError
 
 #: modules of outputs, plots and parallel runs: never needed to start or to run one simulation
 HEAVY = ("matplotlib", "xarray", "zarr", "dask", "netCDF4", "h5netcdf", "rich.progress")
@@ -77,12 +81,13 @@ def test_cli_start_loads_no_heavy_module(argv: list[str]) -> None:
 
 
 def test_cli_run_loads_no_output_module() -> None:
-    """``braidsim run SCENARIO --json`` loads no plotting, storage or dask module, and neither
-    ``scipy.special`` nor another verb's module."""
+    """``braidsim run SCENARIO --json`` loads no plotting, storage or dask module, neither
+    ``scipy.special`` nor another verb's module, and no pint: the units of the built-in
+    scenarios are read without it (see the next test)."""
     mods = _modules_after(
         "from braidsim.cli import main\nmain()", "run", "paper-3.3", "--duration", "0.01", "--json"
     )
-    assert _loaded(mods, (*HEAVY, "scipy.special", "scipy.integrate")) == []
+    assert _loaded(mods, (*HEAVY, "scipy.special", "scipy.integrate", "pint")) == []
     assert "braidsim.cli.run" in mods
     others = {f"braidsim.cli.{m}" for m in VERBS.values()} - {"braidsim.cli.run"}
     assert sorted(others & mods) == []
@@ -101,3 +106,35 @@ def test_verb_table_matches_registrations() -> None:
         "assert found == VERBS, (found, VERBS)\n"
     )
     _modules_after(code)
+
+
+def _bits(x: float) -> bytes:
+    return struct.pack("<d", x)
+
+
+def _read(units: object, text: str, target: str) -> tuple[str, bytes]:
+    """The SI value of ``text`` as bits, or the error it raises (type and message)."""
+    try:
+        return "ok", _bits(units.parse_quantity("key", text, target)[0])  # type: ignore[attr-defined]
+    except InputError as exc:
+        return "InputError", str(exc).encode()
+
+
+def test_units_without_pint_match_pint_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The table of common units in ``braidsim.units`` gives pint's values, bit for bit
+    (finite, zero, signed, huge, tiny, infinite and NaN magnitudes; errors alike)."""
+    from braidsim import units
+
+    rng = np.random.default_rng(13)
+    mags = [0.0, -0.0, 1.0, 0.12, 2.0, 60.0, 200.0, 5e-324, 1e-300, 1e300, math.inf, math.nan]
+    mags += list(rng.lognormal(0.0, 8.0, 200)) + list(-rng.lognormal(0.0, 8.0, 50))
+    cases = [*units._SI_FACTORS, *((f, "rad/s") for f in units._FREQUENCY_FACTORS)]
+    assert len(cases) >= 8
+    for unit_text, target in cases:
+        texts = [f"{m!r} {unit_text}" for m in mags] + [f"{unit_text}", f"3/4 {unit_text}"]
+        fast = [_read(units, t, target) for t in texts]
+        with monkeypatch.context() as mp:
+            mp.setattr(units, "_SI_FACTORS", {})
+            mp.setattr(units, "_FREQUENCY_FACTORS", {})
+            slow = [_read(units, t, target) for t in texts]
+        assert fast == slow, (unit_text, target)
