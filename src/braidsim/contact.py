@@ -137,44 +137,6 @@ def damping_flores(c_r: float) -> float:
     return 8.0 * (1.0 - c_r) / (5.0 * c_r)
 
 
-def lambert_w0(z: float) -> float:
-    """Principal branch W0 of the Lambert W function for real ``z`` in [-1/e, 0]: the root
-    w in [-1, 0] of ``w exp(w) = z``.
-
-    Start: near the branch point z = -1/e the series ``w = -1 + p - p^2/3 + 11 p^3/72`` in
-    ``p = sqrt(2 (e z + 1))``; nearer 0 the Taylor series ``w = z - z^2 + 3 z^3/2``. Then
-    Halley's iteration on ``f(w) = w exp(w) - z``,
-
-        w <- w - f / (exp(w) (w + 1) - (w + 2) f / (2 w + 2)),
-
-    cubically convergent, until the step is below rounding (a few steps). Both the series and
-    the iteration are those of Corless, Gonnet, Hare, Jeffrey & Knuth (1996) On the Lambert W
-    function. Adv. Comput. Math. 5:329-359, doi:10.1007/BF02124750.
-    Written here instead of ``scipy.special.lambertw`` because importing ``scipy.special``
-    costs about 0.15 s of CPU at every start of the command line.
-    """
-    if not -1.0 / math.e - 1e-15 <= z <= 0.0:
-        raise ValueError(f"lambert_w0: z = {z!r} is outside [-1/e, 0]")
-    if z == 0.0:
-        return 0.0
-    if z < -0.25:
-        p = math.sqrt(max(2.0 * (math.e * z + 1.0), 0.0))
-        w = -1.0 + p * (1.0 + p * (-1.0 / 3.0 + p * 11.0 / 72.0))
-    else:
-        w = z * (1.0 + z * (-1.0 + 1.5 * z))
-    for _ in range(20):
-        ew = math.exp(w)
-        f = w * ew - z
-        wp1 = w + 1.0
-        if f == 0.0 or wp1 == 0.0:
-            break
-        step = f / (ew * wp1 - (w + 2.0) * f / (2.0 * wp1))
-        w -= step
-        if abs(step) <= 4e-16 * (1.0 + abs(w)):
-            break
-    return max(w, -1.0)
-
-
 def effective_restitution(damping_factor: float) -> float:
     """Exact restitution e of one impact under ``F = K p^n (1 + D pdot / v0)``.
 
@@ -195,8 +157,10 @@ def effective_restitution(damping_factor: float) -> float:
         # W0 near its branch point -1/e loses digits; start from the series about D = 0
         e = 1.0 - 2.0 * d / 3.0 + 10.0 * d * d / 9.0
     else:
+        from scipy import special
+
         z = -(1.0 + d) * math.exp(-(1.0 + d))
-        e = (1.0 + lambert_w0(z)) / d
+        e = float((1.0 + special.lambertw(z, 0).real) / d)
     # Newton polish on F(e) = ln(1 - D e) - ln(1 + D) + D (1 + e) = 0 (the relation in logs)
     for _ in range(4):
         if d * e >= 1.0:

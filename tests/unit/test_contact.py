@@ -102,24 +102,3 @@ def test_hertz_closed_form_duration_factor() -> None:
     # Johnson (1985): T = 2.94 p_m / v0 for n = 3/2
     cf = contact.hertz_impact_closed_form(1.0, 1e10, 1.5, 1.0)
     assert cf["contact_duration"] * 1.0 / cf["max_depth"] == pytest.approx(2.9432, rel=1e-4)
-
-
-def test_lambert_w0_against_its_equation_and_scipy() -> None:
-    """W0 (written out to spare the command line the import of scipy.special): exact values
-    W0(0) = 0, W0(-1/e) = -1 and W0(-ln(2)/2) = -ln 2; the residual of w exp(w) = z; and
-    ``scipy.special.lambertw`` over [-1/e, 0), the branch point's neighbourhood included."""
-    from scipy import special
-
-    assert contact.lambert_w0(0.0) == 0.0
-    assert contact.lambert_w0(-1.0 / math.e) == pytest.approx(-1.0, abs=1e-7)
-    assert contact.lambert_w0(-math.log(2.0) / 2.0) == pytest.approx(-math.log(2.0), rel=1e-15)
-    zs = np.concatenate(
-        [-np.exp(-1.0) * np.linspace(0.0, 1.0, 2001)[1:-1], -np.logspace(-300, -0.5, 400)]
-    )
-    for z in map(float, zs):
-        w = contact.lambert_w0(z)
-        assert -1.0 <= w <= 0.0
-        assert w * math.exp(w) == pytest.approx(z, rel=1e-15)
-        assert w == pytest.approx(special.lambertw(z, 0).real, rel=1e-13)
-    with pytest.raises(ValueError, match="outside"):
-        contact.lambert_w0(0.1)
