@@ -8,6 +8,7 @@ unknown verb), so that a command pays for no other verb's imports.
 
 from __future__ import annotations
 
+import gc
 import importlib
 import sys
 
@@ -47,16 +48,28 @@ def _verb(argv: list[str]) -> str | None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point of the ``braidsim`` command."""
+    """Entry point of the ``braidsim`` command (``argv``: the arguments after the command's
+    name; by default those of the process)."""
     from braidsim import units
     from braidsim.cli.common import run_app
 
-    if argv is None:
-        # the process runs the command line alone and holds no dask array with units, so
-        # pint need not import dask (see braidsim.units); a caller's process is left as is
+    own_process = argv is None
+    if own_process:
+        # The process runs the command line alone, so it may tune the process:
+        # - pint need not import dask (see braidsim.units): no dask array here carries units;
+        # - the cyclic garbage collector runs every 50,000 allocations instead of 700:
+        #   starting numba makes about a million long-lived objects, which the default
+        #   schedule scans again and again (~0.1 s of a warm run; a compile from an empty
+        #   cache peaks ~4 % higher in memory and takes no longer).
         units.PINT_WITH_DASK = False
+        gc.set_threshold(50_000, 20, 20)
     _register(_verb(sys.argv[1:] if argv is None else argv))
-    sys.exit(run_app(argv))
+    code = run_app(argv)
+    if own_process:
+        # the process ends here: spare the interpreter's shutdown the collections over all
+        # those objects (~0.2 s); exit handlers still run, and streams are flushed
+        gc.freeze()
+    sys.exit(code)
 
 
 __all__ = ["VERBS", "app", "main"]
