@@ -87,7 +87,7 @@ def test_cli_run_loads_no_output_module() -> None:
     mods = _modules_after(
         "from braidsim.cli import main\nmain()", "run", "paper-3.3", "--duration", "0.01", "--json"
     )
-    assert _loaded(mods, (*HEAVY, "scipy.integrate", "pint")) == []
+    assert _loaded(mods, (*HEAVY, "scipy.integrate", "pint", "pandas")) == []
     assert "braidsim.cli.run" in mods
     others = {f"braidsim.cli.{m}" for m in VERBS.values()} - {"braidsim.cli.run"}
     assert sorted(others & mods) == []
