@@ -16,6 +16,7 @@ def _register() -> None:
     from braidsim.cli import (  # noqa: F401
         analysis,
         design,
+        fit,
         machine,
         paper,
         run,

@@ -479,6 +479,36 @@ def fit_law(
     )
 
 
+#: AIC differences below this are numerically equal fits (the same force law reparametrised)
+AIC_TIE = 0.01
+
+
+def select_law(laws: Sequence[LawResult], preferred: str) -> tuple[str, list[str]]:
+    """The law of lowest AIC (among numerically equal fits, ``preferred`` or the first
+    listed), and notes on the laws the data do not tell apart (Delta AIC < 2).
+
+    With the restitution free, every dissipative law of the same exponent gives the same
+    force law for a matching c_r (the laws differ only in the damping factor D(c_r)): their
+    fits are equal and only the fitted restitutions differ.
+    """
+    best = min(lr.aic for lr in laws)
+    ties = [lr for lr in laws if lr.aic - best < AIC_TIE]
+    pick = next((lr for lr in ties if lr.law == preferred), ties[0])
+    notes = []
+    close = [lr for lr in laws if lr.law != pick.law and lr.aic - best < 2.0]
+    if close:
+        eq = [lr for lr in close if lr.aic - best < AIC_TIE]
+        text = ", ".join(f"{lr.law} (Delta AIC {lr.aic - best:.3g})" for lr in close)
+        why = (
+            " (equal fits: the same force law with another restitution; fix "
+            "contact.track.restitution to compare the laws' damping factors)"
+            if eq
+            else ""
+        )
+        notes.append(f"the data do not distinguish {pick.law} from {text}{why}")
+    return pick.law, notes
+
+
 def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) -> FitResult:
     """Fit ``spec`` to ``record`` (see the module docstring for the method).
 
@@ -518,16 +548,19 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     law_results: list[LawResult] = []
     chosen: tuple[Problem, LocalFit] | None = None
     ends: list[dict[str, Any]] = []
+    law_notes: list[str] = []
+    selected = ""
     if laws:
         if law0 not in laws:
             laws.insert(0, law0)
-        best_aic = math.inf
+        fits: dict[str, tuple[Problem, LocalFit]] = {}
         for law in laws:
             say(f"contact law {law}")
             lr, pr, lf = fit_law(spec, record, law, problem.sigma, say)
             law_results.append(lr)
-            if lr.aic < best_aic and pr.keys == problem.keys:
-                best_aic, chosen = lr.aic, (pr, lf)
+            fits[law] = (pr, lf)
+        selected, law_notes = select_law(law_results, law0)
+        chosen = fits[selected]
         law_results.sort(key=lambda r: r.aic)
     if chosen is None:
         lf, ends = fit_problem(
@@ -537,6 +570,12 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     pr, lf = chosen
     say("statistics at the optimum")
     stats, e = statistics(pr, lf.u)
+    stats.warnings.extend(law_notes)
+    dropped = [k for k in problem.keys if k not in pr.keys]
+    if dropped:
+        stats.warnings.append(
+            f"the selected law {selected} does not use {', '.join(dropped)}: not estimated"
+        )
     profiles = []
     for key in spec.profile:
         say(f"profile likelihood of {key}")
