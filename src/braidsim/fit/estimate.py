@@ -561,7 +561,8 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
             fits[law] = (pr, lf)
         selected, law_notes = select_law(law_results, law0)
         chosen = fits[selected]
-        law_results.sort(key=lambda r: r.aic)
+        # by AIC, the selected law first among equal fits
+        law_results.sort(key=lambda r: r.aic - (AIC_TIE if r.law == selected else 0.0))
     if chosen is None:
         lf, ends = fit_problem(
             problem, spec.global_method, spec.starts, spec.seed, spec.max_evaluations, say

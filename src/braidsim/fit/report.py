@@ -201,42 +201,64 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
 
 
 def residual_figure(res: FitResult) -> Any:
-    """The record with the fitted model (top of each pair of panels) and the residuals
-    scaled by the noise (below), per fitted quantity."""
+    """Per fitted quantity: the record with the fitted model over the whole record and
+    around its largest impact (top), the residuals scaled by the noise and their histogram
+    against the standard normal density (below)."""
     from braidsim.plotting import new_figure
 
     qs = res.quantities
-    fig = new_figure(7.0, 2.6 * len(qs) + 0.4)
-    axes = fig.subplots(2 * len(qs), 1, sharex=True, height_ratios=[2, 1] * len(qs))
+    fig = new_figure(8.0, 3.0 * len(qs) + 0.8)
+    axes = fig.subplots(
+        2 * len(qs), 2, height_ratios=[2, 1] * len(qs), width_ratios=[3, 1], squeeze=False
+    )
     t = res.record.t
     scale = {"x": (1e3, "mm"), "acceleration": (1.0, "m/s$^2$"), "contact_force": (1.0, "N")}
     for i, q in enumerate(qs):
         f, unit = scale[q]
-        ax, axr = axes[2 * i], axes[2 * i + 1]
-        ax.plot(t, res.record.columns[q] * f, ".", ms=1.5, color="0.55", label="record")
-        ax.plot(t, res.prediction[q] * f, "-", lw=0.8, color="C3", label=f"fit ({res.law})")
+        d, m = res.record.columns[q] * f, res.prediction[q] * f
+        r = (res.prediction[q] - res.record.columns[q]) / res.noise[q]
+        ax, zoom = axes[2 * i]
+        axr, hist = axes[2 * i + 1]
+        for a in (ax, zoom):
+            a.plot(t, d, ".", ms=1.5 if a is ax else 3, color="0.5", label="record")
+            a.plot(t, m, "-", lw=0.8, color="C3", label=f"fit ({res.law})")
+            a.grid(True, lw=0.3, alpha=0.6)
         for tk in res.onsets:
             ax.axvline(tk, color="C0", lw=0.4, alpha=0.4)
+        k = int(np.argmax(np.abs(m - np.median(m))))
+        w = max(20 * res.record.sample_interval, 1e-3)
+        zoom.set_xlim(t[k] - w, t[k] + w)
+        sel = np.abs(t - t[k]) <= w
+        lo, hi = min(d[sel].min(), m[sel].min()), max(d[sel].max(), m[sel].max())
+        zoom.set_ylim(lo - 0.08 * (hi - lo), hi + 0.08 * (hi - lo))
+        zoom.set_title("largest impact", fontsize=8)
+        zoom.tick_params(labelsize=7)
         ax.set_ylabel(f"{q} [{unit}]")
         ax.legend(fontsize=7, frameon=False, loc="upper right")
-        r = (res.prediction[q] - res.record.columns[q]) / res.noise[q]
         axr.plot(t, r, ".", ms=1.2, color="C2")
         axr.axhline(0.0, color="0.3", lw=0.6)
         axr.set_ylabel("residual / $\\sigma$")
-        for ax_ in (ax, axr):
-            ax_.grid(True, lw=0.3, alpha=0.6)
-    axes[-1].set_xlabel("t [s]")
+        axr.grid(True, lw=0.3, alpha=0.6)
+        axr.set_xlabel("t [s]")
+        edges = np.linspace(-4.5, 4.5, 37)
+        hist.hist(np.clip(r, -4.5, 4.5), bins=edges, density=True, color="C2", alpha=0.6)
+        z = np.linspace(-4.5, 4.5, 200)
+        hist.plot(z, np.exp(-0.5 * z * z) / np.sqrt(2 * np.pi), color="0.2", lw=0.8)
+        hist.set_xlabel("residual / $\\sigma$", fontsize=8)
+        hist.tick_params(labelsize=7)
     lines = [
-        f"{k} = {v:.5g} ± {1.96 * s:.2g}"
+        f"{k} = {v:.6g} ± {1.96 * s:.2g}"
         for k, v, s in zip(res.keys, res.stats.values, res.stats.stderr, strict=True)
     ]
-    axes[0].set_title("; ".join(lines), fontsize=7)
+    fig.suptitle("\n".join(lines) + "  (95 %)", fontsize=7)
     return fig
 
 
 def profile_figure(res: FitResult) -> Any:
     """Delta chi^2 of each profiled key against its value, with the 95 % level 3.84 and
     the linearised interval."""
+    from matplotlib.ticker import MaxNLocator
+
     from braidsim.plotting import new_figure
 
     n = len(res.profiles)
@@ -250,6 +272,8 @@ def profile_figure(res: FitResult) -> Any:
         ax.axhline(3.841, color="C3", lw=0.8, label="95 % (3.84)")
         ax.axvspan(*res.stats.ci95[i], color="C3", alpha=0.1)
         ax.set_xlabel(f"{p.key} [{res.free[i].unit or '1'}]", fontsize=8)
+        ax.xaxis.set_major_locator(MaxNLocator(4))
+        ax.tick_params(labelsize=7)
         ax.set_ylabel(r"$\Delta\chi^2$")
         ax.grid(True, lw=0.3, alpha=0.6)
         ax.legend(fontsize=6, frameon=False)
