@@ -56,29 +56,26 @@ def fit(
     if json_:
         print_json(result)
         return
-    from rich.console import Console
+    import sys
 
-    con = Console()
-    con.print(
+    lines = [
         f"fit of {', '.join(res.quantities)} ({res.n_data} data, law {res.law}): "
         f"{'converged' if res.converged else 'NOT converged'}, cost {res.cost:.6g}, "
-        f"residual std {res.stats.residual_std:.3g} noise units",
-        markup=False,
-    )
+        f"residual std {res.stats.residual_std:.3g} (in units of the noise)"
+    ]
     for i, p in enumerate(res.free):
         lo, hi = res.stats.ci95[i]
-        con.print(
-            f"  {p.key} = {res.stats.values[i]:.6g} {p.unit} (se {res.stats.stderr[i]:.3g}; "
-            f"95 % [{lo:.6g}, {hi:.6g}])",
-            markup=False,
+        unit = f" {p.unit}" if p.unit else ""
+        lines.append(
+            f"  {p.key} = {res.stats.values[i]:.6g}{unit} (se {res.stats.stderr[i]:.3g}; "
+            f"95 % [{lo:.6g}, {hi:.6g}])"
         )
     for lr in res.laws:
-        con.print(
+        lines.append(
             f"  law {lr.law}: AIC {lr.aic:.2f}, BIC {lr.bic:.2f}, restitution "
-            f"{lr.restitution:.4g} (effective {lr.effective_restitution:.4g})",
-            markup=False,
+            f"{lr.restitution:.4g} (effective {lr.effective_restitution:.4g})"
         )
-    for w in res.warnings:
-        con.print(f"  warning: {w}", markup=False)
+    lines += [f"  warning: {w}" for w in res.warnings]
     if out is not None:
-        con.print(f"report: {out}", markup=False)
+        lines.append(f"report: {out}")
+    sys.stdout.write("\n".join(lines) + "\n")
