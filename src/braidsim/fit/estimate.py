@@ -572,6 +572,7 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     say("statistics at the optimum")
     stats, e = statistics(pr, lf.u)
     stats.warnings.extend(law_notes)
+    stats.warnings.extend(sorted(problem.notes | pr.notes))
     dropped = [k for k in problem.keys if k not in pr.keys]
     if dropped:
         stats.warnings.append(

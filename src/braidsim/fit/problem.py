@@ -86,6 +86,10 @@ def predict(res: Result, quantity: str) -> np.ndarray:
     raise InputError(f"quantity: {quantity!r} is not a measured quantity")
 
 
+class _ExactUnavailable(SimulationError):
+    """The simulator's sensitivities failed with an error outside their contract."""
+
+
 @dataclass
 class Evaluation:
     """Residuals (and Jacobian, when asked) at one point of the unit box."""
@@ -148,6 +152,8 @@ class Problem:
                 "installation lacks; allowed auto or fd"
             )
         self.exact = jacobian == "exact" or (jacobian == "auto" and exact_available())
+        self.jacobian_choice = jacobian
+        self.notes: set[str] = set()
         # impact onsets of the record, from its first acceleration or force column
         self.event_quantity = next(
             (q for q in ("acceleration", "contact_force") if q in record.columns), None
@@ -191,6 +197,20 @@ class Problem:
         if sensitivities:
             kw["sensitivities"] = list(self.keys)
         t = self.record.t
+        if sensitivities:
+            try:
+                return simulate(
+                    self.scenario_at(u),
+                    duration=float(t[-1]),
+                    sample_times=t,
+                    record_events=False,
+                    **kw,
+                )
+            except (ValueError, TypeError, AttributeError) as exc:
+                if isinstance(exc, InputError):
+                    raise
+                # the simulator's sensitivities failed outside their documented errors
+                raise _ExactUnavailable(f"{type(exc).__name__}: {exc}") from exc
         return simulate(
             self.scenario_at(u),
             duration=float(t[-1]),
@@ -208,7 +228,7 @@ class Problem:
     def _record_J_exact(self, res: Result, u: np.ndarray) -> np.ndarray:
         from braidsim.sensitivity import SERIES_QUANTITIES
 
-        sens = res.sensitivity  # type: ignore[attr-defined]
+        sens = res.sensitivity
         S = np.asarray(sens.series)
         blocks = [
             S[:, :, SERIES_QUANTITIES.index(SENS_COLUMN[q])] / self.sigma[q]
@@ -220,8 +240,12 @@ class Problem:
         """Record residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""
         u = np.asarray(u, dtype=float)
         if jac and self.exact:
-            res = self.run(u, sensitivities=True)
-            return Evaluation(u, self._record_r(res), self._record_J_exact(res, u), res)
+            try:
+                res = self.run(u, sensitivities=True)
+                return Evaluation(u, self._record_r(res), self._record_J_exact(res, u), res)
+            except SimulationError as exc:
+                if not self._exact_failed(exc):
+                    raise
         res = self.run(u)
         r = self._record_r(res)
         J = self._fd(u, lambda v: self._record_r(self.run(v)), r) if jac else None
@@ -261,7 +285,7 @@ class Problem:
         return np.concatenate([r_d, [extra]])
 
     def _event_J_exact(self, res: Result, u: np.ndarray) -> np.ndarray:
-        sens = res.sensitivity  # type: ignore[attr-defined]
+        sens = res.sensitivity
         dt = np.asarray(sens.impacts)[:, :, 0]  # (n_impacts, k): d t_onset / d key
         _r_d, near, tm, rows = self._event_parts(res)
         sig_t = self.record.sample_interval
@@ -282,8 +306,12 @@ class Problem:
         """Event residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""
         u = np.asarray(u, dtype=float)
         if jac and self.exact:
-            res = self.run(u, sensitivities=True)
-            return Evaluation(u, self._event_r(res), self._event_J_exact(res, u), res)
+            try:
+                res = self.run(u, sensitivities=True)
+                return Evaluation(u, self._event_r(res), self._event_J_exact(res, u), res)
+            except SimulationError as exc:
+                if not self._exact_failed(exc):
+                    raise
         res = self.run(u)
         r = self._event_r(res)
         J = self._fd(u, lambda v: self._event_r(self.run(v)), r) if jac else None
@@ -292,6 +320,27 @@ class Problem:
     @property
     def has_events(self) -> bool:
         return self.onsets.size > 0
+
+    def _exact_failed(self, exc: SimulationError) -> bool:
+        """Whether to answer this point with central differences instead of the exact
+        Jacobian: at a grazing contact (no derivative exists there; the differences give
+        the secant) and, under ``jacobian = "auto"``, when the simulator's sensitivities
+        fail otherwise (then for the rest of the fit, with a note)."""
+        from braidsim.sensitivity import SensitivityError
+
+        if isinstance(exc, SensitivityError):
+            self.notes.add(
+                f"exact Jacobian undefined at a grazing contact ({exc}); central "
+                "differences used there"
+            )
+            return True
+        if isinstance(exc, _ExactUnavailable) and self.jacobian_choice == "auto":
+            self.exact = False
+            self.notes.add(
+                f"the simulator's sensitivities failed ({exc}); central differences used"
+            )
+            return True
+        return False
 
     # -- finite differences ----------------------------------------------------------------
 
