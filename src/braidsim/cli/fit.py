@@ -76,6 +76,7 @@ def fit(
             f"{lr.restitution:.4g} (effective {lr.effective_restitution:.4g})"
         )
     lines += [f"  warning: {w}" for w in res.warnings]
+    lines += [f"  note: {w}" for w in res.notes]
     if out is not None:
         lines.append(f"report: {out}")
     sys.stdout.write("\n".join(lines) + "\n")

@@ -129,6 +129,7 @@ class FitResult:
     evaluations: int = 0
     seconds: float = 0.0
     onsets: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    notes: list[str] = field(default_factory=list)
 
     @property
     def values(self) -> dict[str, float]:
@@ -572,7 +573,7 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     say("statistics at the optimum")
     stats, e = statistics(pr, lf.u)
     stats.warnings.extend(law_notes)
-    stats.warnings.extend(sorted(problem.notes | pr.notes))
+
     dropped = [k for k in problem.keys if k not in pr.keys]
     if dropped:
         stats.warnings.append(
@@ -615,6 +616,7 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
         else problem.evaluations,
         seconds=time.perf_counter() - t0,
         onsets=problem.onsets,
+        notes=sorted(problem.notes | pr.notes),
     )
 
 

@@ -59,6 +59,7 @@ def summary(res: FitResult) -> dict[str, Any]:
         "correlation": {"keys": list(res.keys), "matrix": st.correlation.tolist()},
         "singular_values": st.singular_values.tolist(),
         "warnings": list(st.warnings),
+        "notes": list(res.notes),
         "jacobian": res.jacobian,
         "impacts_in_record": res.impacts_in_record,
         "record": {
