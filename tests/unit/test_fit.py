@@ -305,3 +305,22 @@ def test_displacement_record_needs_and_gets_a_global_start(method):
     if method == "multistart":
         costs = sorted(s["cost"] for s in res.starts)
         assert costs[-1] > 100 * costs[0]  # one start ended in another minimum
+
+
+def test_cli_reads_the_spec_data_key_and_prints_json_without_out(tmp_path, capsys):
+    rec = synthetic_record(SC, 0.05, noise={"x": 2e-6}, quantities=("x",), seed=5)
+    _write_record(tmp_path / "laser.csv", rec)
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        'scenario = "paper-3.1"\ndata = "laser.csv"\n[fit]\n'
+        'free = { "track.clearance" = ["2.5 mm", "3.5 mm"] }\nquantity = "x"\n'
+        'global = "none"\nnoise = { x = "2 um" }\n'
+    )
+    code, stdout, err = _cli(["fit", str(spec), "--json"], capsys)
+    assert code == 0, err
+    j = json.loads(stdout)
+    lo, hi = j["estimates"]["track.clearance"]["ci95"]
+    assert lo <= 3e-3 <= hi
+    assert j["noise"]["x"] == pytest.approx(2e-6)
+    assert j["record"]["source"].endswith("laser.csv")
+    assert "files" not in j
