@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import braidsim
-from braidsim.fit import fit, parse_fit_spec
+from braidsim.fit import fit, fit_record, parse_fit_spec
 from braidsim.fit.problem import FD_STEP, Problem, exact_available, model_acceleration
 from braidsim.fit.synthetic import synthetic_record
 
@@ -324,3 +324,26 @@ def test_cli_reads_the_spec_data_key_and_prints_json_without_out(tmp_path, capsy
     assert j["noise"]["x"] == pytest.approx(2e-6)
     assert j["record"]["source"].endswith("laser.csv")
     assert "files" not in j
+
+
+def test_fitted_scenario_of_a_scenario_without_file_is_written_whole(tmp_path):
+    from braidsim.fit.report import write_report
+
+    sc = braidsim.load_scenario({"initial": {"vx": "0.5 m/s"}, "track": {"vibration_amplitude": 0}})
+    rec = synthetic_record(sc, 0.05, noise={"x": 2e-6}, quantities=("x",), seed=5)
+    spec = parse_fit_spec(
+        {
+            "overrides": {"friction.pad_track": 0.05},
+            "fit": {"free": {"track.clearance": ["2.5 mm", "3.5 mm"]}, "quantity": "x"},
+        },
+        scenario=sc,
+    )
+    res = fit_record(spec, rec)
+    write_report(res, spec, tmp_path / "out")
+    back = braidsim.load_scenario(tmp_path / "out" / "fitted_scenario.toml")
+    want = sc.with_overrides({"friction.pad_track": 0.05, **res.values})
+    assert back["simulation.duration"] == pytest.approx(rec.duration)  # the record's length
+    for key, value in want.values.items():
+        if key == "simulation.duration":
+            continue
+        assert back[key] == (pytest.approx(value, rel=1e-14) if isinstance(value, float) else value)

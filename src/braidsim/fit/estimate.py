@@ -295,7 +295,7 @@ def global_stage(
     progress: Progress | None = None,
 ) -> list[dict[str, Any]]:
     """End points of the global stage, best first: ``[{"u", "cost", "start"}]``."""
-    kind = "events" if problem.has_events else "record"
+    kind = "events" if problem.has_events and problem.use_events else "record"
     u0 = problem.u_start
     if method == "none" or (starts <= 1 and method == "multistart"):
         return [{"u": u0, "cost": math.nan, "start": u0, "kind": "none"}]
@@ -451,6 +451,7 @@ def fit_law(
     ]
     if len(used) != len(spec.free):
         pr = Problem(sc, record, used, spec.quantities, sigma, spec.jacobian)
+    pr.use_events = spec.events
     lf, _ = fit_problem(
         pr, spec.global_method, spec.starts, spec.seed, spec.max_evaluations, progress
     )
@@ -524,6 +525,7 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
     problem = Problem(spec.scenario, record, spec.free, spec.quantities, spec.noise, spec.jacobian)
+    problem.use_events = spec.events
     # a record shorter than one impact cannot inform contact parameters
     start_run = problem.run(problem.u_start)
     n_model = int(

@@ -166,6 +166,8 @@ class Problem:
                 record.t, record.columns[q], sig.get(q) or noise_estimate(record.columns[q])
             )
         self.evaluations = 0
+        #: whether the global stage works on the event residuals (when the record has some)
+        self.use_events = True
 
     # -- parameters ------------------------------------------------------------------------
 

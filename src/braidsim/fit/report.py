@@ -147,15 +147,16 @@ def _tree(flat: dict[str, Any]) -> dict[str, Any]:
 
 
 def _emit(table: dict[str, Any], prefix: str = "") -> str:
-    lines = [f"{k} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
-    out = "\n".join(lines)
+    """TOML text of a nested table: its own values under ``[prefix]``, then its sub-tables,
+    separated by blank lines."""
+    scalars = [f"{k} = {_toml_value(v)}" for k, v in table.items() if not isinstance(v, dict)]
+    parts = []
+    if scalars:
+        parts.append((f"[{prefix}]\n" if prefix else "") + "\n".join(scalars))
     for k, v in table.items():
         if isinstance(v, dict):
-            name = f"{prefix}.{k}" if prefix else k
-            if any(not isinstance(x, dict) for x in v.values()):
-                out = out.rstrip("\n") + f"\n\n[{name}]\n"
-            out += _emit(v, name)
-    return out.strip("\n") + "\n"
+            parts.append(_emit(v, f"{prefix}.{k}" if prefix else k))
+    return "\n\n".join(p for p in parts if p)
 
 
 def _plain(v: Any) -> Any:
@@ -169,10 +170,14 @@ def _plain(v: Any) -> Any:
 def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
     """The scenario with the fitted values: ``extends`` the spec's scenario, then its
     overrides, the law and the fitted values (SI numbers written with their units)."""
-    from braidsim.params import SCHEMA
+    from braidsim.params import SCHEMA, builtin_names
 
+    ref = spec.scenario_ref or res.scenario.name
+    standalone = ref not in builtin_names() and not Path(ref).is_file()
     flat: dict[str, Any] = {}
-    for key in spec.overrides:
+    # a scenario given as a mapping or object has no file to extend: write all of it
+    keys = [k for k, v in res.scenario.values.items() if v is not None] if standalone else []
+    for key in [*keys, *spec.overrides]:
         v = res.scenario[key]
         if v is not None:
             flat[key] = _plain(v)
@@ -185,7 +190,6 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
         unit = SCHEMA[key].unit
         if isinstance(v, float) and unit and SCHEMA[key].kind == "float" and math.isfinite(v):
             flat[key] = f"{v!r} {unit}"
-    ref = spec.scenario_ref or res.scenario.name
     head = [
         f"# {res.scenario.name}: the fitted scenario (braidsim fit, contact law {res.law})",
         f"# record {res.record.source}: {res.record.t.size} samples over {res.record.duration:g} s;"
@@ -197,8 +201,11 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
             f"# {k} = {res.stats.values[i]:.6g} +- {res.stats.stderr[i]:.3g} {unit} (1 se)".rstrip()
         )
     head.append("# Run: braidsim run THIS.toml")
-    body = f"name = {json.dumps(res.scenario.name + '-fitted')}\nextends = {json.dumps(ref)}\n\n"
-    return "\n".join(head) + "\n" + body + _emit(_tree(flat))
+    body = f"name = {json.dumps(res.scenario.name + '-fitted')}\n"
+    if not standalone:
+        body += f"extends = {json.dumps(ref)}\n"
+    body += "\n"
+    return "\n".join(head) + "\n" + body + _emit(_tree(flat)) + "\n"
 
 
 def residual_figure(res: FitResult) -> Any:
