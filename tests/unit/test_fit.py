@@ -141,7 +141,7 @@ def test_stiffness_and_exponent_from_slow_impacts_are_reported_not_separable():
         rec,
         {"contact.track.stiffness": [1e9, 1e12], "contact.track.exponent": [1.2, 1.8]},
         quantity="acceleration",
-        **{"global": "none"},
+        global_method="none",
     )
     assert abs(res.stats.correlation[0, 1]) > 0.99
     assert any("are correlated" in w and "contact.track.exponent" in w for w in res.warnings)
@@ -157,7 +157,7 @@ def test_the_law_of_the_data_is_selected():
         {"track.clearance": ["2.5 mm", "3.5 mm"]},
         quantity="acceleration",
         laws=["flores", "hunt_crossley", "lankarani_nikravesh", "hertz"],
-        **{"global": "none"},
+        global_method="none",
     )
     assert res.law == "hunt_crossley"
     aic = {lr.law: lr.aic for lr in res.laws}
@@ -297,7 +297,7 @@ def test_displacement_record_needs_and_gets_a_global_start(method):
     truth = {"contact.track.restitution": 0.6, "track.clearance": 2.9e-3}
     sc = braidsim.load_scenario(SC, overrides=truth)
     rec = synthetic_record(sc, 0.15, noise={"x": 2e-6}, quantities=("x",), seed=3)
-    res = fit(SC, rec, FREE2, quantity="x", starts=3, max_evaluations=20, **{"global": method})
+    res = fit(SC, rec, FREE2, quantity="x", starts=3, max_evaluations=20, global_method=method)
     for i, k in enumerate(res.keys):
         lo, hi = res.stats.ci95[i]
         assert lo <= truth[k] <= hi, (k, lo, truth[k], hi)

@@ -437,8 +437,9 @@ def information_criteria(rss: float, n: int, k: int) -> tuple[float, float]:
 
 def fit_law(
     spec: FitSpec, record: Record, law: str, sigma: Mapping[str, float], progress: Progress | None
-) -> tuple[LawResult, Problem, LocalFit]:
-    """Fit with the track contact law ``law`` (free parameters it ignores dropped)."""
+) -> tuple[LawResult, Problem, LocalFit, list[dict[str, Any]]]:
+    """Fit with the track contact law ``law`` (free parameters it ignores dropped); returns
+    its result, problem, local fit and the end points of its global stage."""
     sc = spec.scenario.with_overrides({"contact.track.model": law})
     pr = Problem(sc, record, spec.free, spec.quantities, sigma, spec.jacobian)
     J = pr.residuals(pr.u_start, jac=True).J
@@ -452,7 +453,7 @@ def fit_law(
     if len(used) != len(spec.free):
         pr = Problem(sc, record, used, spec.quantities, sigma, spec.jacobian)
     pr.use_events = spec.events
-    lf, _ = fit_problem(
+    lf, ends = fit_problem(
         pr, spec.global_method, spec.starts, spec.seed, spec.max_evaluations, progress
     )
     e = pr.residuals(lf.u)
@@ -478,6 +479,7 @@ def fit_law(
         ),
         pr,
         lf,
+        ends,
     )
 
 
@@ -556,14 +558,15 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     if laws:
         if law0 not in laws:
             laws.insert(0, law0)
-        fits: dict[str, tuple[Problem, LocalFit]] = {}
+        fits: dict[str, tuple[Problem, LocalFit, list[dict[str, Any]]]] = {}
         for law in laws:
             say(f"contact law {law}")
-            lr, pr, lf = fit_law(spec, record, law, problem.sigma, say)
+            lr, pr, lf, law_ends = fit_law(spec, record, law, problem.sigma, say)
             law_results.append(lr)
-            fits[law] = (pr, lf)
+            fits[law] = (pr, lf, law_ends)
         selected, law_notes = select_law(law_results, law0)
-        chosen = fits[selected]
+        chosen = fits[selected][:2]
+        ends = fits[selected][2]
         # by AIC, the selected law first among equal fits
         law_results.sort(key=lambda r: r.aic - (AIC_TIE if r.law == selected else 0.0))
     if chosen is None:
@@ -653,8 +656,8 @@ def fit(
         Applied to the scenario first.
     **options
         Any other key of the spec's ``[fit]`` table (``noise``, ``start``, ``jacobian``,
-        ``global``, ``starts``, ``events``, ``profile``, ``profile_points``, ``laws``,
-        ``seed``, ``max_evaluations``).
+        ``global_method`` for ``global``, ``starts``, ``events``, ``profile``,
+        ``profile_points``, ``laws``, ``seed``, ``max_evaluations``).
 
     Returns
     -------
@@ -662,6 +665,9 @@ def fit(
     """
     from braidsim.fit.data import read_record
     from braidsim.fit.spec import parse_fit_spec
+
+    if "global_method" in options:  # `global` is a Python keyword
+        options["global"] = options.pop("global_method")
 
     table: dict[str, Any] = {"fit": {"free": dict(free), "quantity": quantity, **options}}
     if overrides:
