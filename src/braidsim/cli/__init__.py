@@ -26,6 +26,7 @@ VERBS = {
     "lyapunov": "analysis",
     "analyze": "analysis",
     "design": "design",
+    "fit": "fit",
     "machine": "machine",
     "paper": "paper",
     "sweep": "sweep",
