@@ -124,10 +124,17 @@ class FlowMap:
     dv0_dv0: np.ndarray
     jac_p: np.ndarray
     dv0_dp: np.ndarray
-    impacts: Any
+    episodes: np.ndarray
     impact_sens: np.ndarray
     min_gaps: np.ndarray
     modes0: tuple[int, int] = (0, 0)
+
+    @property
+    def impacts(self) -> Any:
+        """The impacts in [t0, t1] (a pandas DataFrame, the columns of ``Result.impacts``)."""
+        from braidsim.result import impacts_frame
+
+        return impacts_frame(self.episodes)
 
     def monodromy(self) -> np.ndarray:
         """The Jacobian of the map on z = (y, latched speeds of the pairs in contact at t0);
@@ -181,8 +188,6 @@ def fd_flow_map(
     docstring). ``keys``: parameters for ``jac_p``; ``samples``: rows of the base run for
     ``min_gaps`` (0: none, the gaps NaN).
     """
-    from braidsim.result import impacts_frame
-
     prep = system.prepare(values)
     y0 = np.asarray(y0, dtype=float)
     n = y0.size
@@ -269,7 +274,7 @@ def fd_flow_map(
         dv0_dv0=dv0_dv0,
         jac_p=jac_p,
         dv0_dp=dv0_dp,
-        impacts=impacts_frame(base.episodes),
+        episodes=base.episodes,
         impact_sens=sens,
         min_gaps=min_gaps(prep, base.series, n),
         modes0=modes,

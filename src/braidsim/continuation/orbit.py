@@ -454,14 +454,18 @@ class Shooter:
 
     def times(self, values: Mapping[str, float]) -> np.ndarray:
         """The cut times t_0..t_m [s] at ``values``."""
-        w = self.system.prepare(values).omega
+        try:
+            w = self.system.prepare(values).omega
+        except InputError as exc:
+            raise ContinuationError(f"parameter out of range ({exc})") from None
         m = len(self.cuts)
         return (self.phase + 2.0 * math.pi * self.period * np.arange(m + 1) / m) / w
 
     def scale(self, j: int, values: Mapping[str, float]) -> np.ndarray:
-        """State scales of cut j: (L, L Omega[, L, L Omega], L Omega per latched speed)."""
-        Ls, Vs = self.system.scales(values)
-        n = 2 * self.system.prepare(values).n_coords
+        """State scales of cut j: (L, L Omega[, L, L Omega], L Omega per latched speed), at
+        the shooter's base values (fixed, so that the scaling does not move with lambda)."""
+        Ls, Vs = self.system.scales(self.values)
+        n = 2 * self.system.prepare(self.values).n_coords
         base = [Ls if i % 2 == 0 else Vs for i in range(n)]
         return np.array(base + [Vs] * self.cuts[j].size_extra)
 
@@ -501,7 +505,10 @@ class Shooter:
         J_j (SI) of the state maps."""
         z, lam = self.unpack(U)
         vals = self.values_at(lam)
-        prep = self.system.prepare(vals)
+        try:
+            prep = self.system.prepare(vals)
+        except InputError as exc:  # a Newton iterate outside the parameter's range
+            raise ContinuationError(f"parameter out of range in Newton's method ({exc})") from None
         tt = self.times(vals)
         m = len(self.cuts)
         sizes = self.sizes()
