@@ -185,8 +185,10 @@ class Continuer:
         max_points: int = 200,
         pscale: float | None = None,
         on_point: Callable[[Orbit], None] | None = None,
+        stop_on: str | None = None,
     ) -> None:
         lo, hi = sorted(bounds)
+        self.stop_on = stop_on
         self.system = system
         self.key = key
         self.lo, self.hi = lo, hi
@@ -286,7 +288,12 @@ class Continuer:
             except (ContinuationError, SimulationError) as exc:
                 br.stop = f"tangent failed at {self.key} = {lam:.6g} ({exc})"
                 break
+            n_special = len(br.special)
             self.detect(br, o, nxt, sh, U, U_new, tau, tau_new)
+            if self.stop_on and any(sp.type == self.stop_on for sp in br.special[n_special:]):
+                br.points.append(nxt)
+                br.stop = f"found a {self.stop_on} point"
+                break
             # a grazing may have changed the cuts' structure: re-solve with the new one
             nxt2 = self.restructure(nxt)
             if nxt2 is not nxt:
@@ -387,37 +394,60 @@ class Continuer:
                 side = 1
         return best
 
-    def _locate_grazing(self, sh: Shooter, Ua: np.ndarray, Ub: np.ndarray, sig_a: Any) -> tuple[Orbit | None, Orbit | None]:
-        a, b = 0.0, 1.0
-        oa = ob = None
-        d_lam = abs(float(Ub[-1] - Ua[-1]))
+    def _locate_grazing(self, oa: Orbit, ob: Orbit) -> tuple[Orbit | None, Orbit | None]:
+        """Bisect in the parameter between two orbits of different contact structure. Each
+        trial is solved at fixed parameter from the last orbit of ``oa``'s structure, so the
+        bracket closes on where *that* family grazes (a family of the other structure may
+        overlap it: hysteresis at a grazing)."""
+        sig_a = signature(oa)
+        la, lb = oa.values[self.key], ob.values[self.key]
+        best_a: Orbit = oa
+        best_b: Orbit | None = ob
+        hist = [oa]
         for _ in range(40):
-            t = 0.5 * (a + b)
+            lam = 0.5 * (la + lb)
             try:
-                o = self._secant_point(sh, Ua, Ub, t)
-                same = signature(o) == sig_a
+                o: Orbit | None = solve_fixed(
+                    self.system,
+                    {**best_a.values, self.key: lam},
+                    best_a.period,
+                    best_a.phase,
+                    best_a.cuts,
+                    best_a.z,
+                    self.method,
+                    self.tol,
+                )
             except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                o, same = None, False
-            if same:
-                a, oa = t, o
+                o = None
+            if o is not None and signature(o) == sig_a:
+                la, best_a = lam, o
+                hist.append(o)
             else:
-                b = t
+                lb = lam
                 if o is not None:
-                    ob = o
-            # the grazing to 1e-7 of the parameter's range (or 1e-9 of the secant)
-            if (b - a) * max(d_lam, 1e-2) < 1e-7:
+                    best_b = o
+            if abs(lb - la) < 1e-7 * self.pscale:
                 break
-        return oa, ob
+        self.grazing_value = float(la)
+        # the distance to grazing is linear in the parameter near a regular grazing: the
+        # secant of the last two orbits' approach distances finds its zero when the corrector
+        # gave up before the bracket closed (a stiff contact near lift-off)
+        if len(hist) >= 2:
+            o1, o2 = hist[-2], hist[-1]
+            a1, a2 = o1.profile.approach, o2.profile.approach
+            l1, l2 = o1.values[self.key], o2.values[self.key]
+            if math.isfinite(a1) and math.isfinite(a2) and a1 != a2 and l1 != l2:
+                lg = l2 - a2 * (l2 - l1) / (a2 - a1)
+                if min(la, lb) <= lg <= max(la, lb):
+                    self.grazing_value = float(lg)
+        return best_a, best_b
 
     def detect(self, br: Branch, oa: Orbit, ob: Orbit, sh: Shooter, Ua: np.ndarray, Ub: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> None:
         idx = len(br.points) - 1
         k = oa.period
         if signature(oa) != signature(ob):
-            ga, gb = self._locate_grazing(sh, Ua, Ub, signature(oa))
-            ref = ga if ga is not None else oa
-            lam = ref.values[self.key]
-            if ga is not None and gb is not None:
-                lam = 0.5 * (ga.values[self.key] + gb.values[self.key])
+            ga, gb = self._locate_grazing(oa, ob)
+            lam = self.grazing_value
             pa, pb = signature(oa)[0], signature(ob)[0]
             detail = f"onsets per orbit (pair, wall) {list(pa)} -> {list(pb)}"
             if signature(oa)[1:] != signature(ob)[1:]:
