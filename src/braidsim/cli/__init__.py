@@ -15,6 +15,7 @@ def _register() -> None:
     # Importing a verb module registers its command on `app`.
     from braidsim.cli import (  # noqa: F401
         analysis,
+        continue_,
         design,
         machine,
         paper,
