@@ -160,7 +160,12 @@ def default_max_step(sc: Scenario) -> float:
     return hmax
 
 
-def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.0) -> Model:
+def build_model(
+    sc: Scenario,
+    duration: float | None = None,
+    t_start: float = 0.0,
+    keep_zero_harmonics: bool = False,
+) -> Model:
     """Derive the core's records from a validated scenario.
 
     Parameters
@@ -172,6 +177,10 @@ def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.
     t_start : float
         Start time of a continued run [s]: the transfers kept are those in
         (t_start, t_start + duration).
+    keep_zero_harmonics : bool
+        Keep the track's main harmonic in the record even at zero amplitude (the record
+        then has the same shape whatever the amplitude, as the sensitivities need; a zero
+        row adds exactly 0 to the motion).
     """
     m = sc["carrier.mass"]
     phi = sc["yarn.angle"]
@@ -190,7 +199,10 @@ def build_model(sc: Scenario, duration: float | None = None, t_start: float = 0.
         )
     ]
     th += list(sc["track.harmonics"])
-    track_harm = np.array([t for t in th if t[0] != 0.0], dtype=float).reshape(-1, 3)
+    track_harm = np.array(
+        [t for i, t in enumerate(th) if t[0] != 0.0 or (keep_zero_harmonics and i == 0)],
+        dtype=float,
+    ).reshape(-1, 3)
     speed_harm = np.array(
         [] if prof_t.size else list(sc["horn_gear.speed_harmonics"]), dtype=float
     ).reshape(-1, 3)

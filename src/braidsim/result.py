@@ -184,6 +184,9 @@ class Result:
         RMS of x over each window [m], sqrt((1 / (t1 - t0)) int_t0^t1 x^2 dt), the integral
         by a 4-point Gauss-Legendre rule on the interpolant of every step (exact up to the
         integrator's own error, whatever the samples).
+    sensitivity : Sensitivities or None
+        The forward sensitivities, when ``simulate(..., sensitivities=[...])`` asked for
+        them (:class:`braidsim.sensitivity.Sensitivities`).
     """
 
     model: Model
@@ -196,6 +199,7 @@ class Result:
     final_state: State | None = None
     rms_x: np.ndarray | None = None
     backend: str = "compiled"
+    sensitivity: Any = None
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     # ------------------------------------------------------------------ impacts
@@ -313,6 +317,7 @@ class Result:
         imp = self.impacts
         if window is not None:
             imp = imp[(imp["t"] >= window[0]) & (imp["t"] <= window[1])]
+        sens = self.sensitivity
         impacts = [
             {
                 "t": float(r.t),
@@ -327,6 +332,7 @@ class Result:
                 "latched_velocity": float(r.latched_velocity),
                 "ongoing": bool(r.ongoing),
                 "initial": bool(r.initial),
+                **({"sensitivity": sens.impact_dict(int(r.Index))} if sens is not None else {}),
             }
             for r in imp.itertuples()
         ]
@@ -345,7 +351,10 @@ class Result:
             "x": self.ranges_dict("track", iw),
             "y": self.ranges_dict("slot", iw),
             "impacts": impacts,
-            "final": {k: float(v) for k, v in self.final.items()},
+            "final": {
+                **{k: float(v) for k, v in self.final.items()},
+                **({"sensitivity": sens.final_dict()} if sens is not None else {}),
+            },
             "stats": dict(self.stats),
         }
 

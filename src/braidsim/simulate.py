@@ -12,7 +12,7 @@ import numpy as np
 from braidsim.core import CARRIER_COLUMNS, RawRun, state_size
 from braidsim.core import layout as L
 from braidsim.core import run as core_run
-from braidsim.core.driver import SeriesSink
+from braidsim.core.driver import SeriesSink, Tangents
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
@@ -121,6 +121,7 @@ def run_model(
     record_events: bool = True,
     energy: bool = True,
     start: State | None = None,
+    tangents: Tangents | None = None,
 ) -> RawRun:
     """Run one model through the compiled core: the one way from a :class:`Model` to its
     results, for :func:`simulate`, the batches, the machine and the analyses.
@@ -129,7 +130,8 @@ def run_model(
     speeds and step control) instead of t = 0 and the scenario's initial conditions; the run
     then ends at ``start.t + model.duration``. ``series``: keep the rows (True), none
     (False: the lean path), or stream them to a callable. Raises :class:`SimulationError` on
-    a numerical failure.
+    a numerical failure. ``tangents``: carry forward sensitivities
+    (:func:`braidsim.sensitivity.directions`).
     """
     opts = model.options._replace(record_events=record_events, energy=energy)
     y0 = model.y0 if energy else model.y0[: state_size(model.record, False)]
@@ -158,7 +160,12 @@ def run_model(
         windows=windows,
         series=series,
         restart=restart,
+        tangents=tangents,
     )
+    if raw.status == L.ST_GRAZING:
+        from braidsim.sensitivity import sensitivity_error
+
+        raise sensitivity_error(raw.t)
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
     return raw
@@ -180,6 +187,7 @@ def simulate(
     start: State | None = None,
     series: bool | SeriesSink = True,
     max_series_bytes: int | None = SERIES_MEMORY,
+    sensitivities: Sequence[str] | None = None,
 ) -> Result:
     """Simulate one carrier.
 
@@ -215,6 +223,12 @@ def simulate(
         ``sample_interval`` that would exceed it is widened to a multiple of itself that
         fits (``Result.stats["sample_interval"]`` says which); explicit ``sample_times`` are
         never thinned. None: no budget.
+    sensitivities : sequence of str, optional
+        Numeric scenario keys (``"contact.track.restitution"``, ``"track.clearance"``,
+        ``"initial.x"``, ...): carry the exact forward sensitivities of the run along each
+        (``Result.sensitivity``, a :class:`braidsim.sensitivity.Sensitivities`; the summary
+        and ``braidsim run --json`` carry them per impact and in ``final``). Not with a
+        series callable.
 
     Returns
     -------
@@ -226,7 +240,22 @@ def simulate(
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
     t_start = 0.0 if start is None else float(start.t)
-    model = build_model(sc, duration, t_start=t_start)
+    keys = tuple(sensitivities or ())
+    if isinstance(sensitivities, str):
+        raise InputError("sensitivities: a list of keys, e.g. ['track.clearance']")
+    if keys and callable(series):
+        raise InputError("sensitivities: need series=True or False, not a series callable")
+    model = build_model(sc, duration, t_start=t_start, keep_zero_harmonics=bool(keys))
+    tangents = None
+    if keys:
+        from braidsim.sensitivity import check_differentiable, directions
+
+        check_differentiable(model.record)
+        dirs = directions(model, keys)
+        if start is not None:
+            # a continued run starts from the given state: its tangent is zero
+            dirs.S0[:] = 0.0
+        tangents = dirs.tangents(series=series is True)
     T = t_start + model.duration
     dt_used: float | None = None
     if series is False:
@@ -264,6 +293,7 @@ def simulate(
         series=keep if series is True else series,
         record_events=record_events and series is not False,
         start=start,
+        tangents=tangents,
     )
     series_cols = {}
     for i, name in enumerate(CARRIER_COLUMNS):
@@ -292,4 +322,20 @@ def simulate(
     }
     xsq = raw.xsq if raw.xsq is not None else np.full(W.shape[0], np.nan)
     rms_x = np.sqrt(xsq / (W[:, 1] - W[:, 0]))
-    return Result(model, series_cols, raw.episodes, W, raw.ranges, st_dict, final, fs, rms_x=rms_x)
+    sens = None
+    if raw.sensitivity is not None:
+        from braidsim.sensitivity import Sensitivities
+
+        sens = Sensitivities.from_run(keys, raw.sensitivity)
+    return Result(
+        model,
+        series_cols,
+        raw.episodes,
+        W,
+        raw.ranges,
+        st_dict,
+        final,
+        fs,
+        rms_x=rms_x,
+        sensitivity=sens,
+    )

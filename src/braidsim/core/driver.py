@@ -28,6 +28,58 @@ DEFAULT_EPISODE_CHUNK = 256
 
 
 @dataclass
+class Tangents:
+    """What a run needs to carry k forward sensitivities (see
+    :class:`braidsim.core.layout.SensitivityWork`).
+
+    Attributes
+    ----------
+    records : sequence of model records
+        k tangent records of the model's class.
+    S0 : array (k, 2 n_coords)
+        Tangents of the initial coordinates and speeds.
+    DV0 : array (k, 2)
+        Tangents of the latched speeds of contacts carried into the run (a continuation).
+    DTR : array (k, n_transfers)
+        Tangents of the transfer times.
+    scale : array (k,)
+        A typical size of each direction's parameter (SI; 1 for a direction of the initial
+        state): the tangents' absolute tolerances are the state's divided by it.
+    series : bool
+        Also give the tangents of every series row.
+    """
+
+    records: Any
+    S0: np.ndarray
+    DV0: np.ndarray
+    DTR: np.ndarray
+    scale: np.ndarray
+    series: bool = True
+
+
+@dataclass
+class SensitivityRun:
+    """The forward sensitivities a run produced, along its k directions.
+
+    Attributes
+    ----------
+    S : array (k, 2 n_coords)
+        Tangents of the final coordinates and speeds.
+    DV0 : array (k, 2)
+        Tangents of the final latched speeds.
+    impacts : array (n_impacts, k, 5)
+        :data:`~braidsim.core.layout.IMPACT_SENS_FIELDS` of each row of the impact table.
+    series : array (rows, k, 8) or None
+        :data:`~braidsim.core.layout.SERIES_SENS_FIELDS` of each row of the series.
+    """
+
+    S: np.ndarray
+    DV0: np.ndarray
+    impacts: np.ndarray
+    series: np.ndarray | None
+
+
+@dataclass
 class RawRun:
     """What one run of the solver produced, in the solver's own records.
 
@@ -53,6 +105,8 @@ class RawRun:
         RESTART_DTYPE record where the run stands (to continue it).
     rows_written : int
         Series rows produced in all (kept or streamed).
+    sensitivity : SensitivityRun or None
+        The forward sensitivities, when the run carried them.
     """
 
     status: int
@@ -64,6 +118,7 @@ class RawRun:
     y: np.ndarray
     restart: np.ndarray
     rows_written: int
+    sensitivity: SensitivityRun | None = None
 
     @property
     def t(self) -> float:
@@ -100,6 +155,7 @@ def run(
     restart: np.ndarray | None = None,
     row_chunk: int = DEFAULT_ROW_CHUNK,
     episode_chunk: int = DEFAULT_EPISODE_CHUNK,
+    tangents: Tangents | None = None,
 ) -> RawRun:
     """Integrate ``model`` with solver options ``opts`` from ``y0`` (or from ``restart``).
 
@@ -115,6 +171,9 @@ def run(
     restart : RESTART_DTYPE record, optional
         Where to start: a new run by default (:func:`braidsim.core.layout.new_restart` at
         t = 0 or its ``t``), or a continuation (``started = CONTINUED``).
+    tangents : Tangents, optional
+        Carry forward sensitivities along these directions (a series sink cannot take them:
+        with ``tangents.series`` the series must be kept, ``series=True``).
     """
     n = state_size(model, opts.energy)
     y = np.array(y0, dtype=float)
@@ -139,9 +198,16 @@ def run(
     EP = np.empty(max(episode_chunk, 2 * EPISODE_RESERVE), dtype=L.EPISODE_DTYPE)
     chunks: list[np.ndarray] = []
     closed: list[np.ndarray] = []
+    SENS = None
+    if tangents is not None:
+        SENS = _sensitivity_work(tangents, EP, rows, TR, keep, sink, opts)
+    sens_chunks: list[np.ndarray] = []
+    sens_closed: list[np.ndarray] = []
     written = 0
     while True:
-        status = integrate(model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS)
+        status = integrate(
+            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS
+        )
         r = RS[0]
         final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)
         nrow = int(r["rows"])
@@ -151,8 +217,11 @@ def run(
             if nrow and (final or status == L.ST_ROWS_FULL):
                 # a flush happens between steps, and a step's rows (its samples, then its
                 # peaks and event) lie inside the step: sorted chunks make a sorted stream
-                chunk = rows[:nrow][np.argsort(rows[:nrow, 0], kind="stable")]
+                order = np.argsort(rows[:nrow, 0], kind="stable")
+                chunk = rows[:nrow][order]
                 written += nrow
+                if SENS is not None and SENS.RSENS is not None:
+                    sens_chunks.append(SENS.RSENS[:nrow][order])
                 if keep:
                     chunks.append(chunk)
                 elif sink is not None:
@@ -160,22 +229,80 @@ def run(
                 r["rows"] = 0
         if final:
             closed.append(EP[: int(r["episodes"])].copy())
+            if SENS is not None:
+                sens_closed.append(SENS.ESENS[: int(r["episodes"])].copy())
             break
         if status == L.ST_EPISODES_FULL:
-            _flush_episodes(EP, RS, closed)
+            _flush_episodes(EP, RS, closed, None if SENS is None else (SENS.ESENS, sens_closed))
     episodes = np.concatenate(closed)
     # in order of onset (a contact open across a flush was written after later ones)
-    episodes = episodes[np.argsort(episodes["t"], kind="stable")]
+    by_onset = np.argsort(episodes["t"], kind="stable")
+    episodes = episodes[by_onset]
     _close_open(episodes, RS, y, model, n)
     series_rows = None
     if keep:
         series_rows = np.concatenate(chunks) if chunks else np.zeros((0, ncol))
-    return RawRun(status, series_rows, episodes, RANGES, XSQ, STATS, y, RS, written)
+    sens = None
+    if SENS is not None:
+        k = SENS.S.shape[0]
+        sens = SensitivityRun(
+            SENS.S.copy(),
+            SENS.DV0.copy(),
+            np.concatenate(sens_closed)[by_onset],
+            (np.concatenate(sens_chunks) if sens_chunks else np.zeros((0, k, 8)))
+            if SENS.RSENS is not None
+            else None,
+        )
+    return RawRun(status, series_rows, episodes, RANGES, XSQ, STATS, y, RS, written, sens)
 
 
-def _flush_episodes(EP: np.ndarray, RS: np.ndarray, closed: list[np.ndarray]) -> None:
+def _sensitivity_work(
+    tangents: Tangents,
+    EP: np.ndarray,
+    rows: np.ndarray | None,
+    TR: np.ndarray,
+    keep: bool,
+    sink: SeriesSink | None,
+    opts: L.SolverOptions,
+) -> L.SensitivityWork:
+    """The arrays the solver fills with the tangents, sized like the impact table and the
+    series buffer."""
+    from numba import typed
+
+    S = np.array(tangents.S0, dtype=float, ndmin=2)
+    k = S.shape[0]
+    if k == 0:
+        raise ValueError("tangents: at least one direction is needed")
+    DV0 = np.array(tangents.DV0, dtype=float).reshape(k, 2)
+    DTR = np.zeros((k, TR.shape[0])) if TR.shape[0] == 0 else np.array(tangents.DTR, dtype=float)
+    if DTR.shape != (k, TR.shape[0]):
+        raise ValueError(f"tangents.DTR: shape {DTR.shape}, expected {(k, TR.shape[0])}")
+    if len(tangents.records) != k:
+        raise ValueError(f"tangents: {len(tangents.records)} records for {k} directions")
+    if tangents.series and sink is not None:
+        raise ValueError("series sensitivities need the series kept in memory (series=True)")
+    records = typed.List()
+    for rec in tangents.records:
+        records.append(rec)
+    RSENS = None
+    if tangents.series and rows is not None and keep:
+        RSENS = np.zeros((rows.shape[0], k, 8))
+    ESENS = np.full((EP.shape[0], k, 5), np.nan)
+    scale = np.abs(np.array(tangents.scale, dtype=float).reshape(k))
+    scale[~(np.isfinite(scale) & (scale > 0))] = 1.0
+    ATOL = np.array([opts.atol_position, opts.atol_velocity])[None, :] / scale[:, None]
+    return L.SensitivityWork(records, S, DV0, DTR, ESENS, RSENS, np.zeros((k, 2)), ATOL)
+
+
+def _flush_episodes(
+    EP: np.ndarray,
+    RS: np.ndarray,
+    closed: list[np.ndarray],
+    sens: tuple[np.ndarray, list[np.ndarray]] | None = None,
+) -> None:
     """Move the closed impact rows out of the solver's table; the open ones (at most one a
-    pair) go on at the front of the table, their rows in the restart record updated."""
+    pair) go on at the front of the table, their rows in the restart record updated (and
+    the rows of their tangents with them)."""
     r = RS[0]
     nep = int(r["episodes"])
     open_rows = [int(r["open_0"]), int(r["open_1"])]
@@ -185,6 +312,10 @@ def _flush_episodes(EP: np.ndarray, RS: np.ndarray, closed: list[np.ndarray]) ->
     closed.append(EP[:nep][mask].copy())
     kept = EP[held].copy()
     EP[: len(held)] = kept
+    if sens is not None:
+        ES, sens_closed = sens
+        sens_closed.append(ES[:nep][mask].copy())
+        ES[: len(held)] = ES[held].copy()
     for pair in range(2):
         r[f"open_{pair}"] = held.index(open_rows[pair]) if open_rows[pair] >= 0 else -1
     r["episodes"] = len(held)

@@ -197,3 +197,69 @@ def series_row(model, t, y, modes, v0s, n_state, kind, row):
     """Fill one row of the model's sampled series (its :func:`series_columns`, ``kind``
     last)."""
     raise NotImplementedError
+
+
+# =======================================================================================
+# Tangents: directional derivatives for the forward sensitivities
+# =======================================================================================
+# A tangent record ``d...`` has the class of its primal record; its float fields and float
+# arrays hold the derivatives of the primal's fields along one direction (d field / d key),
+# its integer fields copy the primal's. Each function returns (or writes) the derivative of
+# its primal counterpart along the direction given by the tangents of all its arguments
+# (``dp`` for ``p``, ...). See docs/sensitivities.md for the method.
+
+
+@generic
+def contact_forces_jvp(law, dlaw, p, dp, p_dot, dp_dot, v0, dv0):
+    """(dF_k, dF_c, dN): the tangent of :func:`contact_forces`."""
+    raise NotImplementedError
+
+
+@generic
+def friction_force_jvp(law, dlaw, v, dv, normal, dnormal, mu, dmu):
+    """The tangent of :func:`friction_force`."""
+    raise NotImplementedError
+
+
+@generic
+def wall_motion_jvp(ex, dex, t):
+    """(dh, dh', dh''): the tangent of :func:`wall_motion` at fixed t along the excitation's
+    tangent record ``dex``."""
+    raise NotImplementedError
+
+
+@generic
+def derivatives_jvp(model, dmodel, t, y, s, modes, v0s, dv0s, out):
+    """Write the tangent of dy/dt (coordinates and speeds only, ``out[:2 n_coords]``) at
+    (t, y) along the state tangent ``s`` and the model tangent ``dmodel``, with latched
+    speeds ``v0s`` and their tangents ``dv0s``."""
+    raise NotImplementedError
+
+
+@generic
+def pair_gaps_jvp(model, dmodel, pair, t, y, s):
+    """(dg_in, dg_out, drate): the tangent of :func:`pair_gaps` at fixed t."""
+    raise NotImplementedError
+
+
+@generic
+def pair_law_jvp(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
+    """:func:`contact_forces_jvp` of the law of pair ``pair``."""
+    raise NotImplementedError
+
+
+@generic
+def apply_transfer_jvp(model, dmodel, t, y, s, dt, out):
+    """Tangent of a transfer: write into ``out[:2 n_coords]`` the derivative of the state
+    after the transfer applied at time t to the state ``y`` (before it), along the state
+    tangent ``s``, the model tangent and a shift ``dt`` of the transfer time (at fixed
+    state)."""
+    raise NotImplementedError
+
+
+@inline_helper
+def penetration_jvp(mode, dg_in, dg_out, drate):
+    """The tangent (dp, dp') of :func:`penetration` (p not clamped: in contact p >= 0)."""
+    if mode < 0:
+        return -dg_in, -drate
+    return -dg_out, drate

@@ -12,7 +12,7 @@ Physical parameters are records too, but they belong to the model that uses them
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -26,6 +26,7 @@ ST_EPISODES_FULL = 5  # the impact table is full: flush it and resume (not a fai
 ST_ZENO = 6  # more than 50 contact events at one instant
 ST_STIFF = 7  # steps held by stability for STIFF_LIMIT steps
 ST_BAD_ARRAYS = 8  # an array of the wrong size was passed (a caller bug, never user input)
+ST_GRAZING = 9  # sensitivities asked of a run with a grazing contact (event sequence not smooth)
 STIFF_LIMIT = 100_000  # accepted steps held by stability (few breaks) before giving up
 
 # ---- kinds of the rows of the sampled series -----------------------------------------------
@@ -77,6 +78,57 @@ class SolverOptions(NamedTuple):
     t_end: float
     record_events: bool = True
     energy: bool = True
+
+
+class SensitivityWork(NamedTuple):
+    """The forward sensitivities a run carries along k directions (``None`` for a run
+    without them). Direction d is a tangent of the model record and of the initial state.
+
+    Attributes
+    ----------
+    tangents : numba.typed.List
+        k tangent records of the model's class (d field / d key; integer fields copied).
+    S : array (k, 2 n_coords)
+        Tangent of the coordinates and speeds; in (at the start) and out (at the end).
+    DV0 : array (k, 2)
+        Tangents of the latched approach speeds of the pairs; in and out.
+    DTR : array (k, n_transfers)
+        Tangents of the transfer times.
+    ESENS : array (episode capacity, k, 5)
+        Tangents of each impact's onset time, approach speed, peak force, maximum depth and
+        exit time (:data:`IMPACT_SENS_FIELDS`), rows matching the impact table.
+    RSENS : array (row capacity, k, 8) or None
+        Tangents of each series row's :data:`SERIES_SENS_FIELDS`, rows matching the series.
+    SMAX : array (k, 2)
+        Largest |tangent| of positions and of speeds so far in each direction (the scale of
+        the tangents' error control); carried across calls.
+    ATOL : array (k, 2)
+        Absolute tolerances of the tangents of positions and speeds in each direction: the
+        state's, divided by the scale of the direction's parameter.
+    """
+
+    tangents: Any
+    S: np.ndarray
+    DV0: np.ndarray
+    DTR: np.ndarray
+    ESENS: np.ndarray
+    RSENS: Any
+    SMAX: np.ndarray
+    ATOL: np.ndarray
+
+
+IMPACT_SENS_FIELDS = ("t", "velocity", "peak_force", "max_depth", "t_end")
+SERIES_SENS_FIELDS = (
+    "x",
+    "vx",
+    "y",
+    "vy",
+    "ax",
+    "ay",
+    "track_contact_force",
+    "slot_contact_force",
+)
+ES_T, ES_VELOCITY, ES_PEAK, ES_DEPTH, ES_T_END = range(5)
 
 
 # ---- one row of the impact table (a contact episode) ----------------------------------------

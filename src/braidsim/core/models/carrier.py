@@ -35,27 +35,40 @@ from typing import Any, NamedTuple
 from braidsim.core.generic import inline_helper
 from braidsim.core.interfaces import (
     apply_transfer,
+    apply_transfer_jvp,
     contact_force_rates,
     contact_forces,
+    contact_forces_jvp,
     contact_onset_step,
     contact_potential,
     derivatives,
+    derivatives_jvp,
     describe_model,
     dissipation_index,
     free_accel_bound,
     friction_force,
+    friction_force_jvp,
     model_size,
     pair_gap_accel,
     pair_gaps,
+    pair_gaps_jvp,
     pair_law,
+    pair_law_jvp,
     pair_law_rates,
     pair_onset_step,
     penetration,
+    penetration_jvp,
     series_row,
     wall_accel_bound,
     wall_motion,
+    wall_motion_jvp,
 )
-from braidsim.core.physics.excitation import HornGear, horn_gear_accel, horn_gear_state
+from braidsim.core.physics.excitation import (
+    HornGear,
+    horn_gear_accel,
+    horn_gear_state,
+    horn_gear_state_jvp,
+)
 
 CARRIER_COLUMNS = (
     "t",
@@ -375,3 +388,117 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     row[24] = s
     row[25] = om
     row[27] = kind
+
+
+# ---- tangents (forward sensitivities) ------------------------------------------------------
+
+
+@inline_helper
+def _track_contact_jvp(model, dm, t, y, s, mode, v0, dv0):
+    """Tangent of the track pair's normal force N (0 when free)."""
+    if mode == 0:
+        return 0.0
+    h, hd, _ = wall_motion(model.track, t)
+    dh, dhd, _ = wall_motion_jvp(model.track, dm.track, t)
+    u = y[0] - h
+    du = s[0] - dh
+    rate = y[1] - hd
+    drate = s[1] - dhd
+    p, pd = penetration(mode, u, model.track_clearance - u, rate)
+    dp, dpd = penetration_jvp(mode, du, dm.track_clearance - du, drate)
+    _, _, dn = contact_forces_jvp(model.track_law, dm.track_law, p, dp, pd, dpd, v0, dv0)
+    return dn
+
+
+@inline_helper
+def _slot_contact_jvp(model, dm, t, y, s, mode, v0, dv0, om, dom, sp, dsp):
+    """Tangent of the slot pair's normal force N (0 when free)."""
+    if mode == 0:
+        return 0.0
+    rc = model.horn_gear.turning_radius
+    drc = dm.horn_gear.turning_radius
+    u = y[2] - sp
+    du = s[2] - dsp
+    rate = y[3] - rc * om
+    drate = s[3] - drc * om - rc * dom
+    p, pd = penetration(mode, u, model.slot_clearance - u, rate)
+    dp, dpd = penetration_jvp(mode, du, dm.slot_clearance - du, drate)
+    _, _, dn = contact_forces_jvp(model.slot_law, dm.slot_law, p, dp, pd, dpd, v0, dv0)
+    return dn
+
+
+@derivatives_jvp.register(CarrierX)
+@derivatives_jvp.register(CarrierXY)
+def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
+    # tangent of m x'' = -s_t N_t - f_x - T1 cos(phi) - m r_c omega^2 (and of the y equation)
+    n_coords, _, _ = model_size(model)
+    om, sp = horn_gear_state(model.horn_gear, t)
+    dom, dsp = horn_gear_state_jvp(model.horn_gear, dm.horn_gear, t)
+    m = model.mass
+    mt = modes[0]
+    _, _, nt, _, _ = _track_contact(model, t, y, mt, v0s[0])
+    dnt = _track_contact_jvp(model, dm, t, y, s, mt, v0s[0], dv0s[0])
+    fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
+    dfx = friction_force_jvp(
+        model.friction, dm.friction, y[1], s[1], model.normal_x, dm.normal_x, model.mu_x, dm.mu_x
+    )
+    load_x = model.load_x + model.mass_radius * om * om
+    dload_x = dm.load_x + dm.mass_radius * om * om + 2.0 * model.mass_radius * om * dom
+    ax = (-mt * nt - fx - load_x) / m
+    out[0] = s[1]
+    out[1] = (-mt * dnt - dfx - dload_x) / m - ax * dm.mass / m
+    if n_coords == 2:
+        ms = modes[1]
+        _, _, ns = _slot_contact(model, t, y, ms, v0s[1], om, sp)
+        dns = _slot_contact_jvp(model, dm, t, y, s, ms, v0s[1], dv0s[1], om, dom, sp, dsp)
+        sgn = 1.0 if nt >= 0.0 else -1.0
+        fy = friction_force(model.friction, y[3], abs(nt), model.mu_y)
+        dfy = friction_force_jvp(
+            model.friction, dm.friction, y[3], s[3], abs(nt), sgn * dnt, model.mu_y, dm.mu_y
+        )
+        ay = (-ms * ns - fy + model.load_y) / m
+        out[2] = s[3]
+        out[3] = (-ms * dns - dfy + dm.load_y) / m - ay * dm.mass / m
+
+
+@pair_gaps_jvp.register(CarrierX)
+@pair_gaps_jvp.register(CarrierXY)
+def _gaps_jvp(model, dm, pair, t, y, s):
+    if pair == 0:
+        dh, dhd, _ = wall_motion_jvp(model.track, dm.track, t)
+        du = s[0] - dh
+        return du, dm.track_clearance - du, s[1] - dhd
+    dsp, dsd, _ = wall_motion_jvp(model.horn_gear, dm.horn_gear, t)
+    du = s[2] - dsp
+    return du, dm.slot_clearance - du, s[3] - dsd
+
+
+@pair_law_jvp.register(CarrierX)
+@pair_law_jvp.register(CarrierXY)
+def _law_jvp(model, dm, pair, p, dp, p_dot, dp_dot, v0, dv0):
+    if pair == 0:
+        return contact_forces_jvp(model.track_law, dm.track_law, p, dp, p_dot, dp_dot, v0, dv0)
+    return contact_forces_jvp(model.slot_law, dm.slot_law, p, dp, p_dot, dp_dot, v0, dv0)
+
+
+@apply_transfer_jvp.register(CarrierX)
+@apply_transfer_jvp.register(CarrierXY)
+def _transfer_jvp(model, dm, t, y, s, dt, out):
+    # x -> h + eps - clamp(x - h, 0, eps),  x' -> 2 h' - x' + v_tr, at the time t + dt
+    hh, hd, hdd = wall_motion(model.track, t)
+    dhh, dhd, _ = wall_motion_jvp(model.track, dm.track, t)
+    dhh += hd * dt
+    dhd += hdd * dt
+    xr = y[0] - hh
+    eps = model.track_clearance
+    dxr = s[0] - dhh
+    if xr < 0.0:
+        dxr = 0.0
+    elif xr > eps:
+        dxr = dm.track_clearance
+    out[0] = dhh + dm.track_clearance - dxr
+    out[1] = 2.0 * dhd - s[1] + dm.transfer_speed
+    n_coords, _, _ = model_size(model)
+    if n_coords == 2:
+        out[2] = s[2]
+        out[3] = s[3]

@@ -21,17 +21,22 @@ from typing import Any, NamedTuple
 from braidsim.core.generic import inline_helper
 from braidsim.core.interfaces import (
     apply_transfer,
+    apply_transfer_jvp,
     contact_force_rates,
     contact_forces,
+    contact_forces_jvp,
     contact_onset_step,
     derivatives,
+    derivatives_jvp,
     describe_model,
     dissipation_index,
     free_accel_bound,
     model_size,
     pair_gap_accel,
     pair_gaps,
+    pair_gaps_jvp,
     pair_law,
+    pair_law_jvp,
     pair_law_rates,
     pair_onset_step,
     series_row,
@@ -164,3 +169,59 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     for i in range(3):
         row[7 + i] = y[2 + i] if n_state > 2 else math.nan
     row[10] = kind
+
+
+# ---- tangents (forward sensitivities) ------------------------------------------------------
+
+
+@derivatives_jvp.register(ImpactOscillator)
+def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
+    mode = modes[0]
+    _, _, _, _, nn = _contact(model, mode, y, v0s[0])
+    dnn = 0.0
+    if mode != 0:
+        if mode < 0:
+            p = -(y[0] + model.gap_inner)
+            dp = -(s[0] + dm.gap_inner)
+            pd = -y[1]
+            dpd = -s[1]
+        else:
+            p = -(model.gap_outer - y[0])
+            dp = s[0] - dm.gap_outer
+            pd = y[1]
+            dpd = s[1]
+        if p < 0.0:
+            p = 0.0
+        _, _, dnn = contact_forces_jvp(model.law, dm.law, p, dp, pd, dpd, v0s[0], dv0s[0])
+    arg = model.force_frequency * t + model.force_phase
+    force = model.force_amplitude * math.cos(arg)
+    dforce = dm.force_amplitude * math.cos(arg) - model.force_amplitude * math.sin(arg) * (
+        dm.force_frequency * t + dm.force_phase
+    )
+    m = model.mass
+    ax = (force - model.damping * y[1] - model.stiffness * y[0] - mode * nn) / m
+    out[0] = s[1]
+    out[1] = (
+        dforce
+        - dm.damping * y[1]
+        - model.damping * s[1]
+        - dm.stiffness * y[0]
+        - model.stiffness * s[0]
+        - mode * dnn
+    ) / m - ax * dm.mass / m
+
+
+@pair_gaps_jvp.register(ImpactOscillator)
+def _gaps_jvp(model, dm, pair, t, y, s):
+    return s[0] + dm.gap_inner, dm.gap_outer - s[0], s[1]
+
+
+@pair_law_jvp.register(ImpactOscillator)
+def _law_jvp(model, dm, pair, p, dp, p_dot, dp_dot, v0, dv0):
+    return contact_forces_jvp(model.law, dm.law, p, dp, p_dot, dp_dot, v0, dv0)
+
+
+@apply_transfer_jvp.register(ImpactOscillator)
+def _transfer_jvp(model, dm, t, y, s, dt, out):
+    out[0] = s[0]  # the oscillator has no transfers
+    out[1] = s[1]

@@ -23,6 +23,7 @@ from typing import NamedTuple
 from braidsim.core.interfaces import (
     contact_force_rates,
     contact_forces,
+    contact_forces_jvp,
     contact_onset_step,
     contact_potential,
 )
@@ -48,6 +49,31 @@ def _forces(law, p, p_dot, v0):
     if nn < 0.0 and not law.allow_tension:
         nn = 0.0
     return fk, fc, nn
+
+
+@contact_forces_jvp.register(PowerLawContact)
+def _forces_jvp(law, dlaw, p, dp, p_dot, dp_dot, v0, dv0):
+    # dF_k = dK p^n + K n p^(n-1) dp + K p^n ln(p) dn
+    # dF_c = (dF_k D + F_k dD) p'/v0 + F_k D (dp'/v0 - p' dv0/v0^2)
+    k = law.stiffness
+    n = law.exponent
+    if p > 0.0:
+        pn = p * math.sqrt(p) if n == 1.5 else p**n
+        fk = k * pn
+        dfk = dlaw.stiffness * pn + n * fk / p * dp + fk * math.log(p) * dlaw.exponent
+    else:
+        fk = 0.0
+        dfk = k * dp if n == 1.0 else 0.0
+    if math.isinf(v0):  # a contact released elastically: no damping term
+        return dfk, 0.0, dfk
+    d = law.damping
+    fc = fk * d * p_dot / v0
+    dfc = (dfk * d + fk * dlaw.damping) * p_dot / v0 + fk * d * (
+        dp_dot / v0 - p_dot * dv0 / (v0 * v0)
+    )
+    if fk + fc < 0.0 and not law.allow_tension:
+        return dfk, dfc, 0.0
+    return dfk, dfc, dfk + dfc
 
 
 @contact_potential.register(PowerLawContact)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import friction_force
+from braidsim.core.interfaces import friction_force, friction_force_jvp
 
 
 class CoulombViscousFriction(NamedTuple):
@@ -27,3 +27,16 @@ class CoulombViscousFriction(NamedTuple):
 @friction_force.register(CoulombViscousFriction)
 def _friction(fr, v, normal, mu):
     return mu * normal * math.tanh(v / fr.regularization_velocity) + fr.viscous * v
+
+
+@friction_force_jvp.register(CoulombViscousFriction)
+def _friction_jvp(fr, dfr, v, dv, normal, dnormal, mu, dmu):
+    vhat = fr.regularization_velocity
+    g = math.tanh(v / vhat)
+    du = dv / vhat - v * dfr.regularization_velocity / (vhat * vhat)
+    return (
+        (dmu * normal + mu * dnormal) * g
+        + mu * normal * (1.0 - g * g) * du
+        + dfr.viscous * v
+        + fr.viscous * dv
+    )

@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 
 from braidsim.core.generic import helper, inline_helper
-from braidsim.core.interfaces import wall_accel_bound, wall_motion
+from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp
 
 
 class TrackHarmonics(NamedTuple):
@@ -45,6 +45,29 @@ def _track_motion(ex, t):
         hd -= a * w * math.sin(arg)
         hdd -= a * w * w * c
     return h, hd, hdd
+
+
+@wall_motion_jvp.register(TrackHarmonics)
+def _track_motion_jvp(ex, dex, t):
+    # d/d(a, w, phi) of a cos(w t + phi) and its time derivatives
+    dh = 0.0
+    dhd = 0.0
+    dhdd = 0.0
+    tab = ex.table
+    dtab = dex.table
+    for i in range(tab.shape[0]):
+        a = tab[i, 0]
+        w = tab[i, 1]
+        da = dtab[i, 0]
+        dw = dtab[i, 1]
+        arg = w * t + tab[i, 2]
+        darg = dw * t + dtab[i, 2]
+        c = math.cos(arg)
+        sn = math.sin(arg)
+        dh += da * c - a * sn * darg
+        dhd -= da * w * sn + a * dw * sn + a * w * c * darg
+        dhdd -= da * w * w * c + 2.0 * a * w * dw * c - a * w * w * sn * darg
+    return dh, dhd, dhdd
 
 
 @wall_accel_bound.register(TrackHarmonics)
@@ -129,6 +152,93 @@ def horn_gear_accel(hg, t):
         w = tab[i, 1]
         acc -= tab[i, 0] * w * math.sin(w * t + tab[i, 2])
     return acc
+
+
+@helper
+def _profile_integral_jvp(tau, hg, dhg, period):
+    """Tangent of :func:`_profile_integral` along the profile speeds' tangent (the profile
+    times are fixed)."""
+    pt = hg.profile_times
+    dpw = dhg.profile_speeds
+    dpi = dhg.profile_integral
+    npf = pt.shape[0]
+    k = math.floor(tau / period)
+    tau -= k * period
+    j = 0
+    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
+        j += 1
+    dt = tau - (pt[j] - pt[0])
+    dslope = (dpw[j + 1] - dpw[j]) / (pt[j + 1] - pt[j])
+    return dpw[j] + dslope * dt, k * dpi[npf - 1] + dpi[j] + dpw[j] * dt + 0.5 * dslope * dt * dt
+
+
+@helper
+def horn_gear_state_jvp(hg, dhg, t):
+    """The tangent (d omega, d s) of :func:`horn_gear_state` at fixed t."""
+    rc = hg.turning_radius
+    pt = hg.profile_times
+    _, s = horn_gear_state(hg, t)
+    integral = s / rc
+    if pt.shape[0] >= 2:
+        period = pt[pt.shape[0] - 1] - pt[0]
+        dom, dint = _profile_integral_jvp(t - pt[0], hg, dhg, period)
+        _, dint0 = _profile_integral_jvp(-pt[0], hg, dhg, period)
+        return dom, dhg.turning_radius * integral + rc * (dint - dint0)
+    dom = dhg.omega0
+    dint = dhg.omega0 * t
+    tab = hg.harmonics
+    dtab = dhg.harmonics
+    for i in range(tab.shape[0]):
+        a = tab[i, 0]
+        w = tab[i, 1]
+        ph = tab[i, 2]
+        da = dtab[i, 0]
+        dw = dtab[i, 1]
+        dph = dtab[i, 2]
+        arg = w * t + ph
+        darg = dw * t + dph
+        dom += da * math.cos(arg) - a * math.sin(arg) * darg
+        if w > 0.0:
+            dint += (da / w - a * dw / (w * w)) * (math.sin(arg) - math.sin(ph)) + a / w * (
+                math.cos(arg) * darg - math.cos(ph) * dph
+            )
+        else:
+            dint += (da * math.cos(ph) - a * math.sin(ph) * dph) * t
+    return dom, dhg.turning_radius * integral + rc * dint
+
+
+@helper
+def horn_gear_accel_jvp(hg, dhg, t):
+    """The tangent of :func:`horn_gear_accel` at fixed t."""
+    if hg.profile_times.shape[0] >= 2:
+        dt = 1e-7
+        wp, _ = horn_gear_state_jvp(hg, dhg, t + dt)
+        wm, _ = horn_gear_state_jvp(hg, dhg, t - dt)
+        return (wp - wm) / (2.0 * dt)
+    dacc = 0.0
+    tab = hg.harmonics
+    dtab = dhg.harmonics
+    for i in range(tab.shape[0]):
+        a = tab[i, 0]
+        w = tab[i, 1]
+        arg = w * t + tab[i, 2]
+        darg = dtab[i, 1] * t + dtab[i, 2]
+        sn = math.sin(arg)
+        dacc -= dtab[i, 0] * w * sn + a * dtab[i, 1] * sn + a * w * math.cos(arg) * darg
+    return dacc
+
+
+@wall_motion_jvp.register(HornGear)
+def _slot_motion_jvp(hg, dhg, t):
+    om, _ = horn_gear_state(hg, t)
+    dom, ds = horn_gear_state_jvp(hg, dhg, t)
+    rc = hg.turning_radius
+    drc = dhg.turning_radius
+    return (
+        ds,
+        drc * om + rc * dom,
+        drc * horn_gear_accel(hg, t) + rc * horn_gear_accel_jvp(hg, dhg, t),
+    )
 
 
 @wall_motion.register(HornGear)

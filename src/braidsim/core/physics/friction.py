@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import friction_force
+from braidsim.core.interfaces import friction_force, friction_force_jvp
 
 FRICTION_CODES = {"arctan": 0, "tanh": 1, "stribeck": 2, "none": 3}
 
@@ -42,3 +42,32 @@ def _friction(fr, v, normal, mu):
         mu_eff = mu * (1.0 + (fr.static_ratio - 1.0) * math.exp(-((v / vs) ** 2)))
         return mu_eff * normal * math.tanh(v / vhat)
     return 0.0
+
+
+@friction_force_jvp.register(RegularizedFriction)
+def _friction_jvp(fr, dfr, v, dv, normal, dnormal, mu, dmu):
+    law = fr.law
+    if law == 3:
+        return 0.0
+    vhat = fr.regularization_velocity
+    u = v / vhat
+    du = dv / vhat - v * dfr.regularization_velocity / (vhat * vhat)
+    if law == 0:
+        g = (2.0 / math.pi) * math.atan(u)
+        dg = (2.0 / math.pi) / (1.0 + u * u) * du
+        return (dmu * normal + mu * dnormal) * g + mu * normal * dg
+    g = math.tanh(u)
+    dg = (1.0 - g * g) * du
+    if law == 1:
+        return (dmu * normal + mu * dnormal) * g + mu * normal * dg
+    # stribeck: mu_eff = mu (1 + (r_s - 1) e), e = exp(-(v / v_s)^2)
+    vs = fr.stribeck_velocity
+    w = v / vs
+    dw = dv / vs - v * dfr.stribeck_velocity / (vs * vs)
+    e = math.exp(-(w * w))
+    de = -2.0 * w * e * dw
+    mu_eff = mu * (1.0 + (fr.static_ratio - 1.0) * e)
+    dmu_eff = dmu * (1.0 + (fr.static_ratio - 1.0) * e) + mu * (
+        dfr.static_ratio * e + (fr.static_ratio - 1.0) * de
+    )
+    return (dmu_eff * normal + mu_eff * dnormal) * g + mu_eff * normal * dg

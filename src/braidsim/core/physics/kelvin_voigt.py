@@ -26,6 +26,7 @@ from typing import NamedTuple
 from braidsim.core.interfaces import (
     contact_force_rates,
     contact_forces,
+    contact_forces_jvp,
     contact_onset_step,
     contact_potential,
 )
@@ -59,6 +60,15 @@ def _forces(law, p, p_dot, v0):
     if nn < 0.0 and not law.allow_tension:
         nn = 0.0
     return fk, fc, nn
+
+
+@contact_forces_jvp.register(KelvinVoigtContact)
+def _forces_jvp(law, dlaw, p, dp, p_dot, dp_dot, v0, dv0):
+    dfk = dlaw.stiffness * p + law.stiffness * dp
+    dfc = dlaw.damping * p_dot + law.damping * dp_dot
+    if law.stiffness * p + law.damping * p_dot < 0.0 and not law.allow_tension:
+        return dfk, dfc, 0.0
+    return dfk, dfc, dfk + dfc
 
 
 @contact_potential.register(KelvinVoigtContact)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from braidsim.core.generic import helper
-from braidsim.core.interfaces import wall_accel_bound, wall_motion
+from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp
 
 _UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "m": 1.0, "mm": 1e-3, "um": 1e-6}
 
@@ -95,6 +95,17 @@ def _motion(tr, t):
     h = ((c3 * s + c2) * s + c1) * s + c0
     hd = (3.0 * c3 * s + 2.0 * c2) * s + c1
     hdd = 6.0 * c3 * s + 2.0 * c2
+    return h, hd, hdd
+
+
+@wall_motion_jvp.register(MeasuredTrack)
+def _motion_jvp(tr, dtr, t):
+    # the spline is linear in its coefficients (the knots are fixed)
+    i, s = _piece(tr, t)
+    c = dtr.coeffs
+    h = ((c[0, i] * s + c[1, i]) * s + c[2, i]) * s + c[3, i]
+    hd = (3.0 * c[0, i] * s + 2.0 * c[1, i]) * s + c[2, i]
+    hdd = 6.0 * c[0, i] * s + 2.0 * c[1, i]
     return h, hd, hdd
 
 

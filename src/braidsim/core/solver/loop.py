@@ -34,6 +34,7 @@ from braidsim.core.layout import (
     NEW_RUN,
     ST_BAD_ARRAYS,
     ST_EPISODES_FULL,
+    ST_GRAZING,
     ST_MAX_STEPS,
     ST_NONFINITE,
     ST_OK,
@@ -44,9 +45,9 @@ from braidsim.core.layout import (
     STARTED,
     STIFF_LIMIT,
 )
-from braidsim.core.solver.dopri5 import dense_coeffs, error_norm, rk_step
+from braidsim.core.solver.dopri5 import dense_coeffs, dense_eval, error_norm, rk_step
 from braidsim.core.solver.events import N_SUB, locate_event, sample_events
-from braidsim.core.solver.pairs import NI, pair_infos
+from braidsim.core.solver.pairs import I_DN, I_PD, NI, pair_infos
 from braidsim.core.solver.recorders import (
     close_episode,
     episode_start_values,
@@ -54,6 +55,23 @@ from braidsim.core.solver.recorders import (
     scan_step,
     update_ranges,
     write_row,
+)
+from braidsim.core.solver.tangent import (
+    arrays_fit,
+    contact_event,
+    episode_extremes,
+    new_episode_row,
+    onset_correction,
+    series_tangent_row,
+    start_contact,
+    step_series_tangents,
+    tangent_dense_coeffs,
+    tangent_dense_eval,
+    tangent_error,
+    tangent_scales,
+    tangent_start,
+    tangent_step,
+    transfer_jump,
 )
 
 EPISODE_RESERVE = 4  # impact-table rows one step can open at most
@@ -67,11 +85,13 @@ def _energy(y, idx, n):
 
 
 @njit(cache=True, error_model="numpy")
-def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep):
+def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep, SENS):
     """Open row ``nep`` of the impact table for a contact of ``pair`` starting at t (approach
     speed ``vel``, latched ``v0``) and fold its first values in; returns the new row count."""
     open_ep[pair] = nep
     e0 = _energy(y, dissipation_index(model, pair), n)
+    if SENS is not None:
+        new_episode_row(SENS, nep)
     nep = open_episode(EP, nep, t, pair, mode, vel, v0, initial, e0)
     # a contact present at the start may have its largest force there, and a law whose
     # force jumps at onset (a dashpot) has its first extremes there
@@ -80,7 +100,7 @@ def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep):
 
 
 @njit(cache=True, error_model="numpy")
-def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n):
+def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
     """The contact policy at the start and right after a transfer, for the first ``npair``
     pairs.
 
@@ -115,13 +135,15 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n):
         modes[pair] = mode
         v0s[pair] = v0
         initial = 1.0 if p > 0.0 else 0.0
-        nep = _open(model, EP, nep, t, y, pair, mode, pd, v0, initial, n, open_ep)
+        nep = _open(model, EP, nep, t, y, pair, mode, pd, v0, initial, n, open_ep, SENS)
+        if SENS is not None:
+            start_contact(model, SENS, pair, t, y, mode, nep - 1, p > 0.0)
     return nep
 
 
 # nogil: the loop touches no Python object, so runs of a batch overlap on threads
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS):
+def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS):
     """Integrate ``model`` from the restart record to ``opts.t_end``; returns a status.
 
     Parameters
@@ -152,6 +174,9 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         int x^2 dt over each window, accumulated.
     STATS : array of STATS_DTYPE, shape (1,)
         Run statistics, accumulated.
+    SENS : SensitivityWork or None
+        Forward sensitivities to carry (:mod:`braidsim.core.solver.tangent`); ``None``
+        compiles them out.
     """
     n_coords, n_pairs, n_quads = model_size(model)
     n_dof2 = 2 * n_coords
@@ -181,6 +206,20 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     Ke = np.empty((7, n))
     RC = np.empty((5, n))
     GS = np.empty((4, N_SUB + 1))
+    if SENS is not None:
+        nsens = SENS.S.shape[0]
+        KS = np.empty((nsens, 7, n_dof2))
+        RCS = np.empty((nsens, 5, n_dof2))
+        S1 = np.empty((nsens, n_dof2))
+        SQ = np.empty((nsens, n_dof2))  # tangents at an instant inside a step
+        ss = np.empty(n_dof2)
+        sw = np.empty(n_dof2)
+        f_minus = np.empty(n_dof2)
+        y_minus = np.empty(n)
+        prev_depth_t = np.zeros(2)
+        prev_peak_t = np.zeros(2)
+        if not arrays_fit(SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]):
+            return ST_BAD_ARRAYS
     modes = np.zeros(2, dtype=np.int64)
     v0s = np.ones(2)
     open_ep = -np.ones(2, dtype=np.int64)
@@ -197,8 +236,10 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     t = r.t
     if r.started != STARTED:
         if r.started == NEW_RUN:
-            nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, n_pairs, n)
+            nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, n_pairs, n, SENS)
             r.h = min(1e-6, hmax, t_end - t)
+            if SENS is not None:
+                tangent_scales(SENS.S, n_dof2, SENS.SMAX)
         else:
             # a continuation (CONTINUED): the contacts carried over open new episodes
             for pair in range(n_pairs):
@@ -206,13 +247,31 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                 if modes[pair] != 0:
                     mode = modes[pair]
                     nep = _open(
-                        model, EP, nep, t, y, pair, mode, math.nan, v0s[pair], 1.0, n, open_ep
+                        model, EP, nep, t, y, pair, mode, math.nan, v0s[pair], 1.0, n, open_ep, SENS
                     )
+                    if SENS is not None:
+                        for d in range(nsens):
+                            SENS.ESENS[nep - 1, d, 0] = 0.0
+        if SENS is not None:
+            for pair in range(n_pairs):
+                ie = open_ep[pair]
+                if ie >= 0:
+                    episode_extremes(model, SENS, ie, pair, t, y, SENS.S, modes[pair], v0s[pair], 3)
+        nrow0 = nrow
         nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_START, rec)
+        if SENS is not None and nrow > nrow0:
+            series_tangent_row(
+                model, SENS, SENS.RSENS, nrow0, t, y, SENS.S, modes, v0s, n_pairs, sw
+            )
         update_ranges(model, n_pairs, t, y, modes, v0s, WIN, RANGES)
         while isamp < ST.shape[0] and ST[isamp] <= t:
             if ST[isamp] == t:
+                nrow0 = nrow
                 nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_SAMPLE, rec)
+                if SENS is not None and nrow > nrow0:
+                    series_tangent_row(
+                        model, SENS, SENS.RSENS, nrow0, t, y, SENS.S, modes, v0s, n_pairs, sw
+                    )
             isamp += 1
         while itr < TR.shape[0] and TR[itr] <= t:
             itr += 1
@@ -231,6 +290,8 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     derivatives(model, t, y, modes, v0s, n, K[0])
     pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
     st.rhs_evaluations += 1
+    if SENS is not None:
+        tangent_start(model, SENS, t, y, modes, v0s, KS)
     status = ST_OK
     while t < t_end:
         # room for what one step writes, else hand the buffers back to be flushed
@@ -247,6 +308,11 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             # a transfer: the state jumps and the contacts of the pairs it moves start anew
             itr += 1
             st.transfers += 1
+            if SENS is not None:
+                for i in range(n):
+                    y_minus[i] = y[i]
+                for i in range(n_dof2):
+                    f_minus[i] = K[0, i]
             reset = apply_transfer(model, t, y)
             for pair in range(reset):
                 ie = open_ep[pair]
@@ -261,11 +327,28 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                     )
                     open_ep[pair] = -1
                 modes[pair] = 0
+            nrow_tr = nrow
             nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_TRANSFER, rec)
-            nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, reset, n)
+            if SENS is not None:
+                # the tangents jump with the state (the new contacts need them)
+                derivatives(model, t, y, modes, v0s, n, K[0])
+                transfer_jump(model, SENS, itr - 1, t, y_minus, f_minus, K[0], n_dof2, ss, sw)
+            nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, reset, n, SENS)
             derivatives(model, t, y, modes, v0s, n, K[0])
             pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
             st.rhs_evaluations += 1
+            if SENS is not None:
+                for pair in range(reset):
+                    ie = open_ep[pair]
+                    if ie >= 0:
+                        episode_extremes(
+                            model, SENS, ie, pair, t, y, SENS.S, modes[pair], v0s[pair], 3
+                        )
+                tangent_start(model, SENS, t, y, modes, v0s, KS)
+                if nrow > nrow_tr:
+                    series_tangent_row(
+                        model, SENS, SENS.RSENS, nrow_tr, t, y, SENS.S, modes, v0s, n_pairs, sw
+                    )
         t_stop = t_end
         if itr < TR.shape[0] and TR[itr] < t_stop:
             t_stop = TR[itr]
@@ -300,6 +383,16 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             h *= fac
             st.rejected_steps += 1
             continue
+        if SENS is not None:
+            # the tangents over the step, held to the same tolerance as the state
+            tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, ys, ss, S1)
+            err_s = tangent_error(SENS, S1, h, KS, n_dof2, opts.rtol, SENS.SMAX)
+            if not err_s <= 1.0:
+                # near onset and exit the tangents' error grows as h^1.5 (sqrt(p) stiffness)
+                h *= max(0.02, 0.9 * err_s ** (-1.0 / 1.5)) if math.isfinite(err_s) else 0.1
+                st.rejected_steps += 1
+                continue
+            err = max(err, err_s)
         # stiffness detection (Hairer & Wanner's test in DOPRI5): h |lambda| estimated from the
         # last two stages; a long run of steps on the stability boundary means the explicit
         # method is crawling
@@ -353,6 +446,13 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         else:
             h_taken = h
         # post-process the step taken (to the event, or whole): samples, extremes, ranges
+        nrow_step = nrow
+        if SENS is not None:
+            for pair in range(n_pairs):
+                ie = open_ep[pair]
+                if ie >= 0:
+                    prev_depth_t[pair] = EP[ie].t_max_depth
+                    prev_peak_t[pair] = EP[ie].t_peak_force
         nrow, isamp = scan_step(
             model,
             n_pairs,
@@ -381,6 +481,60 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         )
         st.steps += 1
         st.min_step = min(st.min_step, h_taken)
+        if SENS is not None:
+            # the tangents over the step taken (recomputed when it ended at an event), then
+            # at the instants the step recorded
+            if j_ev >= 0:
+                tangent_step(model, SENS, t, y, h_taken, Ke, KS, modes, v0s, n_dof2, ys, ss, S1)
+            tangent_scales(S1, n_dof2, SENS.SMAX)
+            tangent_dense_coeffs(SENS, S1, h_taken, KS, RCS, n_dof2)
+            for pair in range(n_pairs):
+                ie = open_ep[pair]
+                if ie < 0:
+                    continue
+                which = 0
+                if EP[ie].t_max_depth != prev_depth_t[pair]:
+                    which += 1
+                if EP[ie].t_peak_force != prev_peak_t[pair]:
+                    which += 2
+                if which == 0:
+                    continue
+                for q in range(2):
+                    if not (which & (q + 1)):
+                        continue
+                    tq = EP[ie].t_max_depth if q == 0 else EP[ie].t_peak_force
+                    theta = (tq - t) / h_taken
+                    dense_eval(theta, RC, yd, n)
+                    for d in range(nsens):
+                        tangent_dense_eval(theta, RCS, d, SQ[d], n_dof2)
+                    episode_extremes(
+                        model, SENS, ie, pair, tq, yd, SQ, modes[pair], v0s[pair], q + 1
+                    )
+            if nrow > nrow_step:
+                step_series_tangents(
+                    model,
+                    SENS,
+                    SENS.RSENS,
+                    rows,
+                    nrow_step,
+                    nrow,
+                    t,
+                    h_taken,
+                    RC,
+                    RCS,
+                    n,
+                    n_dof2,
+                    modes,
+                    v0s,
+                    n_pairs,
+                    yd,
+                    SQ,
+                    sw,
+                )
+            for d in range(nsens):
+                for i in range(n_dof2):
+                    SENS.S[d, i] = S1[d, i]
+                    KS[d, 0, i] = KS[d, 6, i]
         if j_ev >= 0:
             t_ev = t + h_taken
             for i in range(n):
@@ -389,13 +543,18 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             side = -1 if j_ev % 2 == 0 else 1
             _, _, rate_in = pair_gaps(model, pair, t_ev, y)
             rate = -rate_in if side < 0 else rate_in  # penetration rate into this wall
+            ev_onset = modes[pair] == 0
+            ev_ie = open_ep[pair]
+            nrow_ev = nrow
             if modes[pair] == 0:
                 # onset: latch the approach speed
                 vmin = model.min_impact_velocity
                 vlat = rate if rate > vmin else vmin
                 modes[pair] = side
                 v0s[pair] = vlat
-                nep = _open(model, EP, nep, t_ev, y, pair, side, rate, vlat, 0.0, n, open_ep)
+                nep = _open(model, EP, nep, t_ev, y, pair, side, rate, vlat, 0.0, n, open_ep, SENS)
+                ev_ie = nep - 1
+                nrow_ev = nrow
                 nrow = write_row(model, rows, nrow, t_ev, y, modes, v0s, n, KIND_ONSET, rec)
                 # start the contact with a step of a fraction of its duration estimated from
                 # the elastic closed form, and rescale a rejected first step by its own law
@@ -426,6 +585,22 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             derivatives(model, t, y, modes, v0s, n, K[0])
             pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
             st.rhs_evaluations += 1
+            if SENS is not None:
+                if not contact_event(
+                    model, SENS, pair, side, ev_onset, t, y, Ke[6], K[0], n_dof2, ev_ie, KS
+                ):
+                    status = ST_GRAZING
+                    break
+                if ev_onset:
+                    episode_extremes(
+                        model, SENS, ev_ie, pair, t, y, SENS.S, modes[pair], v0s[pair], 3
+                    )
+                    onset_correction(SENS, ev_ie, 3, INF0[pair, I_PD], INF0[pair, I_DN])
+                tangent_start(model, SENS, t, y, modes, v0s, KS)
+                if nrow > nrow_ev:
+                    series_tangent_row(
+                        model, SENS, SENS.RSENS, nrow_ev, t, y, SENS.S, modes, v0s, n_pairs, sw
+                    )
             continue
         # ---- accepted step without event
         st.max_step = max(st.max_step, h)
@@ -454,7 +629,12 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     r.open_0 = open_ep[0]
     r.open_1 = open_ep[1]
     if status == ST_OK:
+        nrow0 = nrow
         nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_END, rec)
+        if SENS is not None and nrow > nrow0:
+            series_tangent_row(
+                model, SENS, SENS.RSENS, nrow0, t, y, SENS.S, modes, v0s, n_pairs, sw
+            )
     r.rows = nrow
     r.episodes = nep
     return status

@@ -1,0 +1,364 @@
+"""Forward sensitivities carried with the step loop: the variational equations through the
+same Dormand-Prince stages, and the jumps at contact onset, exit and transfers.
+
+Along a direction d (a tangent of the parameters and of the initial state) the tangent
+s = dy/d(key) of the coordinates and speeds obeys, between events,
+
+    s' = (df/dy) s + df/d(key)                                            (1)
+
+computed by the model's :func:`~braidsim.core.interfaces.derivatives_jvp`. Each accepted
+step integrates (1) with the stages of the step the state took (same step sizes, same
+tableau), so the tangent is the derivative of the numerical solution along that step
+sequence; rejected steps cost nothing. At an event of function g (a gap to a wall at
+onset, a penetration at exit) at time t_e the event time moves by
+
+    dt_e = -(dg/dy s + dg/d(key)) / (dg/dt)                              (2)
+
+and the tangent jumps by the difference of the vector fields on the two sides,
+
+    s+ = s- + (f- - f+) dt_e                                             (3)
+
+(zero for the power-law laws, whose force vanishes at zero depth; the dashpot of a
+Kelvin-Voigt law makes f jump). The approach speed v0 latched at onset is a state of the
+contact: v0 = -dg/dt(t_e) (the penetration rate), so
+
+    dv0 = d(penetration rate)/dy s + d(...)/d(key) + (penetration acceleration) dt_e   (4)
+
+unless the floor ``min_impact_velocity`` holds it. A transfer at time tau, y+ = T(tau, y-):
+
+    s+ = T_t dtau + T_y (s- + f- dtau) + T_key - f+ dtau                 (5)
+
+Peak force and maximum depth are stationary in time where they occur, so their tangents
+are the partial ones at that instant (plus their slope times dt_e when the maximum sits at
+the onset instant itself). See ``docs/sensitivities.md`` for the derivation.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from braidsim.core.interfaces import (
+    apply_transfer_jvp,
+    derivatives_jvp,
+    model_size,
+    pair_gap_accel,
+    pair_gaps,
+    pair_gaps_jvp,
+    pair_law_jvp,
+    penetration,
+    penetration_jvp,
+)
+from braidsim.core.layout import ES_DEPTH, ES_PEAK, ES_T, ES_T_END, ES_VELOCITY
+from braidsim.core.solver.dopri5 import (
+    D1,
+    D3,
+    D4,
+    D5,
+    D6,
+    D7,
+    E1,
+    E3,
+    E4,
+    E5,
+    E6,
+    E7,
+    RK_A,
+    RK_C,
+    dense_eval,
+)
+
+# with numba's reference counting: the tangent records come out of a typed list
+helper = njit(cache=True, error_model="numpy")
+
+
+@helper
+def tangent_rhs(model, SENS, d, t, y, s, modes, v0s, out):
+    """Write (1) for direction d into ``out[:2 n_coords]``."""
+    derivatives_jvp(model, SENS.tangents[d], t, y, s, modes, v0s, SENS.DV0[d], out)
+
+
+@helper
+def tangent_start(model, SENS, t, y, modes, v0s, KS):
+    """KS[d, 0] = (1) at (t, y, S[d]) for every direction."""
+    for d in range(SENS.S.shape[0]):
+        tangent_rhs(model, SENS, d, t, y, SENS.S[d], modes, v0s, KS[d, 0])
+
+
+@helper
+def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, ys, ss, S1):
+    """Integrate (1) over the step [t, t + h] the state took (stages K): fills KS[:, 1..6]
+    and the tangents at the end of the step S1 (KS[:, 0] holds (1) at the start)."""
+    k = SENS.S.shape[0]
+    for st in range(1, 7):
+        for i in range(n_dof2):
+            acc = 0.0
+            for j in range(st):
+                acc += RK_A[st, j] * K[j, i]
+            ys[i] = y[i] + h * acc
+        for d in range(k):
+            sd = S1[d] if st == 6 else ss
+            for i in range(n_dof2):
+                acc = 0.0
+                for j in range(st):
+                    acc += RK_A[st, j] * KS[d, j, i]
+                sd[i] = SENS.S[d, i] + h * acc
+            tangent_rhs(model, SENS, d, t + RK_C[st] * h, ys, sd, modes, v0s, KS[d, st])
+
+
+@helper
+def tangent_error(SENS, S1, h, KS, n_dof2, rtol, SMAX):
+    """RMS of the embedded error estimate of the tangents over the step, each component
+    scaled by rtol (max(|s|, |s1|) + the largest |s| of its kind (positions or speeds) seen
+    so far in its direction, ``SMAX[d, i % 2]``) + ``SENS.ATOL[d, i % 2]``: the tangents are
+    held to the relative tolerance of the state. The Hertz law's stiffness sqrt(p) is not
+    smooth at onset and exit, so the tangents, not the state, decide the step size there."""
+    acc = 0.0
+    cnt = 0
+    for d in range(SENS.S.shape[0]):
+        for i in range(n_dof2):
+            err = h * (
+                E1 * KS[d, 0, i]
+                + E3 * KS[d, 2, i]
+                + E4 * KS[d, 3, i]
+                + E5 * KS[d, 4, i]
+                + E6 * KS[d, 5, i]
+                + E7 * KS[d, 6, i]
+            )
+            cnt += 1
+            if err == 0.0:
+                continue
+            sc = (
+                rtol * (max(abs(SENS.S[d, i]), abs(S1[d, i])) + SMAX[d, i % 2])
+                + SENS.ATOL[d, i % 2]
+            )
+            if sc == 0.0:
+                return math.inf
+            acc += (err / sc) ** 2
+    return math.sqrt(acc / max(cnt, 1))
+
+
+@helper
+def tangent_scales(S1, n_dof2, SMAX):
+    """Fold the tangents at the end of an accepted step into their running maxima."""
+    for d in range(S1.shape[0]):
+        for i in range(n_dof2):
+            a = abs(S1[d, i])
+            if a > SMAX[d, i % 2]:
+                SMAX[d, i % 2] = a
+
+
+@helper
+def tangent_dense_coeffs(SENS, S1, h, KS, RCS, n_dof2):
+    """Continuous extension of the tangents over the step (as the state's)."""
+    for d in range(SENS.S.shape[0]):
+        for i in range(n_dof2):
+            s0 = SENS.S[d, i]
+            sdiff = S1[d, i] - s0
+            bspl = h * KS[d, 0, i] - sdiff
+            RCS[d, 0, i] = s0
+            RCS[d, 1, i] = sdiff
+            RCS[d, 2, i] = bspl
+            RCS[d, 3, i] = sdiff - h * KS[d, 6, i] - bspl
+            RCS[d, 4, i] = h * (
+                D1 * KS[d, 0, i]
+                + D3 * KS[d, 2, i]
+                + D4 * KS[d, 3, i]
+                + D5 * KS[d, 4, i]
+                + D6 * KS[d, 5, i]
+                + D7 * KS[d, 6, i]
+            )
+
+
+@helper
+def tangent_dense_eval(theta, RCS, d, out, n_dof2):
+    """Tangent of direction d at fraction theta of the step."""
+    th1 = 1.0 - theta
+    for i in range(n_dof2):
+        out[i] = RCS[d, 0, i] + theta * (
+            RCS[d, 1, i] + th1 * (RCS[d, 2, i] + theta * (RCS[d, 3, i] + th1 * RCS[d, 4, i]))
+        )
+
+
+@helper
+def pair_tangent(model, dm, pair, t, y, s, mode, v0, dv0):
+    """(dp, dp', dN) of a pair in contact mode ``mode`` at fixed t (zeros when free)."""
+    if mode == 0:
+        return 0.0, 0.0, 0.0
+    g_in, g_out, rate = pair_gaps(model, pair, t, y)
+    dg_in, dg_out, drate = pair_gaps_jvp(model, dm, pair, t, y, s)
+    p, pd = penetration(mode, g_in, g_out, rate)
+    dp, dpd = penetration_jvp(mode, dg_in, dg_out, drate)
+    _, _, dn = pair_law_jvp(model, dm, pair, p, dp, pd, dpd, v0, dv0)
+    return dp, dpd, dn
+
+
+@helper
+def episode_extremes(model, SENS, ie, pair, t, y, s_all, mode, v0, which):
+    """Tangents of the maximum depth (which & 1) and peak force (which & 2) of episode ie
+    at the instant t where they were found (state y, tangents s_all[d])."""
+    for d in range(SENS.S.shape[0]):
+        dp, _, dn = pair_tangent(
+            model, SENS.tangents[d], pair, t, y, s_all[d], mode, v0, SENS.DV0[d, pair]
+        )
+        if which & 1:
+            SENS.ESENS[ie, d, ES_DEPTH] = dp
+        if which & 2:
+            SENS.ESENS[ie, d, ES_PEAK] = dn
+
+
+@helper
+def onset_correction(SENS, ie, which, slope_depth, slope_force):
+    """Add slope x dt_onset to extremes found at the onset instant itself (a law whose
+    force jumps at onset can have its peak there: a corner, not a stationary point)."""
+    for d in range(SENS.S.shape[0]):
+        dt_on = SENS.ESENS[ie, d, ES_T]
+        if which & 1:
+            SENS.ESENS[ie, d, ES_DEPTH] += slope_depth * dt_on
+        if which & 2:
+            SENS.ESENS[ie, d, ES_PEAK] += slope_force * dt_on
+
+
+@helper
+def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2, ie, KS):
+    """Tangents at a contact event of ``pair`` with wall ``side`` at t: (2), (3) and, at
+    onset, (4). ``f_minus``, ``f_plus``: dy/dt before and after the mode change; ``ie``:
+    the episode opened (onset) or closed (exit), -1 for none. Returns False when the
+    event is grazing (its normal speed too small for the event time to be differentiable).
+    """
+    _, _, rate_in = pair_gaps(model, pair, t, y)
+    gdot = rate_in if side < 0 else -rate_in  # d(gap to this wall)/dt
+    if abs(gdot) < 1e-3 * model.min_impact_velocity:
+        return False
+    acc_in = pair_gap_accel(model, pair, t, f_minus)
+    pen_acc = -acc_in if side < 0 else acc_in
+    pen_rate = -gdot
+    vmin = model.min_impact_velocity
+    for d in range(SENS.S.shape[0]):
+        dm = SENS.tangents[d]
+        s = SENS.S[d]
+        dg_in, dg_out, drate_in = pair_gaps_jvp(model, dm, pair, t, y, s)
+        dg = dg_in if side < 0 else dg_out
+        dpen_rate = -drate_in if side < 0 else drate_in
+        dt_e = -dg / gdot
+        for i in range(n_dof2):
+            s[i] += (f_minus[i] - f_plus[i]) * dt_e
+        if onset:
+            dvel = dpen_rate + pen_acc * dt_e
+            SENS.DV0[d, pair] = dvel if pen_rate > vmin else dm.min_impact_velocity
+            if ie >= 0:
+                SENS.ESENS[ie, d, ES_T] = dt_e
+                SENS.ESENS[ie, d, ES_VELOCITY] = dvel
+        elif ie >= 0:
+            SENS.ESENS[ie, d, ES_T_END] = dt_e
+    return True
+
+
+@helper
+def start_contact(model, SENS, pair, t, y, mode, ie, initial):
+    """Tangents of the latched speed (and of the episode's first values) of a contact the
+    start policy opens at t (at the start of a run or right after a transfer)."""
+    g_in, g_out, rate = pair_gaps(model, pair, t, y)
+    _, pd = penetration(mode, g_in, g_out, rate)
+    for d in range(SENS.S.shape[0]):
+        dm = SENS.tangents[d]
+        dg_in, dg_out, drate = pair_gaps_jvp(model, dm, pair, t, y, SENS.S[d])
+        _, dpd = penetration_jvp(mode, dg_in, dg_out, drate)
+        if initial:
+            vi = model.initial_impact_velocity
+            SENS.DV0[d, pair] = dm.initial_impact_velocity if vi > 0.0 else 0.0
+        else:
+            SENS.DV0[d, pair] = dpd if pd > model.min_impact_velocity else dm.min_impact_velocity
+        if ie >= 0:
+            SENS.ESENS[ie, d, ES_T] = 0.0
+            SENS.ESENS[ie, d, ES_VELOCITY] = dpd
+
+
+@helper
+def new_episode_row(SENS, ie):
+    """Clear the tangents of a new impact-table row (NaN: not defined yet)."""
+    for d in range(SENS.S.shape[0]):
+        for q in range(5):
+            SENS.ESENS[ie, d, q] = math.nan
+
+
+@helper
+def transfer_jump(model, SENS, itr, t, y_minus, f_minus, f_plus, n_dof2, v, out):
+    """(5) for every direction at the transfer ``itr`` at time t (state before it
+    ``y_minus``); ``v``, ``out``: work space."""
+    for d in range(SENS.S.shape[0]):
+        dtau = SENS.DTR[d, itr] if itr < SENS.DTR.shape[1] else 0.0
+        s = SENS.S[d]
+        for i in range(n_dof2):
+            v[i] = s[i] + f_minus[i] * dtau
+        apply_transfer_jvp(model, SENS.tangents[d], t, y_minus, v, dtau, out)
+        for i in range(n_dof2):
+            s[i] = out[i] - f_plus[i] * dtau
+
+
+@helper
+def series_tangent_row(model, SENS, R, r, t, y, s_all, modes, v0s, n_pairs, work):
+    """Tangents of the series row r (:data:`~braidsim.core.layout.SERIES_SENS_FIELDS`) at
+    time t, state y, tangents s_all[d], into ``R`` (``SENS.RSENS``; None: nothing)."""
+    if R is None:
+        return
+    n_coords, _, _ = model_size(model)
+    for d in range(SENS.S.shape[0]):
+        s = s_all[d]
+        tangent_rhs(model, SENS, d, t, y, s, modes, v0s, work)
+        R[r, d, 0] = s[0]
+        R[r, d, 1] = s[1]
+        R[r, d, 4] = work[1]
+        if n_coords == 2:
+            R[r, d, 2] = s[2]
+            R[r, d, 3] = s[3]
+            R[r, d, 5] = work[3]
+        else:
+            R[r, d, 2] = 0.0
+            R[r, d, 3] = 0.0
+            R[r, d, 5] = 0.0
+        for pair in range(2):
+            dn = 0.0
+            if pair < n_pairs and modes[pair] != 0:
+                _, _, dn = pair_tangent(
+                    model,
+                    SENS.tangents[d],
+                    pair,
+                    t,
+                    y,
+                    s,
+                    modes[pair],
+                    v0s[pair],
+                    SENS.DV0[d, pair],
+                )
+                dn *= float(modes[pair])
+            R[r, d, 6 + pair] = dn
+
+
+@helper
+def step_series_tangents(
+    model, SENS, R, rows, r0, r1, t0, h, RC, RCS, n, n_dof2, modes, v0s, n_pairs, yq, SQ, work
+):
+    """Tangents of the series rows r0..r1-1 that a step [t0, t0 + h] wrote (samples and
+    peaks inside it), from the continuous extensions of the state and the tangents."""
+    if R is None:
+        return
+    for r in range(r0, r1):
+        tr = rows[r, 0]
+        theta = (tr - t0) / h
+        dense_eval(theta, RC, yq, n)
+        for d in range(SENS.S.shape[0]):
+            tangent_dense_eval(theta, RCS, d, SQ[d], n_dof2)
+        series_tangent_row(model, SENS, R, r, tr, yq, SQ, modes, v0s, n_pairs, work)
+
+
+@helper
+def arrays_fit(SENS, R, rows, n_dof2, n_episodes):
+    """Whether the tangent arrays match the run's state, impact table and series buffer."""
+    k = SENS.S.shape[0]
+    if SENS.S.shape[1] != n_dof2 or SENS.DV0.shape[0] != k or SENS.ESENS.shape[0] != n_episodes:
+        return False
+    if R is None:
+        return True
+    return rows is not None and R.shape[0] == rows.shape[0]

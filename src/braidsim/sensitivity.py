@@ -1,0 +1,562 @@
+"""Forward sensitivities: how a run's results change with a parameter or the initial state.
+
+Along each direction (a numeric scenario key, or a component of the initial state) the
+compiled solver integrates the variational equations with the motion and carries them
+through contact onset and exit, the latched approach speed and the transfers
+(:mod:`braidsim.core.solver.tangent`; the method and its derivation are in
+``docs/sensitivities.md``). What comes out, in SI units per SI unit of the key:
+
+- the derivatives of the final state (x, vx, y, vy);
+- for every impact, of its onset time, approach speed, peak force, maximum depth and exit
+  time (:data:`IMPACT_QUANTITIES`);
+- for every row of the series, of (x, vx, y, vy, ax, ay) and of both contact forces
+  (:data:`SERIES_QUANTITIES`), at the fixed time of the row.
+
+The map from a scenario key to the fields of the model record (a stiffness from Eq. (4),
+a damping factor from a restitution, a load from a tension and an angle) is closed-form
+algebra; it is differentiated by a fourth-order central difference of the record builder
+(relative error about 1e-12), the dynamics by the variational equations.
+
+:func:`flow_map` gives the Jacobians of the map from one time to another (the state and the
+latched speeds at t0 to those at t1): the monodromy of a periodic orbit's stroboscopic map.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from braidsim.core import layout as L
+from braidsim.core.driver import SensitivityRun, Tangents
+from braidsim.errors import InputError, SimulationError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from braidsim.model import Model
+    from braidsim.params import Scenario
+
+IMPACT_QUANTITIES: tuple[str, ...] = L.IMPACT_SENS_FIELDS
+"""What the derivatives of each impact are of, in order."""
+SERIES_QUANTITIES: tuple[str, ...] = L.SERIES_SENS_FIELDS
+"""What the derivatives of each series row are of, in order."""
+STATE_NAMES = ("x", "vx", "y", "vy")
+GAP_SAMPLES = 400  # samples of a flow map's run for its smallest gaps
+
+# keys that are settings of the solver or of the run, not parameters of the model
+_NOT_PARAMETERS = ("simulation.",)
+
+
+class SensitivityError(SimulationError):
+    """Sensitivities asked of a run whose event sequence changes under an infinitesimal
+    change of the parameters (a grazing contact): its derivatives do not exist there."""
+
+
+def _relative_step(value: float) -> float:
+    return 1e-4 * abs(value) if value != 0.0 else 1e-8
+
+
+def _leaves_equal(a: Any, b: Any) -> bool:
+    if isinstance(a, tuple) and hasattr(a, "_fields"):
+        return all(_leaves_equal(x, y) for x, y in zip(a, b, strict=True))
+    if isinstance(a, np.ndarray):
+        return isinstance(b, np.ndarray) and a.shape == b.shape
+    return True
+
+
+def _tangent(records: Sequence[Any], weights: Sequence[float], h: float, primal: Any) -> Any:
+    """The derivative of a record tree from its values at stencil points (weights / h);
+    integer and boolean fields are copied from the primal, infinite fields get 0."""
+    if isinstance(primal, tuple) and hasattr(primal, "_fields"):
+        return type(primal)(
+            *[
+                _tangent([getattr(r, f) for r in records], weights, h, getattr(primal, f))
+                for f in primal._fields
+            ]
+        )
+    if isinstance(primal, np.ndarray):
+        if primal.dtype.kind != "f":
+            return primal
+        acc = np.zeros_like(primal, dtype=float)
+        for r, w in zip(records, weights, strict=True):
+            acc = acc + w * np.asarray(r, dtype=float)
+        out = acc / h
+        out[~np.isfinite(primal)] = 0.0
+        return np.ascontiguousarray(out)
+    if isinstance(primal, (bool, np.bool_, int, np.integer)):
+        if any(r != primal for r in records):
+            raise ValueError("an integer field changes")
+        return primal
+    if not math.isfinite(primal):
+        return 0.0
+    return float(sum(w * float(r) for r, w in zip(records, weights, strict=True)) / h)
+
+
+def zero_tangent(primal: Any) -> Any:
+    """The tangent record of a direction that changes no parameter."""
+    if isinstance(primal, tuple) and hasattr(primal, "_fields"):
+        return type(primal)(*[zero_tangent(getattr(primal, f)) for f in primal._fields])
+    if isinstance(primal, np.ndarray):
+        return primal if primal.dtype.kind != "f" else np.zeros_like(primal)
+    if isinstance(primal, (bool, np.bool_, int, np.integer)):
+        return primal
+    return 0.0
+
+
+# central (x +- h, x +- 2h) and one-sided (x, x + h ... x + 4h) fourth-order stencils
+_CENTRAL = ((-2, 1 / 12), (-1, -8 / 12), (1, 8 / 12), (2, -1 / 12))
+_FORWARD = ((0, -25 / 12), (1, 48 / 12), (2, -36 / 12), (3, 16 / 12), (4, -3 / 12))
+
+
+@dataclass
+class Directions:
+    """The tangents of the model's record, initial state and transfer times along each key."""
+
+    keys: tuple[str, ...]
+    records: list[Any]
+    S0: np.ndarray  # (k, 2 n_coords)
+    DTR: np.ndarray  # (k, n_transfers)
+    scale: np.ndarray  # (k,)
+
+    def tangents(self, series: bool, DV0: np.ndarray | None = None) -> Tangents:
+        k = len(self.keys)
+        dv0 = np.zeros((k, 2)) if DV0 is None else DV0
+        return Tangents(self.records, self.S0, dv0, self.DTR, self.scale, series)
+
+
+def _key_value(model: Model, key: str) -> float:
+    """The SI value of a numeric key as the model uses it (a stiffness derived from the
+    materials, an exponent from the law, when the scenario leaves them out)."""
+    from braidsim.params import SCHEMA
+
+    if not isinstance(key, str) or key not in SCHEMA:
+        from braidsim.params import _unknown
+
+        raise _unknown(str(key))
+    spec = SCHEMA[key]
+    if spec.kind != "float" or key.startswith(_NOT_PARAMETERS):
+        raise InputError(
+            f"sensitivity: {key} is not a differentiable parameter (a {spec.kind} "
+            "setting); allowed: numeric model parameters such as contact.track.restitution, "
+            "track.clearance, initial.x"
+        )
+    value = model.scenario[key]
+    if value is None:
+        for pair in ("track", "slot"):
+            if key == f"contact.{pair}.stiffness":
+                return float(getattr(model, pair).stiffness)
+            if key == f"contact.{pair}.exponent":
+                return float(getattr(model, pair).exponent)
+        raise InputError(f"sensitivity: {key} is not set in this scenario; set it to a number")
+    value = float(value)
+    if not math.isfinite(value):
+        raise InputError(f"sensitivity: {key} = {value} is not finite; set it to a number")
+    return value
+
+
+def directions(model: Model, keys: Sequence[str]) -> Directions:
+    """The tangents along each scenario key (see the module docstring)."""
+    from braidsim.model import build_model
+
+    sc = model.scenario
+    n2 = 2 * (2 if model.two_dof else 1)
+    base = build_model(sc, model.duration, keep_zero_harmonics=True)
+    out_records: list[Any] = []
+    S0 = np.zeros((len(keys), n2))
+    DTR = np.zeros((len(keys), base.transfer_times.size))
+    scale = np.ones(len(keys))
+    seen: set[str] = set()
+    for i, key in enumerate(keys):
+        if key in seen:
+            raise InputError(f"sensitivity: {key} is asked twice")
+        seen.add(key)
+        p = _key_value(base, key)
+        scale[i] = abs(p) if p != 0.0 else 1.0
+        h = _relative_step(p)
+        built = None
+        for stencil in (_CENTRAL, _FORWARD, tuple((-o, -w) for o, w in _FORWARD)):
+            try:
+                built = [
+                    (build_model(sc.with_overrides({key: p + o * h}), model.duration, 0.0, True), w)
+                    for o, w in stencil
+                ]
+            except InputError:
+                continue
+            break
+        if built is None:
+            raise InputError(f"sensitivity: {key} = {p:g} sits where the model cannot vary it")
+        models = [m for m, _ in built]
+        weights = [w for _, w in built]
+        if not all(_leaves_equal(base.record, m.record) for m in models) or any(
+            m.transfer_times.shape != base.transfer_times.shape for m in models
+        ):
+            raise InputError(
+                f"sensitivity: {key} changes the structure of the model (a harmonic or a "
+                "transfer appears or goes), so it has no derivative here"
+            )
+        try:
+            out_records.append(_tangent([m.record for m in models], weights, h, base.record))
+        except ValueError:
+            raise InputError(
+                f"sensitivity: {key} switches a discrete setting of the model; it has no "
+                "derivative here"
+            ) from None
+        S0[i] = sum(w * m.y0[:n2] for m, w in zip(models, weights, strict=True)) / h
+        if DTR.shape[1]:
+            DTR[i] = sum(w * m.transfer_times for m, w in zip(models, weights, strict=True)) / h
+    return Directions(tuple(keys), out_records, S0, DTR, scale)
+
+
+def check_differentiable(record: Any) -> None:
+    """Raise an InputError naming a physics record class without tangents."""
+    from braidsim.core import interfaces as I
+
+    needs = {
+        "track_law": I.contact_forces_jvp,
+        "slot_law": I.contact_forces_jvp,
+        "law": I.contact_forces_jvp,
+        "friction": I.friction_force_jvp,
+        "track": I.wall_motion_jvp,
+        "horn_gear": I.wall_motion_jvp,
+    }
+    if type(record) not in I.derivatives_jvp.generic.impls:
+        raise InputError(f"sensitivity: the model {type(record).__name__} has no tangents")
+    for field, fn in needs.items():
+        sub = getattr(record, field, None)
+        if sub is not None and type(sub) not in fn.generic.impls:
+            raise InputError(
+                f"sensitivity: {type(sub).__name__} ({field}) does not provide its derivatives "
+                f"(register {fn.__name__} for it)"
+            )
+
+
+@dataclass
+class Sensitivities:
+    """The derivatives of a run's results along ``keys`` (SI per SI unit of the key).
+
+    Attributes
+    ----------
+    keys : tuple of str
+        The directions, in the order of axis 1 of the arrays below.
+    final : np.ndarray (k, 4)
+        d(x, vx, y, vy) at the end of the run / d key (y and vy are 0 for the x-only
+        carrier).
+    impacts : np.ndarray (n_impacts, k, 5)
+        d(:data:`IMPACT_QUANTITIES`) / d key for each row of ``Result.impacts`` (NaN where
+        undefined: the exit time of a contact still open, the onset of a contact present at
+        the start).
+    series : np.ndarray (n_rows, k, 8) or None
+        d(:data:`SERIES_QUANTITIES`) / d key at the time of each row of ``Result.series``.
+    latched : np.ndarray (k, 2)
+        d(latched approach speed of the track and slot pairs at the end) / d key.
+    """
+
+    keys: tuple[str, ...]
+    final: np.ndarray
+    impacts: np.ndarray
+    series: np.ndarray | None
+    latched: np.ndarray
+
+    @classmethod
+    def from_run(cls, keys: Sequence[str], sens: SensitivityRun) -> Sensitivities:
+        k = len(keys)
+        final = np.zeros((k, 4))
+        final[:, : sens.S.shape[1]] = sens.S
+        return cls(tuple(keys), final, sens.impacts, sens.series, sens.DV0)
+
+    def final_dict(self) -> dict[str, dict[str, float]]:
+        """``{key: {"x", "vx", "y", "vy"}}`` as in ``braidsim run --json``."""
+        return {
+            key: {q: float(self.final[i, j]) for j, q in enumerate(STATE_NAMES)}
+            for i, key in enumerate(self.keys)
+        }
+
+    def impact_dict(self, row: int) -> dict[str, dict[str, float | None]]:
+        """``{key: {"t", "velocity", "peak_force", "max_depth", "t_end"}}`` of impact
+        ``row`` (None where undefined)."""
+        out: dict[str, dict[str, float | None]] = {}
+        for i, key in enumerate(self.keys):
+            vals = self.impacts[row, i]
+            out[key] = {
+                q: (float(v) if math.isfinite(v) else None)
+                for q, v in zip(IMPACT_QUANTITIES, vals, strict=True)
+            }
+        return out
+
+    def impacts_frame(self, impacts: pd.DataFrame) -> pd.DataFrame:
+        """A long table: one row per (impact, key), the impact's time and pair beside the
+        derivatives."""
+        import pandas as pd
+
+        rows = []
+        for r in range(self.impacts.shape[0]):
+            for i, key in enumerate(self.keys):
+                rec: dict[str, Any] = {
+                    "impact": r,
+                    "t": float(impacts["t"].iloc[r]),
+                    "pair": impacts["pair"].iloc[r],
+                    "key": key,
+                }
+                vals = self.impacts[r, i]
+                rec.update(
+                    {f"d_{q}": float(v) for q, v in zip(IMPACT_QUANTITIES, vals, strict=True)}
+                )
+                rows.append(rec)
+        return pd.DataFrame(rows)
+
+
+def sensitivity_error(t: float) -> SensitivityError:
+    """The error of a run that met a grazing contact."""
+    return SensitivityError(
+        f"a contact starts or ends with (almost) zero normal speed at t = {t:.9g} s (a "
+        "grazing contact): the sequence of impacts changes under an infinitesimal change, "
+        "so the sensitivities do not exist there; change the parameters a little or end the "
+        "run before that time",
+        t,
+    )
+
+
+# =======================================================================================
+# Flow map and monodromy
+# =======================================================================================
+
+
+@dataclass
+class FlowMap:
+    """The map from the state and contacts at t0 to those at t1, with its Jacobians.
+
+    ``n`` is 2 for the x-only carrier (x, vx), 4 for the xy carrier (x, vx, y, vy), ground
+    frame as the solver holds it. Latched speeds are those of the contacts open at t0 (a
+    free pair's column is 0) and at t1 (a free pair's row is 0).
+    """
+
+    t0: float
+    t1: float
+    y0: np.ndarray
+    modes0: tuple[int, int]
+    v0s0: np.ndarray
+    y1: np.ndarray
+    modes1: tuple[int, int]
+    v0s1: np.ndarray
+    jac_y: np.ndarray  # (n, n)
+    jac_v0: np.ndarray  # (n, 2)
+    dv0_dy: np.ndarray  # (2, n)
+    dv0_dv0: np.ndarray  # (2, 2)
+    keys: tuple[str, ...]
+    jac_p: np.ndarray  # (n, len(keys))
+    dv0_dp: np.ndarray  # (2, len(keys))
+    impacts: pd.DataFrame
+    impact_sens: np.ndarray  # (n_impacts, n + 2 + len(keys), 5)
+    min_gaps: np.ndarray  # (2, 2)
+
+    def contact_pairs(self) -> list[int]:
+        """The pairs in contact at t0 (their latched speeds are part of the map's state)."""
+        return [p for p in range(2) if self.modes0[p] != 0]
+
+    def monodromy(self) -> np.ndarray:
+        """The Jacobian of the map on z = (y, latched speeds of the pairs in contact at t0):
+        the monodromy matrix when t1 - t0 is a period of a periodic orbit whose section
+        this is. The contact modes at t0 and t1 must agree."""
+        if tuple(self.modes1) != tuple(self.modes0):
+            raise SimulationError(
+                f"the contacts at t1 ({self.modes1}) differ from those at t0 ({self.modes0}): "
+                "not the section of a periodic orbit",
+                self.t1,
+            )
+        cp = self.contact_pairs()
+        n = self.y1.size
+        M = np.zeros((n + len(cp), n + len(cp)))
+        M[:n, :n] = self.jac_y
+        for j, p in enumerate(cp):
+            M[:n, n + j] = self.jac_v0[:, p]
+            M[n + j, :n] = self.dv0_dy[p]
+            for jj, pp in enumerate(cp):
+                M[n + j, n + jj] = self.dv0_dv0[p, pp]
+        return M
+
+
+def flow_map(
+    scenario: Scenario | str | Mapping[str, Any],
+    t0: float,
+    t1: float,
+    y0: Sequence[float] | np.ndarray | None = None,
+    modes: tuple[int, int] = (0, 0),
+    v0s: Sequence[float] = (math.nan, math.nan),
+    keys: Sequence[str] = (),
+    overrides: Mapping[str, Any] | None = None,
+) -> FlowMap:
+    """Integrate from t0 (state ``y0``, contacts ``modes`` with latched speeds ``v0s``) to
+    t1 with the Jacobians of the result with respect to the state, the latched speeds and
+    the scenario ``keys`` (see :class:`FlowMap`).
+
+    ``y0`` is (x, vx) or (x, vx, y, vy) in the solver's ground frame (default: the
+    scenario's initial state). The run from t0 starts with a fresh step-size controller, so
+    that the map depends on (t0, y0, contacts) only.
+    """
+    from braidsim.core import run as core_run
+    from braidsim.core.driver import state_size
+    from braidsim.model import build_model
+    from braidsim.params import Scenario as _Sc
+    from braidsim.params import load_scenario
+    from braidsim.result import impacts_frame
+    from braidsim.simulate import failure_message, stats_dict
+
+    sc = scenario if isinstance(scenario, _Sc) else load_scenario(scenario)
+    if overrides:
+        sc = sc.with_overrides(overrides)
+    t0 = float(t0)
+    t1 = float(t1)
+    if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0 >= 0.0):
+        raise InputError(
+            f"flow_map: [t0, t1] = [{t0}, {t1}] is not a time interval; allowed 0 <= t0 < t1"
+        )
+    model = build_model(sc, t1 - t0, t_start=t0, keep_zero_harmonics=True)
+    check_differentiable(model.record)
+    n = 4 if model.two_dof else 2
+    y = model.y0.copy()
+    if y0 is not None:
+        ya = np.asarray(y0, dtype=float)
+        if ya.shape != (n,) or not np.all(np.isfinite(ya)):
+            raise InputError(f"flow_map: y0 needs {n} finite entries, got {ya.shape}")
+        y[:n] = ya
+        y[n:] = 0.0
+    modes_t = (int(modes[0]), int(modes[1]))
+    v0a = np.array(v0s, dtype=float).reshape(2)
+    for p in range(2):
+        if modes_t[p] not in (-1, 0, 1):
+            raise InputError(f"flow_map: modes[{p}] = {modes_t[p]}; allowed -1, 0, +1")
+        if modes_t[p] != 0 and not (v0a[p] > 0):
+            raise InputError(f"flow_map: v0s[{p}] must be > 0 m/s for a pair in contact")
+    # directions: the n state components, the 2 latched speeds, the keys
+    dirs = directions(model, keys) if keys else None
+    zero = zero_tangent(model.record)
+    k = n + 2 + len(keys)
+    records = [zero] * (n + 2) + (dirs.records if dirs else [])
+    S0 = np.zeros((k, n))
+    S0[:n, :n] = np.eye(n)
+    DV0 = np.zeros((k, 2))
+    DV0[n, 0] = 1.0 if modes_t[0] != 0 else 0.0
+    DV0[n + 1, 1] = 1.0 if modes_t[1] != 0 else 0.0
+    ntr = model.transfer_times.size
+    DTR = np.zeros((k, ntr))
+    scale = np.ones(k)
+    scale[n] = v0a[0] if modes_t[0] != 0 else 1.0
+    scale[n + 1] = v0a[1] if modes_t[1] != 0 else 1.0
+    if dirs is not None:
+        # the keys' own tangents of the initial state are not wanted: y0 is given
+        DTR[n + 2 :] = dirs.DTR
+        scale[n + 2 :] = dirs.scale
+        if y0 is None:
+            S0[n + 2 :] = dirs.S0
+    tangents = Tangents(records, S0, DV0, DTR, scale, series=False)
+    restart = L.new_restart()
+    r = restart[0]
+    r["t"] = t0
+    r["started"] = L.CONTINUED if any(modes_t) else L.NEW_RUN
+    r["mode_0"], r["mode_1"] = modes_t
+    r["v0_0"] = v0a[0] if modes_t[0] else 1.0
+    r["v0_1"] = v0a[1] if modes_t[1] else 1.0
+    if any(modes_t):
+        r["h"] = min(1e-6, model.options.max_step)
+    opts = model.options._replace(t_end=t1, record_events=True)
+    W = np.array([[t0, t1]])
+    raw = core_run(
+        model.record,
+        opts,
+        y[: state_size(model.record, True)],
+        sample_times=np.linspace(t0, t1, GAP_SAMPLES + 1),
+        transfer_times=model.transfer_times,
+        windows=W,
+        series=True,
+        xsq=False,
+        restart=restart,
+        tangents=tangents,
+    )
+    if raw.status == L.ST_GRAZING:
+        raise sensitivity_error(raw.t)
+    if raw.status != L.ST_OK:
+        raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
+    sens = raw.sensitivity
+    assert sens is not None
+    rs = raw.restart[0]
+    modes1 = (int(rs["mode_0"]), int(rs["mode_1"]))
+    v0s1 = np.array([rs["v0_0"] if modes1[0] else math.nan, rs["v0_1"] if modes1[1] else math.nan])
+    S = sens.S  # (k, n)
+    D = sens.DV0.copy()  # (k, 2)
+    for p in range(2):
+        if modes1[p] == 0:
+            D[:, p] = 0.0
+    return FlowMap(
+        t0=t0,
+        t1=t1,
+        y0=y[:n].copy(),
+        modes0=modes_t,
+        v0s0=np.where(np.array(modes_t) != 0, v0a, math.nan),
+        y1=raw.y[:n].copy(),
+        modes1=modes1,
+        v0s1=v0s1,
+        jac_y=S[:n].T.copy(),
+        jac_v0=S[n : n + 2].T.copy(),
+        dv0_dy=D[:n].T.copy(),
+        dv0_dv0=D[n : n + 2].T.copy(),
+        keys=tuple(keys),
+        jac_p=S[n + 2 :].T.copy(),
+        dv0_dp=D[n + 2 :].T.copy(),
+        impacts=impacts_frame(raw.episodes),
+        impact_sens=sens.impacts,
+        min_gaps=_min_gaps(raw, model),
+    )
+
+
+def _min_gaps(raw: Any, model: Model) -> np.ndarray:
+    """Smallest gap [m] to the (inner, outer) wall of each pair over the run: minus the
+    largest depth where the pair touched that wall, else the smallest gap of the sampled
+    series (samples and exact event states), refined by a parabola through the smallest
+    sample and its neighbours. NaN for a pair the model does not have."""
+    from braidsim.core import CARRIER_COLUMNS
+
+    out = np.full((2, 2), math.nan)
+    R = raw.ranges[0]  # (pair, quantity, min/max); quantity 0 is the signed depth
+    col = {c: i for i, c in enumerate(CARRIER_COLUMNS)}
+    ser = raw.series
+    rec = model.record
+    for pair in range(2 if model.two_dof else 1):
+        if pair == 0:
+            u = ser[:, col["x"]] - ser[:, col["track_position"]]
+            eps = rec.track_clearance
+        else:
+            u = ser[:, col["y"]] - ser[:, col["slot_position"]]
+            eps = rec.slot_clearance
+        t = ser[:, 0]
+        for side, gap in ((0, u), (1, eps - u)):
+            depth = -R[pair, 0, 0] if side == 0 else R[pair, 0, 1]
+            if np.isfinite(depth) and depth > 0.0:
+                out[pair, side] = -depth
+                continue
+            out[pair, side] = _parabolic_min(t, gap)
+    return out
+
+
+def _parabolic_min(t: np.ndarray, g: np.ndarray) -> float:
+    """The minimum of samples g(t), refined by the parabola through the smallest sample
+    and its two neighbours when it is interior."""
+    if g.size == 0:
+        return math.nan
+    i = int(np.argmin(g))
+    if 0 < i < g.size - 1:
+        t0, t1, t2 = t[i - 1], t[i], t[i + 1]
+        g0, g1, g2 = g[i - 1], g[i], g[i + 1]
+        denom = (t0 - t1) * (t0 - t2) * (t1 - t2)
+        if denom != 0.0 and t0 < t1 < t2:
+            a = (t2 * (g1 - g0) + t1 * (g0 - g2) + t0 * (g2 - g1)) / denom
+            b = (t2 * t2 * (g0 - g1) + t1 * t1 * (g2 - g0) + t0 * t0 * (g1 - g2)) / denom
+            if a > 0.0:
+                tv = -b / (2 * a)
+                if t0 <= tv <= t2:
+                    c = g1 - a * t1 * t1 - b * t1
+                    return float(min(g1, a * tv * tv + b * tv + c))
+    return float(g[i])
