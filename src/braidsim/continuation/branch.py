@@ -603,3 +603,17 @@ def switch_period_doubling(
             return br
     return None
 
+
+
+def orbit_at(system: Any, branch: Branch, value: float, method: str = "auto", tol: float = DEFAULT_TOL) -> Orbit:
+    """The branch's orbit at the parameter ``value`` [SI], solved from the nearest point
+    (the first in arclength order among those nearest). Raises :class:`ContinuationError`
+    when the value is outside the branch or Newton fails there."""
+    v = branch.values
+    if not (v.min() <= value <= v.max()):
+        raise ContinuationError(
+            f"{branch.key} = {value:g} is outside the branch ({v.min():g} to {v.max():g})"
+        )
+    i = int(np.argmin(np.abs(v - value)))
+    o = branch.points[i]
+    return solve_fixed(system, {**o.values, branch.key: float(value)}, o.period, o.phase, o.cuts, o.z, method, tol)

@@ -769,9 +769,9 @@ def seed_orbit(
     tol: float = DEFAULT_TOL,
     state: Sequence[float] | None = None,
 ) -> Orbit:
-    """A period-``period`` orbit from a simulated steady state (or from ``state``, the
-    (x, vx[, y, vy]) at forcing phase 0 after ``transient_cycles`` cycles... given by the
-    user: then only the Newton iteration runs).
+    """A period-``period`` orbit from the steady state simulated for ``transient_cycles``
+    forcing cycles, or from ``state``: (x, vx[, y, vy]) at forcing phase 0 (t = 0) in free
+    flight, from which Newton's method starts as it is.
 
     Raises
     ------
@@ -793,10 +793,23 @@ def seed_orbit(
                 f"continuation.seed: needs {2 * prep.n_coords} numbers (x, vx[, y, vy]); "
                 f"got {y.size}"
             )
+        # a user seed is the state at forcing phase 0 (t = 0), in free flight; Newton starts
+        # from it as it is, cut at that phase
         t, modes, v0 = 0.0, (0, 0), np.array([math.nan, math.nan])
-        # bring a user seed onto the orbit's phase: one cycle is enough to latch contacts
-        seg = advance(prep, 0.0, period * T, y, modes, v0)
-        t, y, modes, v0 = period * T, seg.y1, seg.modes1, seg.v0s1
+        prof = profile(system, values, t, period, y, modes, v0)
+        cuts = cuts_from(prof, prep.omega, 0.0, period, segments, t)
+        times = t + np.arange(segments) * period * T / segments
+        z = states_at(system, values, t, y, modes, v0, times, cuts)
+        try:
+            return solve_fixed(system, values, period, 0.0, cuts, z, method, tol)
+        except (ContinuationError, SectionChanged) as exc:
+            where = ", ".join(f"{k} = {v:g}" for k, v in values.items())
+            raise InputError(
+                f"continuation.seed: the state {tuple(float(v) for v in state)} is not near a "
+                f"period-{period} orbit at {where or 'the base values'} ({exc}); allowed a "
+                "state close to an orbit, or leave seed out to start from a simulated steady "
+                "state"
+            ) from None
     else:
         t, y, modes, v0 = simulate_state(system, values, math.ceil(transient_cycles))
         t = math.ceil(transient_cycles) * T
@@ -813,22 +826,12 @@ def seed_orbit(
         return solve_fixed(system, values, period, th_mod, cuts, z, method, tol)
     except ContinuationError as exc:
         where = ", ".join(f"{k} = {v:g}" for k, v in values.items())
-        if state is not None:
-            raise InputError(
-                f"continuation.seed: the state {tuple(float(v) for v in state)} is not near a "
-                f"period-{period} orbit at {where or 'the base values'} ({exc}); allowed a "
-                "state close to an orbit, or leave seed out to start from a simulated steady "
-                "state"
-            ) from None
-        from braidsim.analysis.regimes import detect_period
-
         q = _simulated_period(system, values, t, y, modes, v0, period)
         hint = (
             f"the simulated motion repeats every {q} cycles: set period = {q}"
             if q is not None and q != period
             else "lengthen transient_cycles or start from another value"
         )
-        del detect_period
         raise ContinuationError(
             f"the period-{period} orbit did not converge from the steady state simulated for "
             f"{transient_cycles:g} cycles at {where or 'the base values'} ({exc}); {hint}",
@@ -856,3 +859,23 @@ def _simulated_period(system: Any, values: Mapping[str, float], t: float, y: np.
 def with_values(orbit: Orbit, **kw: Any) -> Orbit:
     """A copy with fields replaced."""
     return replace(orbit, **kw)
+
+
+def recut(orbit: Orbit, system: Any, phase: float, segments: int | None = None, method: str = "auto") -> Orbit:
+    """The same orbit cut at the forcing phase ``phase`` [rad] (into ``segments`` shooting
+    segments, default as before) and solved again: its multipliers do not depend on the
+    cut, which may lie inside a contact (the latched speed then joins the state)."""
+    prep = system.prepare(orbit.values)
+    w = prep.omega
+    m = orbit.segments if segments is None else int(segments)
+    n = 2 * prep.n_coords
+    t0 = orbit.phase / w
+    th = float(phase)
+    while th / w < t0:
+        th += 2 * math.pi * orbit.period
+    cuts = cuts_from(orbit.profile, w, th, orbit.period, m, t0)
+    P = orbit.period * prep.period
+    times = th / w + np.arange(m) * P / m
+    c0 = orbit.cuts[0]
+    z = states_at(system, orbit.values, t0, orbit.z[0][:n], c0.modes, c0.v0s(orbit.z[0][n:]), times, cuts)
+    return solve_fixed(system, orbit.values, orbit.period, _wrap(th, orbit.period), cuts, z, method)

@@ -15,7 +15,8 @@ samples of a period-k orbit), ``cut`` and ``entry`` (the shooting state, for res
   relative to the inner wall, speed), comparable with a brute-force bifurcation diagram;
 * ``phase`` (point), ``state`` (point, cut, entry), ``modes``, ``v0_state``, ``v0_fixed``
   (point, cut, pair): enough to restart from any point (:func:`orbit_from_dataset`);
-* ``special_type``, ``special_value``, ``special_period``, ``special_index`` (special).
+* ``special_type`` (special; a CF flag: 0 fold, 1 period_doubling, 2 neimark_sacker,
+  3 grazing), ``special_value``, ``special_period``, ``special_index``.
 
 ``attrs``: ``parameter``, ``period``, ``system`` (scenario name), ``base_values_json`` (the
 other parameters of the orbit, SI), ``stop`` (why the branch ended), ``braidsim_version``.
@@ -30,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from braidsim.continuation.branch import Branch
+from braidsim.continuation.branch import SPECIAL_TYPES, Branch
 from braidsim.continuation.orbit import Cut, Orbit, profile
 
 UNITS = {
@@ -101,7 +102,10 @@ def branch_dataset(br: Branch, system_name: str = "") -> Any:
         "modes": (("point", "cut", "pair"), modes),
         "v0_state": (("point", "cut", "pair"), v0s),
         "v0_fixed": (("point", "cut", "pair"), v0f),
-        "special_type": ("special", np.array([s.type for s in br.special], dtype=str)),
+        "special_type": (
+            "special",
+            np.array([SPECIAL_TYPES.index(s.type) for s in br.special], dtype=np.int8),
+        ),
         "special_value": ("special", np.array([s.value for s in br.special], dtype=float)),
         "special_period": ("special", np.array([s.period for s in br.special], dtype=np.int32)),
         "special_index": ("special", np.array([s.index for s in br.special], dtype=np.int32)),
@@ -109,6 +113,10 @@ def branch_dataset(br: Branch, system_name: str = "") -> Any:
     ds = xr.Dataset({k: (d, v) for k, (d, v) in data.items()})
     for k, u in UNITS.items():
         ds[k].attrs["units"] = u
+    # CF flags: the type as a small integer (strings have no stable zarr v3 encoding)
+    ds["special_type"].attrs.update(
+        flag_values=np.arange(len(SPECIAL_TYPES), dtype=np.int8), flag_meanings=" ".join(SPECIAL_TYPES)
+    )
     base = dict(pts[0].values) if pts else {}
     base.pop(br.key, None)
     ds.attrs.update(
@@ -188,7 +196,7 @@ def write_branch(ds: Any, path: str | Path) -> Path:
 
         tmp = Path(tempfile.mkdtemp(dir=p.parent, suffix=".tmp"))
         try:
-            ds.to_zarr(tmp / "b.zarr", mode="w")
+            ds.to_zarr(tmp / "b.zarr", mode="w", consolidated=False)
             if p.exists():
                 shutil.rmtree(p)
             (tmp / "b.zarr").rename(p)
@@ -208,7 +216,7 @@ def open_branch(path: str | Path) -> Any:
 
         raise InputError(f"restart: {str(p)!r} does not exist; allowed a branch file (.nc or .zarr)")
     if p.suffix == ".zarr" or p.is_dir():
-        return xr.open_zarr(p).load()
+        return xr.open_zarr(str(p), consolidated=False, chunks=None).load()
     with xr.open_dataset(p, engine="h5netcdf") as ds:
         return ds.load()
 
