@@ -268,7 +268,16 @@ class Continuer:
                         reseated = True
                         continue
                     br.stop = f"step below {self.hmin:g} at {self.key} = {o.values[self.key]:.6g} ({exc})"
-                    break
+                    jumped = self.past_grazing(br, direction if not br.tangents else float(np.sign(tau[-1]) or direction))
+                    if jumped is None:
+                        break
+                    o = jumped
+                    sh = self.shooter(o)
+                    U = sh.pack(o.z, o.values[self.key])
+                    tau = self.tangent(sh, U, None, float(np.sign(tau[-1]) or direction))
+                    h = self.h0
+                    reseated = False
+                    continue
                 continue
             reseated = False
             lam = nxt.values[self.key]
@@ -335,6 +344,64 @@ class Continuer:
         else:
             br.stop = f"max_points = {self.max_points} reached"
         return br
+
+    def past_grazing(self, br: Branch, direction: float) -> Orbit | None:
+        """Where a family ends at a grazing the corrector cannot step over (a contact that
+        lifts off: beyond it the orbit has a new short flight and a new impact): when the
+        last points' distance to grazing extrapolates to zero within one step, record the
+        grazing there and seed the orbit just beyond it from a run started on the last
+        orbit. None when that does not apply or fails."""
+        from braidsim.continuation.orbit import seed_orbit
+
+        if len(br.points) < 2:
+            return None
+        o1, o2 = br.points[-2], br.points[-1]
+        a1, a2 = o1.profile.approach, o2.profile.approach
+        l1, l2 = o1.values[self.key], o2.values[self.key]
+        if not (math.isfinite(a1) and math.isfinite(a2)) or a1 <= a2 or l1 == l2:
+            return None
+        lg = l2 - a2 * (l2 - l1) / (a2 - a1)
+        if abs(lg - l2) > 2 * abs(l2 - l1):
+            return None
+        sp = SpecialPoint(
+            "grazing",
+            float(lg),
+            o2.period,
+            len(br.points) - 1,
+            o2,
+            "the family ends where its distance to grazing extrapolates to zero",
+        )
+        br.special.append(sp)
+        beyond = lg + 0.5 * (l2 - l1) + 1e-3 * self.pscale * float(np.sign(l2 - l1))
+        if not (self.lo <= beyond <= self.hi):
+            return None
+        n = 2 * self.system.prepare(o2.values).n_coords
+        t0 = o2.phase / self.system.prepare(o2.values).omega
+        c0 = o2.cuts[0]
+        try:
+            nxt = seed_orbit(
+                self.system,
+                {**o2.values, self.key: beyond},
+                o2.period,
+                segments=o2.segments,
+                transient_cycles=100,
+                method=self.method,
+                tol=self.tol,
+                start=(t0, o2.z[0][:n], c0.modes, c0.v0s(o2.z[0][n:])),
+            )
+        except (ContinuationError, SimulationError, InputError):
+            return None
+        if signature(nxt) == signature(o2):
+            # a run from there settles on an orbit of the same structure (for a resting
+            # contact: one with another latched speed, which sets its damping)
+            return None
+        sp.detail += f"; onsets per orbit {list(signature(o2)[0])} -> {list(signature(nxt)[0])}"
+        sp.other = nxt
+        br.points.append(nxt)
+        if self.on_point:
+            self.on_point(nxt)
+        br.stop = ""
+        return nxt
 
     def _closed(self, br: Branch, sh: Shooter, U: np.ndarray, h: float) -> bool:
         """Whether the newest point is back at the first one (a closed branch, an isola)."""

@@ -768,6 +768,7 @@ def seed_orbit(
     method: str = "auto",
     tol: float = DEFAULT_TOL,
     state: Sequence[float] | None = None,
+    start: tuple[float, np.ndarray, tuple[int, int], np.ndarray] | None = None,
 ) -> Orbit:
     """A period-``period`` orbit from the steady state simulated for ``transient_cycles``
     forcing cycles, or from ``state``: (x, vx[, y, vy]) at forcing phase 0 (t = 0) in free
@@ -810,6 +811,13 @@ def seed_orbit(
                 "state close to an orbit, or leave seed out to start from a simulated steady "
                 "state"
             ) from None
+    elif start is not None:
+        # from a given hybrid state (t, y, modes, v0s): simulate the transient from there
+        t, y, modes, v0 = start
+        n_per = math.ceil(transient_cycles)
+        t_end = (math.floor(t / T + 1e-9) + n_per) * T
+        seg = advance(prep, t, t_end, np.asarray(y, float), modes, np.asarray(v0, float))
+        t, y, modes, v0 = t_end, seg.y1, seg.modes1, seg.v0s1
     else:
         t, y, modes, v0 = simulate_state(system, values, math.ceil(transient_cycles))
         t = math.ceil(transient_cycles) * T
