@@ -452,7 +452,9 @@ def flow_map(
         scale[n + 2 :] = dirs.scale
         if y0 is None:
             S0[n + 2 :] = dirs.S0
-    tangents = Tangents(records, S0, DV0, DTR, scale, series=False)
+    # series tangents are not needed, but asking for them shares the compiled solver with
+    # simulate(..., sensitivities=...) and its series (one compile less)
+    tangents = Tangents(records, S0, DV0, DTR, scale, series=True)
     restart = L.new_restart()
     r = restart[0]
     r["t"] = t0
@@ -560,3 +562,40 @@ def _parabolic_min(t: np.ndarray, g: np.ndarray) -> float:
                     c = g1 - a * t1 * t1 - b * t1
                     return float(min(g1, a * tv * tv + b * tv + c))
     return float(g[i])
+
+
+def forcing_period(scenario: Scenario) -> float:
+    """The period of the track vibration 2 pi / omega_h [s] (``track.vibration_frequency``
+    is held in rad/s)."""
+    w = float(scenario["track.vibration_frequency"])
+    if not (math.isfinite(w) and w > 0):
+        raise InputError(
+            f"track.vibration_frequency: {w!r} rad/s has no period; allowed > 0 for a "
+            "stroboscopic map"
+        )
+    return 2.0 * math.pi / w
+
+
+def stroboscopic_map(
+    scenario: Scenario | str | Mapping[str, Any],
+    t0: float,
+    y0: Sequence[float] | np.ndarray | None = None,
+    modes: tuple[int, int] = (0, 0),
+    v0s: Sequence[float] = (math.nan, math.nan),
+    periods: int = 1,
+    keys: Sequence[str] = (),
+    overrides: Mapping[str, Any] | None = None,
+) -> FlowMap:
+    """:func:`flow_map` over ``periods`` periods of the track vibration from t0: the map
+    whose fixed points are the orbits of that period, and whose ``monodromy()`` gives their
+    Floquet multipliers."""
+    from braidsim.params import Scenario as _Sc
+    from braidsim.params import load_scenario
+
+    sc = scenario if isinstance(scenario, _Sc) else load_scenario(scenario)
+    if overrides:
+        sc = sc.with_overrides(overrides)
+    if not (isinstance(periods, (int, np.integer)) and periods >= 1):
+        raise InputError(f"periods: {periods!r}; allowed an integer >= 1")
+    T = forcing_period(sc)
+    return flow_map(sc, t0, t0 + int(periods) * T, y0=y0, modes=modes, v0s=v0s, keys=keys)

@@ -290,13 +290,17 @@ def simulate(
         model,
         sample_times=st,
         windows=W,
-        series=keep if series is True else series,
+        # the series' tangents come back with the rows kept by the driver
+        series=(True if tangents is not None else keep) if series is True else series,
         record_events=record_events and series is not False,
         start=start,
         tangents=tangents,
     )
     series_cols = {}
     for i, name in enumerate(CARRIER_COLUMNS):
+        if raw.series is not None:
+            series_cols[name] = raw.series[:, i].copy()
+            continue
         series_cols[name] = np.concatenate(columns[i]) if columns[i] else np.zeros(0)
         columns[i] = []
     if not model.two_dof:

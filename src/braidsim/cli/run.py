@@ -33,6 +33,14 @@ def run(
     csv: Annotated[
         bool, typer.Option("--csv", help="With --out, also write the series as series.csv.")
     ] = False,
+    sensitivity: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--sensitivity",
+            help="KEY: also give the exact derivatives of every impact and of the final state "
+            "with respect to this numeric scenario key (repeatable), SI per SI unit.",
+        ),
+    ] = None,
     json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
 ) -> None:
     """Simulate one carrier and report depth and force ranges and the impacts."""
@@ -56,7 +64,9 @@ def run(
     windows = [win] if win else None
     T = float(sc["simulation.duration"] if dur is None else dur)
     with progress_status(f"simulating {sc.name}, {T:g} s", quiet=json_):
-        res = braidsim.simulate(sc, duration=dur, windows=windows)
+        res = braidsim.simulate(
+            sc, duration=dur, windows=windows, sensitivities=list(sensitivity or ()) or None
+        )
     summary = res.summary(window=win)
     if out is not None:
         with progress_status(f"writing {out}", quiet=json_):
@@ -122,6 +132,11 @@ def _print_summary(summary: dict, out: Path | None) -> None:
     if xy:
         final += f", y = {fin['y'] * 1e3:.6g} mm"
     con.print(f"{len(imp)} impacts; {final}")
+    if "sensitivity" in fin:
+        ts = Table("d/d KEY (SI)", "x", "vx", "y", "vy", title="sensitivity of the final state")
+        for key, d in fin["sensitivity"].items():
+            ts.add_row(escape(key), *(f"{d[q]:.6g}" for q in ("x", "vx", "y", "vy")))
+        con.print(ts)
     if imp:
         t2 = Table(
             *(
