@@ -642,23 +642,55 @@ def switch_period_doubling(
     n = o.z[0].size
     n_y = 2 * system.prepare(o.values).n_coords
     scale = np.array([Ls if (i % 2 == 0 and i < n_y) else Vs for i in range(n)])
+    from braidsim.continuation.orbit import seed_orbit
+
+    mu, V = np.linalg.eig(o.monodromy)
+    w = np.real(V[:, int(np.argmin(np.abs(mu + 1.0)))])
+    w = w / np.max(np.abs(w / scale))
+    prep = system.prepare(o.values)
+    t0 = o.phase / prep.omega
+    n_y = 2 * prep.n_coords
+    c0 = o.cuts[0]
+    attempts = []
     for dl in (0.01, -0.01, 0.03, -0.03):
-        for e in (0.05, 0.2):
-            vals = dict(o.values)
-            vals[key] = lam + dl * cont.pscale
-            if not (cont.lo <= vals[key] <= cont.hi):
-                continue
-            mu, V = np.linalg.eig(o.monodromy)
-            w = np.real(V[:, int(np.argmin(np.abs(mu + 1.0)))])
-            w = w / np.max(np.abs(w / scale))
-            cuts, zs = doubled_guess(o, e * w)
-            try:
+        # a run started next to the orbit on the side where it is unstable settles on a
+        # stable period-2k orbit (a supercritical doubling) ...
+        attempts.append((dl, None))
+        # ... Newton from z* +/- eps w on alternate periods finds others
+        for e in (0.05, 0.3, 1.0):
+            attempts.append((dl, e))
+    for dl, e in attempts:
+        vals = dict(o.values)
+        vals[key] = lam + dl * cont.pscale
+        if not (cont.lo <= vals[key] <= cont.hi):
+            continue
+        try:
+            if e is None:
+                y0 = o.z[0][:n_y] + 0.05 * w[:n_y]
+                o2 = seed_orbit(
+                    system,
+                    vals,
+                    2 * o.period,
+                    segments=2 * o.segments,
+                    transient_cycles=200,
+                    method=cont.method,
+                    tol=cont.tol,
+                    start=(t0, y0, c0.modes, c0.v0s(o.z[0][n_y:])),
+                )
+            else:
+                cuts, zs = doubled_guess(o, e * w)
                 o2 = solve_fixed(system, vals, 2 * o.period, o.phase, cuts, zs, cont.method, cont.tol)
-            except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                continue
-            d = np.max(np.abs((o2.z[0] - o2.z[o.segments]) / scale))
-            if d < 1e-4:
-                continue
+        except (ContinuationError, SimulationError, InputError, np.linalg.LinAlgError):
+            continue
+        if o2.segments % 2 == 0:
+            half = o2.segments // 2
+            n2 = min(o2.z[0].size, o2.z[half].size, scale.size)
+            d = float(np.max(np.abs((o2.z[0][:n2] - o2.z[half][:n2]) / scale[:n2])))
+        else:
+            d = 1.0
+        if d < 1e-4:
+            continue
+        if True:
             sub = Continuer(system, key, (cont.lo, cont.hi), method=cont.method, tol=cont.tol, step=cont.h0, min_step=cont.hmin, max_step=cont.hmax, max_points=cont.max_points, pscale=cont.pscale, on_point=cont.on_point)
             br = sub.run(o2, 1.0 if dl > 0 else -1.0)
             if switch and max_depth > 0:
