@@ -146,6 +146,14 @@ def _test_pd(o: Orbit) -> float:
     return float(np.linalg.det(M + np.eye(M.shape[0])))
 
 
+def _below_minus_one(o: Orbit) -> int:
+    """Real multipliers below -1 (a period doubling changes their number by one; a
+    sign change of det(M + I) without it is a complex pair turning real, or noise)."""
+    mu = o.multipliers
+    real = np.abs(mu.imag) <= 1e-9 * np.maximum(1.0, np.abs(mu))
+    return int(np.count_nonzero(real & (mu.real < -1.0)))
+
+
 def _test_ns(o: Orbit) -> float | None:
     mu = o.multipliers
     cx = mu[np.abs(mu.imag) > 1e-9 * np.maximum(1.0, np.abs(mu))]
@@ -530,7 +538,7 @@ class Continuer:
             lam = of.values[self.key] if of is not None else 0.5 * (oa.values[self.key] + ob.values[self.key])
             br.special.append(SpecialPoint("fold", float(lam), k, idx, of, "a multiplier crosses +1"))
         pa, pb = _test_pd(oa), _test_pd(ob)
-        if pa * pb < 0:
+        if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
             op = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
             lam = op.values[self.key] if op is not None else 0.5 * (oa.values[self.key] + ob.values[self.key])
             br.special.append(SpecialPoint("period_doubling", float(lam), k, idx, op, "a multiplier crosses -1"))
