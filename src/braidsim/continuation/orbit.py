@@ -524,7 +524,12 @@ class Shooter:
             cj, cn = self.cuts[j], self.cuts[(j + 1) % m]
             y0 = z[j][:n]
             v0 = cj.v0s(z[j][n:])
-            fm = evaluate_map(self.system, vals, tt[j], tt[j + 1], y0, cj.modes, v0, keys, self.method)
+            try:
+                fm = evaluate_map(
+                    self.system, vals, tt[j], tt[j + 1], y0, cj.modes, v0, keys, self.method
+                )
+            except InputError as exc:  # a Newton iterate outside the map's domain (v0 <= 0)
+                raise ContinuationError(f"Newton left the map's domain ({exc})") from None
             self.evaluations += 1
             if tuple(fm.modes1) != tuple(cn.modes):
                 raise SectionChanged(
