@@ -80,8 +80,14 @@ def main(argv: list[str] | None = None) -> None:
     sp = next(s for s in br.special if s.type == "grazing")
     dt, curve = cpu(
         lambda: trace_boundary(
-            system, br, sp, "horn_gear.angular_velocity", 5 * math.pi, steps=3,
-            method=methods[0], range1=(0.02e-3, 0.3e-3),
+            system,
+            br,
+            sp,
+            "horn_gear.angular_velocity",
+            5 * math.pi,
+            steps=3,
+            method=methods[0],
+            range1=(0.02e-3, 0.3e-3),
         )
     )
     n2 = max(len(curve.p1) - 1, 1)

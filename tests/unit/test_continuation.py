@@ -145,7 +145,7 @@ def test_not_continuable_keys(system) -> None:
 
 def test_transfers_must_repeat_with_the_vibration() -> None:
     sc = braidsim.load_scenario("paper-3.3", overrides={"transfer.period": "0.251 s"})
-    with pytest.raises(InputError, match="transfer.period"):
+    with pytest.raises(InputError, match=r"transfer\.period"):
         ScenarioSystem(sc).prepare({})
     ok = braidsim.load_scenario("paper-3.3", overrides={"transfer.period": "0.25 s"})
     assert ScenarioSystem(ok).prepare({}).transfer_period == pytest.approx(0.25)
@@ -163,7 +163,7 @@ def test_cli_json_and_restart(tmp_path) -> None:
 
     _register()
     body = (
-        "[continuation]\nparameter = \"track.vibration_amplitude\"\nfrom = \"0.1 mm\"\n"
+        '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n'
         'to = "0.11 mm"\nmax_points = 5\nmethod = "fd"\nswitch = false\n'
     )
     spec = _spec(tmp_path, body)

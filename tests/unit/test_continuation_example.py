@@ -19,9 +19,7 @@ def test_example_small(tmp_path: Path) -> None:
     findings = mod.main(["--small", "--out", str(tmp_path), "--method", "fd"])
     assert (tmp_path / "continuation_branches.png").stat().st_size > 10_000
     assert (tmp_path / "continuation_operating_map.png").stat().st_size > 10_000
-    assert json.loads((tmp_path / "findings.json").read_text()) == json.loads(
-        json.dumps(findings)
-    )
+    assert json.loads((tmp_path / "findings.json").read_text()) == json.loads(json.dumps(findings))
     (lift4,) = findings["4pi"]["lift_off_h_a"]
     (lift8,) = findings["8pi"]["lift_off_h_a"]
     assert lift4 < 0.12e-3 < lift8

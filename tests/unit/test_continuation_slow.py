@@ -10,6 +10,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -82,5 +84,5 @@ def test_lift_off_approaches_the_rigid_contact_bound() -> None:
         bound = contact_loss_bound(sc)["critical_amplitude"]
         errors.append(g[0].value / bound - 1.0)
     assert all(e < 0 for e in errors)  # a compliant contact lifts off first
-    assert all(abs(b) < abs(a) for a, b in zip(errors, errors[1:], strict=False))
+    assert all(abs(b) < abs(a) for a, b in itertools.pairwise(errors))
     assert abs(errors[-1]) < 0.01

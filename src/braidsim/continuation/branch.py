@@ -38,7 +38,7 @@ multiplier -1), and continued away from lambda*.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -49,7 +49,6 @@ from braidsim.continuation.orbit import (
     ContinuationError,
     Cut,
     Orbit,
-    SectionChanged,
     Shooter,
     cuts_from,
     finish,
@@ -92,7 +91,12 @@ class SpecialPoint:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
-        return {"type": self.type, "value": self.value, "period": self.period, "detail": self.detail}
+        return {
+            "type": self.type,
+            "value": self.value,
+            "period": self.period,
+            "detail": self.detail,
+        }
 
 
 @dataclass
@@ -209,9 +213,20 @@ class Continuer:
 
     # -- pieces ----------------------------------------------------------------------
     def shooter(self, o: Orbit) -> Shooter:
-        return Shooter(self.system, dict(o.values), self.key, o.period, o.phase, o.cuts, self.method, self.pscale)
+        return Shooter(
+            self.system,
+            dict(o.values),
+            self.key,
+            o.period,
+            o.phase,
+            o.cuts,
+            self.method,
+            self.pscale,
+        )
 
-    def tangent(self, sh: Shooter, U: np.ndarray, prev: np.ndarray | None, direction: float) -> np.ndarray:
+    def tangent(
+        self, sh: Shooter, U: np.ndarray, prev: np.ndarray | None, direction: float
+    ) -> np.ndarray:
         _, DR, _ = sh.residual(U)
         tau = _null_vector(DR)
         if prev is not None and prev.size == tau.size:
@@ -267,16 +282,25 @@ class Continuer:
                         try:
                             o = reseat(o, self.system, self.method)
                         except (ContinuationError, SimulationError):
-                            br.stop = f"step below {self.hmin:g} at {self.key} = {o.values[self.key]:.6g} ({exc})"
+                            lam_o = o.values[self.key]
+                            br.stop = (
+                                f"step below {self.hmin:g} at {self.key} = {lam_o:.6g} ({exc})"
+                            )
                             break
                         sh = self.shooter(o)
                         U = sh.pack(o.z, o.values[self.key])
-                        tau = self.tangent(sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction)
+                        tau = self.tangent(
+                            sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
+                        )
                         h = self.h0
                         reseated = True
                         continue
-                    br.stop = f"step below {self.hmin:g} at {self.key} = {o.values[self.key]:.6g} ({exc})"
-                    jumped = self.past_grazing(br, direction if not br.tangents else float(np.sign(tau[-1]) or direction))
+                    br.stop = (
+                        f"step below {self.hmin:g} at {self.key} = {o.values[self.key]:.6g} ({exc})"
+                    )
+                    jumped = self.past_grazing(
+                        br, direction if not br.tangents else float(np.sign(tau[-1]) or direction)
+                    )
                     if jumped is None:
                         break
                     o = jumped
@@ -317,7 +341,9 @@ class Continuer:
                 nxt = nxt2
                 sh_new = self.shooter(nxt)
                 U_new = sh_new.pack(nxt.z, nxt.values[self.key])
-                tau_new = self.tangent(sh_new, U_new, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction)
+                tau_new = self.tangent(
+                    sh_new, U_new, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
+                )
             br.points.append(nxt)
             br.tangents.append(tau_new)
             if self.on_point:
@@ -339,7 +365,10 @@ class Continuer:
             T = prof.period / o.period
             w = 2 * math.pi / T
             tcut = o.phase / w
-            if any(prof.event_distance(tcut + j * prof.period / o.segments) < 0.01 * prof.period for j in range(o.segments)):
+            if any(
+                prof.event_distance(tcut + j * prof.period / o.segments) < 0.01 * prof.period
+                for j in range(o.segments)
+            ):
                 try:
                     o = reseat(o, self.system, self.method)
                     br.points[-1] = o
@@ -423,15 +452,22 @@ class Continuer:
         """The orbit re-solved with cuts that match its contacts, when they changed."""
         prep = self.system.prepare(o.values)
         cuts = cuts_from(o.profile, prep.omega, o.phase, o.period, o.segments, 0.0)
-        if cuts == o.cuts or [c.modes for c in cuts] == [c.modes for c in o.cuts] and [c.v0_state for c in cuts] == [c.v0_state for c in o.cuts]:
+        if cuts == o.cuts or (
+            [c.modes for c in cuts] == [c.modes for c in o.cuts]
+            and [c.v0_state for c in cuts] == [c.v0_state for c in o.cuts]
+        ):
             return o
         n = 2 * prep.n_coords
         c0 = o.cuts[0]
         t0 = o.phase / prep.omega
         times = t0 + np.arange(o.segments) * o.profile.period / o.segments
         try:
-            z = states_at(self.system, o.values, t0, o.z[0][:n], c0.modes, c0.v0s(o.z[0][n:]), times, cuts)
-            return solve_fixed(self.system, o.values, o.period, o.phase, cuts, z, self.method, self.tol)
+            z = states_at(
+                self.system, o.values, t0, o.z[0][:n], c0.modes, c0.v0s(o.z[0][n:]), times, cuts
+            )
+            return solve_fixed(
+                self.system, o.values, o.period, o.phase, cuts, z, self.method, self.tol
+            )
         except (ContinuationError, SimulationError):
             return o
 
@@ -440,7 +476,15 @@ class Continuer:
         d = Ub - Ua
         return self.correct(sh, Ua + t * d, d / np.linalg.norm(d))
 
-    def _locate(self, sh: Shooter, Ua: np.ndarray, Ub: np.ndarray, fa: float, fb: float, f: Callable[[Orbit], float | None]) -> Orbit | None:
+    def _locate(
+        self,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        fa: float,
+        fb: float,
+        f: Callable[[Orbit], float | None],
+    ) -> Orbit | None:
         a, b = 0.0, 1.0
         best = None
         side = 0
@@ -517,7 +561,17 @@ class Continuer:
                     self.grazing_value = float(lg)
         return best_a, best_b
 
-    def detect(self, br: Branch, oa: Orbit, ob: Orbit, sh: Shooter, Ua: np.ndarray, Ub: np.ndarray, ta: np.ndarray, tb: np.ndarray) -> None:
+    def detect(
+        self,
+        br: Branch,
+        oa: Orbit,
+        ob: Orbit,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        ta: np.ndarray,
+        tb: np.ndarray,
+    ) -> None:
         idx = len(br.points) - 1
         k = oa.period
         if signature(oa) != signature(ob):
@@ -530,23 +584,50 @@ class Continuer:
             br.special.append(SpecialPoint("grazing", float(lam), k, idx, ga, detail, gb))
             return
         if ta[-1] * tb[-1] < 0:
+
             def f_fold(o: Orbit) -> float:
                 s = self.shooter(o)
                 U = s.pack(o.z, o.values[self.key])
                 return float(self.tangent(s, U, ta, 1.0)[-1])
+
             of = self._locate(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
-            lam = of.values[self.key] if of is not None else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            br.special.append(SpecialPoint("fold", float(lam), k, idx, of, "a multiplier crosses +1"))
+            lam = (
+                of.values[self.key]
+                if of is not None
+                else 0.5 * (oa.values[self.key] + ob.values[self.key])
+            )
+            br.special.append(
+                SpecialPoint("fold", float(lam), k, idx, of, "a multiplier crosses +1")
+            )
         pa, pb = _test_pd(oa), _test_pd(ob)
         if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
             op = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
-            lam = op.values[self.key] if op is not None else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            br.special.append(SpecialPoint("period_doubling", float(lam), k, idx, op, "a multiplier crosses -1"))
+            lam = (
+                op.values[self.key]
+                if op is not None
+                else 0.5 * (oa.values[self.key] + ob.values[self.key])
+            )
+            br.special.append(
+                SpecialPoint("period_doubling", float(lam), k, idx, op, "a multiplier crosses -1")
+            )
         na, nb = _test_ns(oa), _test_ns(ob)
         if na is not None and nb is not None and na * nb < 0:
             on = self._locate(sh, Ua, Ub, na, nb, _test_ns)
-            lam = on.values[self.key] if on is not None else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            br.special.append(SpecialPoint("neimark_sacker", float(lam), k, idx, on, "a complex pair crosses the unit circle"))
+            lam = (
+                on.values[self.key]
+                if on is not None
+                else 0.5 * (oa.values[self.key] + ob.values[self.key])
+            )
+            br.special.append(
+                SpecialPoint(
+                    "neimark_sacker",
+                    float(lam),
+                    k,
+                    idx,
+                    on,
+                    "a complex pair crosses the unit circle",
+                )
+            )
 
 
 def continue_orbit(
@@ -595,11 +676,36 @@ def continue_orbit(
     system.check_key(key)
     lam0 = float(orbit.values.get(key, system.value(key)))
     if key not in orbit.values:
-        orbit = Orbit({**orbit.values, key: lam0}, orbit.period, orbit.phase, orbit.cuts, orbit.z, orbit.monodromy, orbit.multipliers, orbit.profile, orbit.residual, orbit.iterations)
+        orbit = Orbit(
+            {**orbit.values, key: lam0},
+            orbit.period,
+            orbit.phase,
+            orbit.cuts,
+            orbit.z,
+            orbit.monodromy,
+            orbit.multipliers,
+            orbit.profile,
+            orbit.residual,
+            orbit.iterations,
+        )
     if not math.isfinite(to) or to == lam0:
-        raise InputError(f"continuation.to: {to!r} must differ from the start {lam0:g}; allowed another value")
+        raise InputError(
+            f"continuation.to: {to!r} must differ from the start {lam0:g}; allowed another value"
+        )
     bnd = bounds if bounds is not None else (min(lam0, to), max(lam0, to))
-    cont = Continuer(system, key, bnd, method=method, tol=tol, step=step, min_step=min_step, max_step=max_step, max_points=max_points, pscale=abs(to - lam0), on_point=on_point)
+    cont = Continuer(
+        system,
+        key,
+        bnd,
+        method=method,
+        tol=tol,
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        pscale=abs(to - lam0),
+        on_point=on_point,
+    )
     direction = 1.0 if to > lam0 else -1.0
     br = cont.run(orbit, direction)
     if both_directions:
@@ -609,7 +715,9 @@ def continue_orbit(
         for sp in list(br.special):
             if sp.type != "period_doubling" or sp.orbit is None:
                 continue
-            child = switch_period_doubling(system, sp, key, cont, max_depth=max_depth - 1, switch=switch)
+            child = switch_period_doubling(
+                system, sp, key, cont, max_depth=max_depth - 1, switch=switch
+            )
             if child is not None:
                 br.children.append(child)
     return br
@@ -620,11 +728,27 @@ def _join(back: Branch, fwd: Branch) -> Branch:
     n_back = len(back.points) - 1
     sps = []
     for sp in back.special:
-        sps.append(SpecialPoint(sp.type, sp.value, sp.period, n_back - sp.index, sp.orbit, sp.detail, sp.other))
+        sps.append(
+            SpecialPoint(
+                sp.type, sp.value, sp.period, n_back - sp.index, sp.orbit, sp.detail, sp.other
+            )
+        )
     for sp in fwd.special:
-        sps.append(SpecialPoint(sp.type, sp.value, sp.period, sp.index + n_back, sp.orbit, sp.detail, sp.other))
+        sps.append(
+            SpecialPoint(
+                sp.type, sp.value, sp.period, sp.index + n_back, sp.orbit, sp.detail, sp.other
+            )
+        )
     tans = [-t for t in reversed(back.tangents[1:])] + fwd.tangents
-    return Branch(fwd.key, fwd.period, pts, sps, f"{back.stop}; {fwd.stop}", back.children + fwd.children, tans)
+    return Branch(
+        fwd.key,
+        fwd.period,
+        pts,
+        sps,
+        f"{back.stop}; {fwd.stop}",
+        back.children + fwd.children,
+        tans,
+    )
 
 
 def doubled_guess(orbit: Orbit, offset: np.ndarray) -> tuple[tuple[Cut, ...], list[np.ndarray]]:
@@ -638,7 +762,13 @@ def doubled_guess(orbit: Orbit, offset: np.ndarray) -> tuple[tuple[Cut, ...], li
 
 
 def switch_period_doubling(
-    system: Any, sp: SpecialPoint, key: str, cont: Continuer, *, max_depth: int = 1, switch: bool = True
+    system: Any,
+    sp: SpecialPoint,
+    key: str,
+    cont: Continuer,
+    *,
+    max_depth: int = 1,
+    switch: bool = True,
 ) -> Branch | None:
     """The period-2k branch born at a period doubling, continued away from it (None when no
     distinct period-2k orbit is found next to it)."""
@@ -659,14 +789,14 @@ def switch_period_doubling(
     t0 = o.phase / prep.omega
     n_y = 2 * prep.n_coords
     c0 = o.cuts[0]
-    attempts = []
+    attempts: list[tuple[float, float | None]] = []
     for dl in (0.01, -0.01, 0.03, -0.03):
         # a run started next to the orbit on the side where it is unstable settles on a
         # stable period-2k orbit (a supercritical doubling) ...
         attempts.append((dl, None))
         # ... Newton from z* +/- eps w on alternate periods finds others
-        for e in (0.05, 0.3, 1.0):
-            attempts.append((dl, e))
+        for eps in (0.05, 0.3, 1.0):
+            attempts.append((dl, eps))
     for dl, e in attempts:
         vals = dict(o.values)
         vals[key] = lam + dl * cont.pscale
@@ -687,7 +817,9 @@ def switch_period_doubling(
                 )
             else:
                 cuts, zs = doubled_guess(o, e * w)
-                o2 = solve_fixed(system, vals, 2 * o.period, o.phase, cuts, zs, cont.method, cont.tol)
+                o2 = solve_fixed(
+                    system, vals, 2 * o.period, o.phase, cuts, zs, cont.method, cont.tol
+                )
         except (ContinuationError, SimulationError, InputError, np.linalg.LinAlgError):
             continue
         if o2.segments % 2 == 0:
@@ -698,21 +830,33 @@ def switch_period_doubling(
             d = 1.0
         if d < 1e-4:
             continue
-        if True:
-            sub = Continuer(system, key, (cont.lo, cont.hi), method=cont.method, tol=cont.tol, step=cont.h0, min_step=cont.hmin, max_step=cont.hmax, max_points=cont.max_points, pscale=cont.pscale, on_point=cont.on_point)
-            br = sub.run(o2, 1.0 if dl > 0 else -1.0)
-            if switch and max_depth > 0:
-                for sp2 in list(br.special):
-                    if sp2.type == "period_doubling" and sp2.orbit is not None:
-                        ch = switch_period_doubling(system, sp2, key, sub, max_depth=max_depth - 1)
-                        if ch is not None:
-                            br.children.append(ch)
-            return br
+        sub = Continuer(
+            system,
+            key,
+            (cont.lo, cont.hi),
+            method=cont.method,
+            tol=cont.tol,
+            step=cont.h0,
+            min_step=cont.hmin,
+            max_step=cont.hmax,
+            max_points=cont.max_points,
+            pscale=cont.pscale,
+            on_point=cont.on_point,
+        )
+        br = sub.run(o2, 1.0 if dl > 0 else -1.0)
+        if switch and max_depth > 0:
+            for sp2 in list(br.special):
+                if sp2.type == "period_doubling" and sp2.orbit is not None:
+                    ch = switch_period_doubling(system, sp2, key, sub, max_depth=max_depth - 1)
+                    if ch is not None:
+                        br.children.append(ch)
+        return br
     return None
 
 
-
-def orbit_at(system: Any, branch: Branch, value: float, method: str = "auto", tol: float = DEFAULT_TOL) -> Orbit:
+def orbit_at(
+    system: Any, branch: Branch, value: float, method: str = "auto", tol: float = DEFAULT_TOL
+) -> Orbit:
     """The branch's orbit at the parameter ``value`` [SI], solved from the nearest point
     (the first in arclength order among those nearest). Raises :class:`ContinuationError`
     when the value is outside the branch or Newton fails there."""
@@ -723,4 +867,6 @@ def orbit_at(system: Any, branch: Branch, value: float, method: str = "auto", to
         )
     i = int(np.argmin(np.abs(v - value)))
     o = branch.points[i]
-    return solve_fixed(system, {**o.values, branch.key: float(value)}, o.period, o.phase, o.cuts, o.z, method, tol)
+    return solve_fixed(
+        system, {**o.values, branch.key: float(value)}, o.period, o.phase, o.cuts, o.z, method, tol
+    )

@@ -31,6 +31,9 @@ from braidsim.core import pair_gaps
 from braidsim.core import run as core_run
 from braidsim.errors import SimulationError
 
+FloatSeq = Sequence[float] | np.ndarray
+"""A vector given as a sequence or an array."""
+
 DEFAULT_REL_STEP = 1e-5
 IMPACT_QUANTITIES = ("t", "velocity", "peak_force", "max_depth", "t_end")
 
@@ -64,9 +67,9 @@ def advance(
     prep: Any,
     t0: float,
     t1: float,
-    y0: np.ndarray,
+    y0: FloatSeq,
     modes: Sequence[int] = (0, 0),
-    v0s: Sequence[float] = (math.nan, math.nan),
+    v0s: FloatSeq = (math.nan, math.nan),
     sample_times: np.ndarray | None = None,
 ) -> Segment:
     """Integrate a prepared system (:class:`~braidsim.continuation.system.Prepared`) from t0
@@ -174,9 +177,9 @@ def fd_flow_map(
     values: Mapping[str, float],
     t0: float,
     t1: float,
-    y0: Sequence[float],
+    y0: FloatSeq,
     modes: Sequence[int] = (0, 0),
-    v0s: Sequence[float] = (math.nan, math.nan),
+    v0s: FloatSeq = (math.nan, math.nan),
     keys: Sequence[str] = (),
     *,
     rel: float = DEFAULT_REL_STEP,

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from braidsim.continuation.fdmap import FlowMap, advance, fd_flow_map
+from braidsim.continuation.fdmap import FloatSeq, FlowMap, advance, fd_flow_map
 from braidsim.continuation.system import ModelSystem, ScenarioSystem
 from braidsim.core import derivatives, pair_gaps
 from braidsim.errors import InputError, SimulationError
@@ -78,9 +78,9 @@ def evaluate_map(
     values: Mapping[str, float],
     t0: float,
     t1: float,
-    y0: np.ndarray,
+    y0: FloatSeq,
     modes: Sequence[int],
-    v0s: Sequence[float],
+    v0s: FloatSeq,
     keys: Sequence[str] = (),
     method: str = "auto",
 ) -> FlowMap:
@@ -105,11 +105,11 @@ def evaluate_map(
             t0,
             t1,
             y0=np.asarray(y0, dtype=float),
-            modes=tuple(int(m) for m in modes),
+            modes=(int(modes[0]), int(modes[1])),
             v0s=tuple(float(v) for v in v0s),
             keys=tuple(keys),
         )
-        return fm  # type: ignore[no-any-return]
+        return fm  # type: ignore[return-value]  # the same fields (module docstring)
     return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
 
 
@@ -254,9 +254,9 @@ def profile(
     values: Mapping[str, float],
     t0: float,
     k: int,
-    y0: np.ndarray,
+    y0: FloatSeq,
     modes: Sequence[int],
-    v0s: Sequence[float],
+    v0s: FloatSeq,
     samples: int = PROFILE_SAMPLES,
 ) -> Profile:
     """Run an orbit (from its section state) over two periods and measure it (:class:`Profile`).
@@ -265,6 +265,7 @@ def profile(
     prep = system.prepare(values)
     T = prep.period
     P = k * T
+    y0 = np.asarray(y0, dtype=float)
     n = y0.size
     phase_off = float(getattr(system, "strobe_offset", lambda v: 0.0)(values))
     grid = np.linspace(t0, t0 + 2 * P, 2 * k * samples + 1)
@@ -293,7 +294,12 @@ def profile(
     maxd = float(ep["max_depth"].max()) if ep.size else 0.0
     pairs = 1 if prep.n_coords == 1 else 2
     # gaps and their rates at every row
-    G = np.array([[pair_gaps.py(prep.record, p, ti, yi) for p in range(pairs)] for ti, yi in zip(t, Y, strict=True)])
+    G = np.array(
+        [
+            [pair_gaps.py(prep.record, p, ti, yi) for p in range(pairs)]
+            for ti, yi in zip(t, Y, strict=True)
+        ]
+    )
     # contact state of every row (0 free, else the wall), per pair
     M = np.zeros((t.size, pairs), dtype=int)
     for a, b, pair, wall, _ in intervals:
@@ -319,7 +325,11 @@ def profile(
                 for i in range(1, t.size - 1):
                     if not (mask[i - 1] and mask[i] and mask[i + 1]):
                         continue
-                    if d[i] <= d[i - 1] and d[i] <= d[i + 1] and (d[i] < d[i - 1] or d[i] < d[i + 1]):
+                    if (
+                        d[i] <= d[i - 1]
+                        and d[i] <= d[i + 1]
+                        and (d[i] < d[i - 1] or d[i] < d[i + 1])
+                    ):
                         lo = min(
                             _hermite_min(t[i - 1], t[i], d[i - 1], d[i], dr[i - 1], dr[i]),
                             _hermite_min(t[i], t[i + 1], d[i], d[i + 1], dr[i], dr[i + 1]),
@@ -558,9 +568,19 @@ class Shooter:
                     f1 = np.zeros(n)
                     f0 = np.zeros(n)
                     m1 = np.array(fm.modes1, dtype=np.int64)
-                    derivatives.py(prep.record, tt[j + 1], fm.y1.copy(), m1, np.nan_to_num(np.asarray(fm.v0s1, dtype=float), nan=1.0), n, f1)
+                    derivatives.py(
+                        prep.record,
+                        tt[j + 1],
+                        fm.y1.copy(),
+                        m1,
+                        np.nan_to_num(np.asarray(fm.v0s1, dtype=float), nan=1.0),
+                        n,
+                        f1,
+                    )
                     m0 = np.array(cj.modes, dtype=np.int64)
-                    derivatives.py(prep.record, tt[j], y0.copy(), m0, np.nan_to_num(v0, nan=1.0), n, f0)
+                    derivatives.py(
+                        prep.record, tt[j], y0.copy(), m0, np.nan_to_num(v0, nan=1.0), n, f0
+                    )
                     w = prep.omega
                     dp[:n] += f1 * (-tt[j + 1] / w) - fm.jac_y @ f0 * (-tt[j] / w)
                 DR[offs[j] : offs[j + 1], -1] = dp * self.pscale / Sn
@@ -619,7 +639,9 @@ def finish(sh: Shooter, U: np.ndarray, res: float, its: int, Js: Sequence[np.nda
 
 def shooter_for(orbit: Orbit, system: Any, key: str | None, method: str, pscale: float) -> Shooter:
     """The shooting equations of ``orbit``'s structure."""
-    return Shooter(system, dict(orbit.values), key, orbit.period, orbit.phase, orbit.cuts, method, pscale)
+    return Shooter(
+        system, dict(orbit.values), key, orbit.period, orbit.phase, orbit.cuts, method, pscale
+    )
 
 
 def solve_fixed(
@@ -663,7 +685,9 @@ def choose_phase(prof: Profile, omega: float, period: int, segments: int) -> flo
     return float(theta)
 
 
-def cuts_from(prof: Profile, omega: float, phase: float, period: int, segments: int, values_t0: float) -> tuple[Cut, ...]:
+def cuts_from(
+    prof: Profile, omega: float, phase: float, period: int, segments: int, values_t0: float
+) -> tuple[Cut, ...]:
     """The cuts of an orbit at ``phase`` from its profile."""
     out = []
     P = prof.period
@@ -691,10 +715,10 @@ def states_at(
     system: Any,
     values: Mapping[str, float],
     t_from: float,
-    y: np.ndarray,
+    y: FloatSeq,
     modes: Sequence[int],
-    v0s: Sequence[float],
-    times: Sequence[float],
+    v0s: FloatSeq,
+    times: FloatSeq,
     cuts: Sequence[Cut],
 ) -> list[np.ndarray]:
     """Integrate from (t_from, y, modes, v0s) through ``times`` and return the state z at
@@ -733,7 +757,9 @@ def reseat(orbit: Orbit, system: Any, method: str = "auto") -> Orbit:
     cuts = cuts_from(orbit.profile, w, th, orbit.period, m, t0)
     P = orbit.period * prep.period
     times = th / w + np.arange(m) * P / m
-    z = states_at(system, orbit.values, t0, orbit.z[0][:n], c0.modes, c0.v0s(orbit.z[0][n:]), times, cuts)
+    z = states_at(
+        system, orbit.values, t0, orbit.z[0][:n], c0.modes, c0.v0s(orbit.z[0][n:]), times, cuts
+    )
     th_mod = _wrap(th, orbit.period)
     return solve_fixed(system, orbit.values, orbit.period, th_mod, cuts, z, method)
 
@@ -743,7 +769,9 @@ def reseat(orbit: Orbit, system: Any, method: str = "auto") -> Orbit:
 # --------------------------------------------------------------------------------------
 
 
-def simulate_state(system: Any, values: Mapping[str, float], cycles: float) -> tuple[float, np.ndarray, tuple[int, int], np.ndarray]:
+def simulate_state(
+    system: Any, values: Mapping[str, float], cycles: float
+) -> tuple[float, np.ndarray, tuple[int, int], np.ndarray]:
     """Simulate the system's own start for ``cycles`` forcing periods: (t, y, modes, v0s)."""
     prep = system.prepare(values)
     t_end = cycles * prep.period
@@ -772,7 +800,7 @@ def seed_orbit(
     transient_cycles: float = 300,
     method: str = "auto",
     tol: float = DEFAULT_TOL,
-    state: Sequence[float] | None = None,
+    state: FloatSeq | None = None,
     start: tuple[float, np.ndarray, tuple[int, int], np.ndarray] | None = None,
 ) -> Orbit:
     """A period-``period`` orbit from the steady state simulated for ``transient_cycles``
@@ -787,9 +815,13 @@ def seed_orbit(
         The simulated steady state is not near a period-``period`` orbit.
     """
     if int(period) != period or period < 1:
-        raise InputError(f"continuation.period: {period!r} is out of range; allowed an integer >= 1")
+        raise InputError(
+            f"continuation.period: {period!r} is out of range; allowed an integer >= 1"
+        )
     if int(segments) != segments or segments < 1:
-        raise InputError(f"continuation.segments: {segments!r} is out of range; allowed an integer >= 1")
+        raise InputError(
+            f"continuation.segments: {segments!r} is out of range; allowed an integer >= 1"
+        )
     prep = system.prepare(values)
     T = prep.period
     if state is not None:
@@ -852,7 +884,15 @@ def seed_orbit(
         ) from None
 
 
-def _simulated_period(system: Any, values: Mapping[str, float], t: float, y: np.ndarray, modes: Any, v0: Any, period: int) -> int | None:
+def _simulated_period(
+    system: Any,
+    values: Mapping[str, float],
+    t: float,
+    y: FloatSeq,
+    modes: Any,
+    v0: Any,
+    period: int,
+) -> int | None:
     from braidsim.analysis.regimes import detect_period
 
     prep = system.prepare(values)
@@ -874,7 +914,9 @@ def with_values(orbit: Orbit, **kw: Any) -> Orbit:
     return replace(orbit, **kw)
 
 
-def recut(orbit: Orbit, system: Any, phase: float, segments: int | None = None, method: str = "auto") -> Orbit:
+def recut(
+    orbit: Orbit, system: Any, phase: float, segments: int | None = None, method: str = "auto"
+) -> Orbit:
     """The same orbit cut at the forcing phase ``phase`` [rad] (into ``segments`` shooting
     segments, default as before) and solved again: its multipliers do not depend on the
     cut, which may lie inside a contact (the latched speed then joins the state)."""
@@ -890,5 +932,7 @@ def recut(orbit: Orbit, system: Any, phase: float, segments: int | None = None, 
     P = orbit.period * prep.period
     times = th / w + np.arange(m) * P / m
     c0 = orbit.cuts[0]
-    z = states_at(system, orbit.values, t0, orbit.z[0][:n], c0.modes, c0.v0s(orbit.z[0][n:]), times, cuts)
+    z = states_at(
+        system, orbit.values, t0, orbit.z[0][:n], c0.modes, c0.v0s(orbit.z[0][n:]), times, cuts
+    )
     return solve_fixed(system, orbit.values, orbit.period, _wrap(th, orbit.period), cuts, z, method)

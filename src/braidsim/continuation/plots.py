@@ -144,7 +144,7 @@ def plot_operating_map(
     key2 = curves[0].key2 if curves else ""
     f1, lab1 = parameter_axis(key1) if key1 else (1.0, "")
     f2, lab2 = parameter_axis(key2) if key2 else (1.0, "")
-    handles = []
+    handles: list[Any] = []
     if regimes is not None:
         v1, v2, labels = regimes
         names = sorted({lab for row in labels for lab in row})
@@ -198,5 +198,7 @@ def plot_operating_map(
     ax.set_ylabel(lab1)
     ax.grid(True, lw=0.3, alpha=0.5)
     ax.legend(handles=handles, fontsize=7, frameon=True, loc="upper left")
-    ax.set_title(title or "safe operating map: boundaries over the brute-force regimes", fontsize=10)
+    ax.set_title(
+        title or "safe operating map: boundaries over the brute-force regimes", fontsize=10
+    )
     return fig

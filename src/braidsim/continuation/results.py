@@ -111,11 +111,12 @@ def branch_dataset(br: Branch, system_name: str = "") -> Any:
         "special_index": ("special", np.array([s.index for s in br.special], dtype=np.int32)),
     }
     ds = xr.Dataset({k: (d, v) for k, (d, v) in data.items()})
-    for k, u in UNITS.items():
-        ds[k].attrs["units"] = u
+    for name, u in UNITS.items():
+        ds[name].attrs["units"] = u
     # CF flags: the type as a small integer (strings have no stable zarr v3 encoding)
     ds["special_type"].attrs.update(
-        flag_values=np.arange(len(SPECIAL_TYPES), dtype=np.int8), flag_meanings=" ".join(SPECIAL_TYPES)
+        flag_values=np.arange(len(SPECIAL_TYPES), dtype=np.int8),
+        flag_meanings=" ".join(SPECIAL_TYPES),
     )
     base = dict(pts[0].values) if pts else {}
     base.pop(br.key, None)
@@ -214,7 +215,9 @@ def open_branch(path: str | Path) -> Any:
     if not p.exists():
         from braidsim.errors import InputError
 
-        raise InputError(f"restart: {str(p)!r} does not exist; allowed a branch file (.nc or .zarr)")
+        raise InputError(
+            f"restart: {str(p)!r} does not exist; allowed a branch file (.nc or .zarr)"
+        )
     if p.suffix == ".zarr" or p.is_dir():
         return xr.open_zarr(str(p), consolidated=False, chunks=None).load()
     with xr.open_dataset(p, engine="h5netcdf") as ds:

@@ -22,7 +22,8 @@ Spec (SI numbers or unit strings)::
     seed = ["0.05 mm", "0 m/s"]         # optional (x, vx) at forcing phase 0 instead
     restart = "earlier/branch_0.nc"     # optional: start from a saved branch ...
     restart_point = -1                  # ... at this point (default the last)
-    [operating_map]                     # optional: two-parameter boundary curves
+    [operating_map]                     # optional: boundary curves of the first special
+                                        # point of each type on each branch
     parameter = "horn_gear.angular_velocity"
     to = "10 pi rad/s"
     steps = 10
@@ -171,10 +172,14 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
     start = _si(key, cont["from"], "continuation.from") if "from" in cont else math.nan
     to = _si(key, cont["to"], "continuation.to")
     if to == start:
-        raise InputError(f"continuation.to: equals continuation.from ({to:g}); allowed another value")
+        raise InputError(
+            f"continuation.to: equals continuation.from ({to:g}); allowed another value"
+        )
     method = cont.get("method", "auto")
     if method not in METHODS:
-        raise InputError(f"continuation.method: {method!r} is not allowed; allowed {', '.join(METHODS)}")
+        raise InputError(
+            f"continuation.method: {method!r} is not allowed; allowed {', '.join(METHODS)}"
+        )
     seed = None
     if "seed" in cont:
         s = cont["seed"]
@@ -183,7 +188,9 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         units = ("m", "m/s", "m", "m/s")
         from braidsim.units import to_si
 
-        seed = tuple(float(to_si("continuation.seed", v, u)) for v, u in zip(s, units, strict=False))
+        seed = tuple(
+            float(to_si("continuation.seed", v, u)) for v, u in zip(s, units, strict=False)
+        )
     restart = cont.get("restart")
     if restart is not None and not isinstance(restart, str):
         raise InputError("continuation.restart: expected the path of a saved branch (.nc or .zarr)")
@@ -205,7 +212,7 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         map_to = _si(map_key, mp["to"], "operating_map.to")
         if "types" in mp:
             t = mp["types"]
-            if not isinstance(t, list) or any(x not in SPECIAL_TYPES[:2] + ("grazing",) for x in t):
+            if not isinstance(t, list) or any(x not in (*SPECIAL_TYPES[:2], "grazing") for x in t):
                 raise InputError(
                     "operating_map.types: allowed a list of fold, period_doubling, grazing"
                 )
@@ -214,7 +221,10 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
             r = mp["regime_points"]
             if not isinstance(r, list) or len(r) != 2:
                 raise InputError("operating_map.regime_points: expected [n1, n2] (0: no map)")
-            rp = (_int("operating_map.regime_points", r[0], 0), _int("operating_map.regime_points", r[1], 0))
+            rp = (
+                _int("operating_map.regime_points", r[0], 0),
+                _int("operating_map.regime_points", r[1], 0),
+            )
     return ContinuationSpec(
         scenario=sc,
         parameter=key,
@@ -230,7 +240,9 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         switch=_bool("continuation.switch", cont.get("switch", True)),
         max_doublings=_int("continuation.max_doublings", cont.get("max_doublings", 2), 0),
         both_directions=_bool("continuation.both_directions", cont.get("both_directions", False)),
-        transient_cycles=_float("continuation.transient_cycles", cont.get("transient_cycles", 300), -1.0, 1e6),
+        transient_cycles=_float(
+            "continuation.transient_cycles", cont.get("transient_cycles", 300), -1.0, 1e6
+        ),
         seed=seed,
         restart=str(base_dir / restart) if restart else None,
         restart_point=int(cont.get("restart_point", -1)),
@@ -304,13 +316,16 @@ def run_study(
             method=spec.method,
             state=spec.seed,
         )
-        say(f"seed orbit at {key} = {spec.start:g}: multipliers {np.round(np.abs(orbit.multipliers), 4).tolist()}")
+        mods = np.round(np.abs(orbit.multipliers), 4).tolist()
+        say(f"seed orbit at {key} = {spec.start:g}: |multipliers| {mods}")
     t_seed = time.process_time() - t_start
     count = [0]
 
     def on_point(o: Any) -> None:
         count[0] += 1
-        say(f"point {count[0]}: {key} = {o.values[key]:.6g}, {'stable' if o.stable else 'unstable'}")
+        say(
+            f"point {count[0]}: {key} = {o.values[key]:.6g}, {'stable' if o.stable else 'unstable'}"
+        )
 
     t0 = time.process_time()
     br = continue_orbit(
@@ -341,8 +356,13 @@ def run_study(
         t1 = time.process_time()
         lo, hi = sorted((spec.start if math.isfinite(spec.start) else orbit.values[key], spec.to))
         for b in br.all_branches():
+            # the first point of each type on each branch: the boundary of the regime the
+            # branch starts in (later ones are followed by restarting from there)
+            firsts: dict[str, Any] = {}
             for sp in b.special:
-                if sp.type not in spec.map_types:
+                firsts.setdefault(sp.type, sp)
+            for sp in b.special:
+                if sp.type not in spec.map_types or firsts[sp.type] is not sp:
                     continue
                 say(f"boundary: {sp.type} at {key} = {sp.value:.6g} (period {sp.period})")
                 c = trace_boundary(
@@ -355,12 +375,16 @@ def run_study(
                     window=spec.map_window,
                     method=spec.method,
                     range1=(lo, hi),
-                    on_point=lambda a, c2: say(f"  {spec.map_parameter} = {c2:.6g}: {key} = {a:.6g}"),
+                    on_point=lambda a, c2: say(
+                        f"  {spec.map_parameter} = {c2:.6g}: {key} = {a:.6g}"
+                    ),
                 )
                 res.curves.append(c)
         n2 = sum(len(c.p1) for c in res.curves)
         dt = time.process_time() - t1
-        res.timings.update({"boundaries_s": dt, "boundary_points": n2, "per_boundary_point_s": dt / max(n2, 1)})
+        res.timings.update(
+            {"boundaries_s": dt, "boundary_points": n2, "per_boundary_point_s": dt / max(n2, 1)}
+        )
         n1, n2r = spec.regime_points
         if n1 and n2r:
             res.regimes = regime_map(spec, lo, hi, n1, n2r, say)
@@ -401,14 +425,14 @@ def write_outputs(res: ContinuationResult, directory: Path, fmt: str = "nc") -> 
         files.append(p.name)
     tab = pd.concat([branch_points_table(b).assign(branch=i) for i, b in enumerate(res.branches)])
     tab.to_csv(directory / "points.csv", index=False)
-    sp_rows = [
-        {"branch": i, **s.to_dict()} for i, b in enumerate(res.branches) for s in b.special
-    ]
+    sp_rows = [{"branch": i, **s.to_dict()} for i, b in enumerate(res.branches) for s in b.special]
     pd.DataFrame(sp_rows, columns=["branch", "type", "value", "period", "detail"]).to_csv(
         directory / "special_points.csv", index=False
     )
     files += ["points.csv", "special_points.csv"]
-    fig = plot_branches(res.branches, title=f"{res.spec.scenario.name}: continuation in {res.spec.parameter}")
+    fig = plot_branches(
+        res.branches, title=f"{res.spec.scenario.name}: continuation in {res.spec.parameter}"
+    )
     save(fig, directory / "bifurcation.png")
     files.append("bifurcation.png")
     if res.curves or res.regimes is not None:

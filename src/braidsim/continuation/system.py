@@ -206,9 +206,7 @@ class ScenarioSystem:
             )
         model = build_model(sc, 1.0)
         n_coords = 2 if sc["simulation.dof"] == "xy" else 1
-        prep = Prepared(
-            model.record, model.options, w, n_coords, tp, float(sc["transfer.first"])
-        )
+        prep = Prepared(model.record, model.options, w, n_coords, tp, float(sc["transfer.first"]))
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[ck] = prep

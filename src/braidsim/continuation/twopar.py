@@ -107,7 +107,11 @@ def trace_boundary(
         lo1, hi1 = range1
     span = max(hi1 - lo1, 1e-12)
     curve = BoundaryCurve(sp.type, key1, key2, sp.period, [sp.value], [p2_0], detail=sp.detail)
-    side = math.copysign(1.0, anchor.values[key1] - sp.value) if anchor.values[key1] != sp.value else -1.0
+    side = (
+        math.copysign(1.0, anchor.values[key1] - sp.value)
+        if anchor.values[key1] != sp.value
+        else -1.0
+    )
     offset = max(abs(anchor.values[key1] - sp.value), 0.3 * window * span)
     if on_point:
         on_point(sp.value, p2_0)
@@ -153,9 +157,7 @@ def trace_boundary(
             break
         found = [s for s in local.special if s.type == sp.type]
         if not found:
-            curve.stop = (
-                f"no {sp.type} point found at {key2} = {p2:.6g} (local run: {local.stop})"
-            )
+            curve.stop = f"no {sp.type} point found at {key2} = {p2:.6g} (local run: {local.stop})"
             break
         best = min(found, key=lambda s: abs(s.value - pred))
         curve.p1.append(float(best.value))
