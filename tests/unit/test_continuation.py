@@ -198,6 +198,12 @@ def test_cli_json_and_restart(tmp_path) -> None:
 @pytest.mark.parametrize(
     ("body", "code", "words"),
     [
+        (  # the carrier rests (period 1): no period-2 orbit to seed
+            '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.05 mm"\n'
+            'to = "0.06 mm"\nperiod = 2\nmethod = "fd"\n',
+            1,
+            "set period = 1",
+        ),
         ('[continuation]\nparameter = "initial.x"\nfrom = 0\nto = "1 mm"\n', 2, "initial.x"),
         ('[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n', 2, "to"),
         (
@@ -224,3 +230,18 @@ def test_cli_bad_input(tmp_path, capsys, body: str, code: int, words: str) -> No
     assert rc == code
     assert words in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_multiple_shooting_branch_matches_single_shooting(system, bouncing) -> None:
+    """A branch continued with 2 shooting segments has the orbits and multipliers of the
+    single-shooting one at the same parameter values."""
+    o2 = seed_orbit(system, {HA: 0.1e-3}, 1, segments=2, method="fd")
+    assert o2.segments == 2
+    br2 = continue_orbit(system, o2, HA, 0.11e-3, method="fd", switch=False, max_points=4)
+    assert len(br2.points) == 4
+    single = continue_orbit(system, bouncing, HA, 0.11e-3, method="fd", switch=False, max_points=8)
+    for o in br2.points[1:]:
+        ref = orbit_at(system, single, o.values[HA], method="fd")
+        mu, mu_ref = np.sort_complex(o.multipliers), np.sort_complex(ref.multipliers)
+        assert np.allclose(mu, mu_ref, atol=1e-4)
+        assert abs(o.profile.strobe_u[0] - ref.profile.strobe_u[0]) < 1e-10

@@ -868,7 +868,7 @@ def seed_orbit(
     z = states_at(system, values, t, y, modes, v0, times, cuts)
     th_mod = _wrap(th, period)
     try:
-        return solve_fixed(system, values, period, th_mod, cuts, z, method, tol)
+        orbit = solve_fixed(system, values, period, th_mod, cuts, z, method, tol)
     except ContinuationError as exc:
         where = ", ".join(f"{k} = {v:g}" for k, v in values.items())
         q = _simulated_period(system, values, t, y, modes, v0, period)
@@ -882,6 +882,34 @@ def seed_orbit(
             f"{transient_cycles:g} cycles at {where or 'the base values'} ({exc}); {hint}",
             t,
         ) from None
+    q = minimal_period(orbit, system)
+    if q < period:
+        where = ", ".join(f"{k} = {v:g}" for k, v in values.items())
+        raise ContinuationError(
+            f"the steady state at {where or 'the base values'} is a period-{q} orbit, not a "
+            f"period-{period} one; set period = {q} (or seed the period-{period} orbit from a "
+            "period doubling of it: continuation.switch)",
+            t,
+        )
+    return orbit
+
+
+def minimal_period(orbit: Orbit, system: Any) -> int:
+    """The smallest q dividing the orbit's period k whose stroboscopic samples repeat after
+    q cycles (to 1e-6 of the length and speed scales)."""
+    k = orbit.period
+    su, sv = orbit.profile.strobe_u, orbit.profile.strobe_v
+    if su.size < k:
+        return k
+    Ls, Vs = system.scales(orbit.values)
+    for q in range(1, k):
+        if k % q:
+            continue
+        du = np.abs(su - np.roll(su, -q)).max() / Ls
+        dv = np.abs(sv - np.roll(sv, -q)).max() / Vs
+        if du < 1e-6 and dv < 1e-6:
+            return q
+    return k
 
 
 def _simulated_period(
