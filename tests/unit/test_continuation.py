@@ -175,7 +175,9 @@ def test_cli_json_and_restart(tmp_path) -> None:
     with contextlib.redirect_stdout(buf):
         rc = run_app(["continue", str(spec), "--out", str(out), "--json"])
     assert rc == 0
+    assert buf.getvalue().count("\n") == 1  # one JSON object, nothing else on stdout
     data = json.loads(buf.getvalue())
+    assert data["braidsim_version"] == braidsim.__version__
     (b,) = data["branches"]
     assert b["parameter"] == HA and b["period"] == 1
     pt = b["points"][0]
