@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -96,6 +96,7 @@ def trace_boundary(
     key1 = branch.key
     anchor = branch.points[sp.index]
     p2_0 = float(anchor.values.get(key2, system.value(key2)))
+    anchor = replace(anchor, values={**anchor.values, key2: p2_0})
     if range1 is None:
         v = branch.values
         a, b = float(v.min()), float(v.max())
@@ -122,7 +123,31 @@ def trace_boundary(
         else:
             pred = curve.p1[-1]
         start = None
-        for grow in (1.0, 3.0, 9.0):
+        # the orbit next to the point, carried to the new key2 by continuation in key2 at
+        # fixed key1 (robust where the orbit moves much between two steps of key2) ...
+        p2_prev = float(anchor.values[key2])
+        try:
+            mover = Continuer(
+                system,
+                key2,
+                (min(p2_prev, p2), max(p2_prev, p2)),
+                method=method,
+                tol=tol,
+                step=0.2,
+                max_step=0.5,
+                max_points=30,
+                pscale=abs(p2 - p2_prev) or 1.0,
+            )
+            moved = mover.run(anchor, 1.0 if p2 > p2_prev else -1.0)
+            last = moved.points[-1]
+            if abs(last.values[key2] - p2) <= 1e-9 * max(abs(p2), 1.0) and signature(
+                last
+            ) == signature(anchor):
+                start = last
+        except (ContinuationError, SimulationError, np.linalg.LinAlgError):
+            start = None
+        # ... or solved there afresh, a little further from the predicted point
+        for grow in () if start is not None else (1.0, 3.0, 9.0):
             start_val = min(max(pred + side * offset * grow, lo1), hi1)
             vals = _with(anchor, {key1: start_val, key2: float(p2)})
             try:
