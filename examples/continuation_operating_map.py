@@ -64,7 +64,7 @@ def branches_at(omega: float, hi: float, small: bool, method: str) -> dict[str, 
     npts = 20 if small else 120
     rest = seed_orbit(system, {HA: 0.02 * MM}, 1, method=method)
     out: dict[str, Any] = {"system": system}
-    steps = {"step": 0.05, "max_step": 0.25} if small else {"step": 0.02, "max_step": 0.1}
+    steps = {"step": 0.05, "max_step": 0.25} if small else {"step": 0.01, "max_step": 0.03}
     out["resting"] = continue_orbit(
         system, rest, HA, hi, method=method, switch=False, max_points=npts, **steps
     )

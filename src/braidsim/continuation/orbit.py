@@ -199,7 +199,7 @@ class Profile:
         seen from the other side.
     strobe_u, strobe_v : np.ndarray
         The k stroboscopic samples (forcing phase 0): position relative to the inner wall
-        [m] (x - h(t) for the carrier) and speed [m/s].
+        [m] (x - h(t) for the carrier; x for a model without an inner wall) and speed [m/s].
     u_min, u_max : float
         Range of that position over the orbit [m].
     impacts : int
@@ -246,7 +246,9 @@ class Profile:
 
 
 def _position(prep: Any, t: float, y: np.ndarray) -> float:
-    return float(pair_gaps.py(prep.record, 0, t, y)[0])
+    """Position relative to the inner wall (x itself when there is none)."""
+    g = float(pair_gaps.py(prep.record, 0, t, y)[0])
+    return g if math.isfinite(g) else float(y[0])
 
 
 def profile(
@@ -356,7 +358,7 @@ def profile(
         feature = min(feature, float(e["max_depth"]))
     su = np.array([_position(prep, ts, Y[np.searchsorted(t, ts)]) for ts in strobes])
     sv = np.array([Y[np.searchsorted(t, ts), 1] for ts in strobes])
-    pos = G[:, 0, 0]
+    pos = G[:, 0, 0] if np.all(np.isfinite(G[:, 0, 0])) else Y[:, 0]
     return Profile(
         t0=float(t0),
         period=P,
