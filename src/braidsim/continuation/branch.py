@@ -582,15 +582,8 @@ class Continuer:
             if signature(oa)[1:] != signature(ob)[1:]:
                 detail += "; contacts at the section change"
             br.special.append(SpecialPoint("grazing", float(lam), k, idx, ga, detail, gb))
-            # the smooth bifurcations of the near side's family before its grazing (the
-            # multipliers jump at the grazing itself, so the far side is not compared)
-            if ga is not None and ga is not oa and ga.cuts == oa.cuts:
-                try:
-                    Ug = sh.pack(ga.z, ga.values[self.key])
-                    tg = self.tangent(sh, Ug, ta, 1.0)
-                    self.detect_smooth(br, oa, ga, sh, Ua, Ug, ta, tg, idx)
-                except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                    pass
+            # (the multipliers jump at the grazing: no smooth test across it; next to a
+            # grazing of a stiff contact they are not reliable on the near side either)
             return
         self.detect_smooth(br, oa, ob, sh, Ua, Ub, ta, tb, idx)
 
