@@ -160,6 +160,21 @@ def default_max_step(sc: Scenario) -> float:
     return hmax
 
 
+STEPS_PER_SECOND = 50_000
+"""Default step budget per simulated second (measured at the default tolerances, steps and
+rejected steps: paper-3.3 about 5,300, paper-3.4a 7,500, paper-3.4b 26,000), so that a long
+run is not cut short by a budget made for short ones."""
+
+
+def _step_budget(sc: Scenario, duration: float) -> int:
+    """``simulation.max_steps`` when the scenario sets it, else the larger of its default and
+    :data:`STEPS_PER_SECOND` per simulated second."""
+    budget = int(sc["simulation.max_steps"])
+    if "simulation.max_steps" in sc.explicit:
+        return budget
+    return max(budget, math.ceil(STEPS_PER_SECOND * duration))
+
+
 def build_model(
     sc: Scenario,
     duration: float | None = None,
@@ -240,7 +255,7 @@ def build_model(
         atol_position=sc["simulation.atol_position"],
         atol_velocity=sc["simulation.atol_velocity"],
         max_step=default_max_step(sc) if hmax is None else hmax,
-        max_steps=int(sc["simulation.max_steps"]),
+        max_steps=_step_budget(sc, dur),
         t_end=dur,
     )
 

@@ -294,7 +294,8 @@ SCHEMA_LIST: list[ParamSpec] = [
         "int",
         "",
         5_000_000,
-        "budget of integration steps before a run is declared stuck",
+        "budget of integration steps before a run is declared stuck (unless set: this or "
+        "50,000 per simulated second, whichever is larger)",
         low=1,
         high=2**62,  # a 64-bit step counter
     ),

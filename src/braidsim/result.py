@@ -314,28 +314,32 @@ class Result:
         ``window`` the ranges and the impact list cover only [t0, t1].
         """
         iw = 0 if window is None else self.window_index(*window)
-        imp = self.impacts
+        ep = self.episodes  # read directly: the pandas table would cost its import
+        rows = np.arange(len(ep))
         if window is not None:
-            imp = imp[(imp["t"] >= window[0]) & (imp["t"] <= window[1])]
+            rows = rows[(ep["t"] >= window[0]) & (ep["t"] <= window[1])]
         sens = self.sensitivity
-        impacts = [
-            {
-                "t": float(r.t),
-                "pair": r.pair,
-                "wall": r.wall,
-                "velocity": _json_float(r.velocity),
-                "rebound_velocity": _json_float(r.rebound_velocity),
-                "peak_force": float(r.peak_force),
-                "max_depth": float(r.max_depth),
-                "duration": _json_float(r.duration),
-                "dissipated_energy": _json_float(r.dissipated_energy),
-                "latched_velocity": float(r.latched_velocity),
-                "ongoing": bool(r.ongoing),
-                "initial": bool(r.initial),
-                **({"sensitivity": sens.impact_dict(int(r.Index))} if sens is not None else {}),
-            }
-            for r in imp.itertuples()
-        ]
+        impacts = []
+        for i in rows:
+            r = ep[i]
+            pair = PAIRS[int(r["pair"])]
+            impacts.append(
+                {
+                    "t": float(r["t"]),
+                    "pair": pair,
+                    "wall": WALLS[(pair, int(r["wall"]))],
+                    "velocity": _json_float(r["velocity"]),
+                    "rebound_velocity": _json_float(r["rebound_velocity"]),
+                    "peak_force": float(r["peak_force"]),
+                    "max_depth": float(r["max_depth"]),
+                    "duration": _json_float(r["t_end"] - r["t"]),
+                    "dissipated_energy": _json_float(r["dissipated_energy"]),
+                    "latched_velocity": float(r["latched_velocity"]),
+                    "ongoing": bool(r["end_reason"] == 1.0),
+                    "initial": bool(r["initial"] == 1.0),
+                    **({"sensitivity": sens.impact_dict(int(i))} if sens is not None else {}),
+                }
+            )
         prov = self.provenance()
         return {
             "braidsim_version": prov["braidsim_version"],

@@ -28,14 +28,22 @@ stderr whenever a bare number is given for a dimensional quantity
 from __future__ import annotations
 
 import functools
+import importlib
 import math
 import numbers
+import os
 import re
-from typing import Any
-
-import pint
+import sys
+from typing import TYPE_CHECKING, Any
 
 from braidsim.errors import InputError
+
+if TYPE_CHECKING:
+    import pint
+
+#: Whether pint may import dask when this module imports pint (see :func:`_import_pint`). The
+#: command line sets it to False: its process never holds a dask array with units.
+PINT_WITH_DASK = True
 
 #: largest |exponent| accepted in a unit expression (m^3, s^-2, N/m^1.5 need far less)
 MAX_EXPONENT = 12.0
@@ -53,6 +61,25 @@ _TOKEN = re.compile(
 )
 
 
+#: SI factors of the unit expressions that the built-in scenarios and the usual options use,
+#: keyed by (unit text as the grammar returns it, target unit): a quantity in one of them is
+#: ``magnitude * factor``, which is what pint computes (each factor is pint's, bit for bit,
+#: and the tests compare both paths), without importing pint and building its registry
+#: (about 0.1 s of CPU at every start of the command line). pint reads every other unit.
+_SI_FACTORS: dict[tuple[str, str], float] = {
+    ("m", "m"): 1.0,
+    ("mm", "m"): 0.001,
+    ("s", "s"): 1.0,
+    ("ms", "s"): 0.001,
+    ("m / s", "m/s"): 1.0,
+    ("mm / s", "m/s"): 0.001,
+    ("GPa", "Pa"): 1e9,
+    ("rpm", "rad/s"): 0.10471975511965977,  # 2 pi / 60, rounded as pint rounds it
+}
+#: frequencies for a target in rad/s, read as cycles per time: factor to 1/s, times 2 pi
+_FREQUENCY_FACTORS: dict[str, float] = {"Hz": 1.0}
+
+
 def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
     """True for a unit of time or of hertz; False for rpm, deg/s and other angular rates."""
     if name.endswith("hertz"):
@@ -60,11 +87,53 @@ def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
     return bool(ureg.Unit(name).dimensionality == ureg.Unit("s").dimensionality)
 
 
-@functools.cache
-def registry() -> pint.UnitRegistry:
-    """The package's unit registry (created once)."""
+def _import_pint() -> None:
+    """Import pint: done on the first unit string read, not by ``import braidsim``.
+
+    When dask is installed, importing pint imports ``dask.base`` too (for quantities that wrap
+    dask arrays), which costs about as much CPU as pint itself. With :data:`PINT_WITH_DASK`
+    off, pint is imported while ``sys.modules["dask"]`` is None, which makes
+    ``importlib.util.find_spec("dask")`` answer None: pint then leaves out only its dask
+    methods (``Quantity.compute``, ``persist``, ``visualize``); dask itself imports normally
+    afterwards. Nothing changes if pint or dask is already imported.
+    """
+    if not PINT_WITH_DASK and "pint" not in sys.modules and "dask" not in sys.modules:
+        sys.modules["dask"] = None  # type: ignore[assignment]
+        try:
+            importlib.import_module("pint")
+        finally:
+            if "dask" in sys.modules and sys.modules["dask"] is None:
+                del sys.modules["dask"]
+
+
+def _new_registry(cache_folder: str | os.PathLike[str] | None) -> pint.UnitRegistry:
+    """A unit registry of pint's default definitions; with ``cache_folder``, pint keeps the
+    parsed definition files there (named by a hash of their content, pint's and Python's
+    versions) and reads them back instead of parsing them (0.02 s instead of 0.14 s)."""
+    _import_pint()
+    import pint
+
+    if cache_folder is not None:
+        try:
+            cached: pint.UnitRegistry = pint.UnitRegistry(cache_folder=cache_folder)
+            return cached
+        except Exception:  # an unwritable or damaged cache: parse the files instead
+            pass
     ureg: pint.UnitRegistry = pint.UnitRegistry()
     return ureg
+
+
+@functools.cache
+def registry() -> pint.UnitRegistry:
+    """The package's unit registry (created once, on first use).
+
+    pint's disk cache of parsed definitions is used (pint's ``cache_folder=":auto:"``, the
+    user's cache directory); ``BRAIDSIM_UNIT_CACHE=0`` turns it off. A cache that cannot be
+    written or read (a read-only home, a file being written by another process) is passed
+    over: the definitions are then parsed, with the same registry as the result.
+    """
+    use_cache = os.environ.get("BRAIDSIM_UNIT_CACHE", "").strip() != "0"
+    return _new_registry(":auto:" if use_cache else None)
 
 
 def is_number(value: object) -> bool:
@@ -207,8 +276,15 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
         rest = rest[frac.end() :].strip()
     if not rest:
         return mag, True
-    ureg = registry()
     unit_text = _check_unit_text(key, value, rest)
+    if (unit_text, unit) in _SI_FACTORS:
+        return _checked(key, value, unit, mag, mag * _SI_FACTORS[unit_text, unit]), False
+    if unit == "rad/s" and unit_text in _FREQUENCY_FACTORS:  # as the pure frequency below
+        out = mag * _FREQUENCY_FACTORS[unit_text] * 2.0 * math.pi
+        return _checked(key, value, unit, mag, out), False
+    ureg = registry()  # imports pint
+    import pint
+
     try:
         # the text passed the grammar: unit names, small exponents and divisors only
         u: Any = ureg.parse_expression(unit_text)
@@ -235,12 +311,18 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
         ) from None
     except (OverflowError, ZeroDivisionError):
         out = math.inf
+    return _checked(key, value, unit, mag, out), False
+
+
+def _checked(key: str, value: str, unit: str, mag: float, out: float) -> float:
+    """``out``, the quantity ``value`` (magnitude ``mag``) in ``unit``, unless a finite
+    magnitude became infinite or NaN in the conversion (an :class:`InputError`)."""
     if math.isfinite(mag) and not math.isfinite(out):
         raise InputError(
             f"{key}: {value!r} is {'not a number' if math.isnan(out) else 'too large'} in "
             f"{unit or 'no unit'}; allowed a value a 64-bit float can hold"
         )
-    return out, False
+    return out
 
 
 def to_si(key: str, value: object, unit: str) -> float:

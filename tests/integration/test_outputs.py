@@ -178,6 +178,14 @@ JSON_VERBS: dict[str, list[str]] = {
     ],
     "lyapunov": ["lyapunov", "paper-3.4b", "--transient-cycles", "2", "--cycles", "4"],
     "analyze": ["analyze", "paper-3.3", "--duration", "0.1"],
+    "fit": [
+        "fit",
+        str(ROOT / "examples" / "fit_spec.toml"),
+        "--data",
+        str(ROOT / "examples" / "fit_record.csv"),
+        "--out",
+        "{tmp}/f",
+    ],
     "sweep": ["sweep", "{spec}", "--out", "{tmp}/s.zarr", "--workers", "1"],
     "machine": [
         "machine",

@@ -228,7 +228,7 @@ def wall_motion_jvp(ex, dex, t):
     raise NotImplementedError
 
 
-@generic
+@generic(inline=False)  # a call, not inlined: 52 s to compile a solver with tangents, not 73
 def derivatives_jvp(model, dmodel, t, y, s, modes, v0s, dv0s, out):
     """Write the tangent of dy/dt (coordinates and speeds only, ``out[:2 n_coords]``) at
     (t, y) along the state tangent ``s`` and the model tangent ``dmodel``, with latched

@@ -173,18 +173,28 @@ def machine_for(
     the slot contact is part of every design figure."""
     d = copy.deepcopy(dict(base))
     d["animation"] = {"enabled": False}
-    m = dict(d.get("machine", {}))
+    m = dict(_table(d, "machine"))
     if profile is not None and not profile.is_constant:
         ph, fa = profile.table()
         m["speed_profile"] = {"phase": ph, "factor": fa}
     if speed is not None:
         m["speed"] = float(speed)
     d["machine"] = m
-    ov = dict(d.get("overrides", {}))
+    ov = dict(_table(d, "overrides"))
     ov.update(overrides or {})
     ov["simulation.dof"] = "xy"
     d["overrides"] = ov
     return parse_machine_spec(d, path)
+
+
+def _table(d: Mapping[str, Any], name: str) -> Mapping[str, Any]:
+    """The sub-table ``name`` of a spec (absent or None: empty); anything else is refused."""
+    t = d.get(name)
+    if t is None:
+        return {}
+    if not isinstance(t, Mapping):
+        raise InputError(f"[{name}]: expected a table of KEY = VALUE, got {type(t).__name__}")
+    return t
 
 
 @dataclass(frozen=True)

@@ -213,6 +213,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         S1 = np.empty((nsens, n_dof2))
         SQ = np.empty((nsens, n_dof2))  # tangents at an instant inside a step
         ss = np.empty(n_dof2)
+        YS = np.empty((7, n_dof2))  # stage states of a step, for the tangents
         sw = np.empty(n_dof2)
         f_minus = np.empty(n_dof2)
         y_minus = np.empty(n)
@@ -385,7 +386,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             continue
         if SENS is not None:
             # the tangents over the step, held to the same tolerance as the state
-            tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, ys, ss, S1)
+            tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1)
             err_s = tangent_error(SENS, S1, h, KS, n_dof2, opts.rtol, SENS.SMAX)
             if not err_s <= 1.0:
                 # near onset and exit the tangents' error grows as h^1.5 (sqrt(p) stiffness)
@@ -485,7 +486,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             # the tangents over the step taken (recomputed when it ended at an event), then
             # at the instants the step recorded
             if j_ev >= 0:
-                tangent_step(model, SENS, t, y, h_taken, Ke, KS, modes, v0s, n_dof2, ys, ss, S1)
+                tangent_step(model, SENS, t, y, h_taken, Ke, KS, modes, v0s, n_dof2, YS, ss, S1)
             tangent_scales(S1, n_dof2, SENS.SMAX)
             tangent_dense_coeffs(SENS, S1, h_taken, KS, RCS, n_dof2)
             for pair in range(n_pairs):

@@ -87,24 +87,27 @@ def tangent_start(model, SENS, t, y, modes, v0s, KS):
 
 
 @helper
-def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, ys, ss, S1):
+def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1):
     """Integrate (1) over the step [t, t + h] the state took (stages K): fills KS[:, 1..6]
-    and the tangents at the end of the step S1 (KS[:, 0] holds (1) at the start)."""
-    k = SENS.S.shape[0]
+    and the tangents at the end of the step S1 (KS[:, 0] holds (1) at the start). ``YS``
+    (7, n_dof2) work space for the stage states."""
     for st in range(1, 7):
         for i in range(n_dof2):
             acc = 0.0
             for j in range(st):
                 acc += RK_A[st, j] * K[j, i]
-            ys[i] = y[i] + h * acc
-        for d in range(k):
+            YS[st, i] = y[i] + h * acc
+    for d in range(SENS.S.shape[0]):
+        dm = SENS.tangents[d]  # once per direction and step (a typed-list access)
+        dv0 = SENS.DV0[d]
+        for st in range(1, 7):
             sd = S1[d] if st == 6 else ss
             for i in range(n_dof2):
                 acc = 0.0
                 for j in range(st):
                     acc += RK_A[st, j] * KS[d, j, i]
                 sd[i] = SENS.S[d, i] + h * acc
-            tangent_rhs(model, SENS, d, t + RK_C[st] * h, ys, sd, modes, v0s, KS[d, st])
+            derivatives_jvp(model, dm, t + RK_C[st] * h, YS[st], sd, modes, v0s, dv0, KS[d, st])
 
 
 @helper

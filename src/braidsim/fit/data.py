@@ -1,0 +1,289 @@
+"""Measured records for :mod:`braidsim.fit`: read, check, convert to SI.
+
+A record is a strictly increasing time axis ``t`` [s] (measured from the scenario's t = 0,
+where its ``initial.*`` state holds) and one or more measured quantities of the carrier:
+
+========================  ==========  ==================================================
+name                      SI unit     what the model compares it with
+========================  ==========  ==================================================
+``x``                     m           the carrier's displacement x(t) (a laser sensor)
+``acceleration``          m/s^2       its acceleration dvx/dt (an accelerometer)
+``contact_force``         N           the track contact force, signed as the series
+                                      (negative on the inner wall)
+========================  ==========  ==================================================
+
+Sources: a CSV file with a header row (a name may carry its unit in brackets, ``x [mm]``,
+as ``braidsim run --out`` writes ``series.csv``; SI without one; other columns are ignored;
+``track_contact_force`` is read as ``contact_force``), a netCDF file or an
+:class:`xarray.Dataset` (a coordinate or variable ``t``; units from each variable's
+``units`` attribute, SI without one).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from braidsim.errors import InputError
+
+#: measured quantities and their SI units (pint expressions)
+QUANTITY_UNITS: dict[str, str] = {"x": "m", "acceleration": "m/s**2", "contact_force": "N"}
+#: other names accepted for a quantity (the column names of ``braidsim run --out``)
+ALIASES: dict[str, str] = {"track_contact_force": "contact_force", "ax": "acceleration"}
+#: largest record read [samples]
+MAX_SAMPLES = 50_000_000
+
+_HEADER = re.compile(r"^\s*([^\[\]]*?)\s*(?:\[\s*([^\]]*?)\s*\])?\s*$")
+
+
+@dataclass(frozen=True)
+class Record:
+    """A measured record in SI.
+
+    Attributes
+    ----------
+    t : ndarray
+        Sample times [s], strictly increasing, >= 0.
+    columns : dict
+        ``{quantity: values}`` in SI (see :data:`QUANTITY_UNITS`), each as long as ``t``.
+    source : str
+        Where it came from (a path or "xarray"), for messages and the report.
+    """
+
+    t: np.ndarray
+    columns: Mapping[str, np.ndarray]
+    source: str = "record"
+    units_read: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Time of the last sample [s]."""
+        return float(self.t[-1])
+
+    @property
+    def sample_interval(self) -> float:
+        """Median spacing of the samples [s]."""
+        return float(np.median(np.diff(self.t)))
+
+
+def _factor(where: str, unit: str, quantity: str) -> float:
+    """The factor that converts values in ``unit`` to the SI unit of ``quantity``."""
+    from braidsim.units import to_si
+
+    target = "s" if quantity == "t" else QUANTITY_UNITS[quantity]
+    if not unit:
+        return 1.0
+    try:
+        return to_si(where, f"1 {unit}", target)
+    except InputError:
+        raise InputError(
+            f"{where}: unit [{unit}] does not match the quantity {quantity!r}; "
+            f"allowed a unit of {target}"
+        ) from None
+
+
+def make_record(
+    t: Any,
+    columns: Mapping[str, Any],
+    units: Mapping[str, str] | None = None,
+    source: str = "record",
+) -> Record:
+    """A checked :class:`Record` from arrays (values in ``units``, SI where not given).
+
+    Raises
+    ------
+    InputError
+        No time, no known quantity, NaN or infinite values, time not strictly increasing or
+        negative, fewer than 3 samples, a unit that does not match its quantity.
+    """
+    units = dict(units or {})
+    tt = np.asarray(t, dtype=float).ravel() * _factor(
+        f"{source}: column t", units.get("t", ""), "t"
+    )
+    if tt.size < 3:
+        raise InputError(f"{source}: {tt.size} samples; allowed a record of at least 3 samples")
+    if tt.size > MAX_SAMPLES:
+        raise InputError(f"{source}: {tt.size} samples; allowed at most {MAX_SAMPLES}")
+    bad = np.flatnonzero(~np.isfinite(tt))
+    if bad.size:
+        raise InputError(f"{source}: column t has a missing or non-finite value at row {bad[0]}")
+    if tt[0] < 0:
+        raise InputError(
+            f"{source}: column t starts at {tt[0]:g} s; allowed times >= 0 (measured from the "
+            "scenario's start)"
+        )
+    steps = np.diff(tt)
+    bad = np.flatnonzero(steps <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InputError(
+            f"{source}: column t is not strictly increasing at row {i} "
+            f"(t = {tt[i - 1]:.9g} s then {tt[i]:.9g} s); allowed increasing sample times"
+        )
+    out: dict[str, np.ndarray] = {}
+    for name, values in columns.items():
+        q = ALIASES.get(name, name)
+        if q not in QUANTITY_UNITS:
+            raise InputError(
+                f"{source}: unknown quantity {name!r}; allowed {', '.join(QUANTITY_UNITS)}"
+            )
+        v = np.asarray(values, dtype=float).ravel()
+        if v.shape != tt.shape:
+            raise InputError(f"{source}: column {name} has {v.size} values for {tt.size} times")
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise InputError(
+                f"{source}: column {name} has a missing or non-finite value (NaN) at row "
+                f"{bad[0]} (t = {tt[bad[0]]:.9g} s); allowed finite numbers (drop or fill "
+                "the gap first)"
+            )
+        out[q] = v * _factor(f"{source}: column {name}", units.get(name, ""), q)
+    if not out:
+        raise InputError(
+            f"{source}: no measured column; allowed one or more of {', '.join(QUANTITY_UNITS)}"
+        )
+    return Record(tt, out, source, {k: units.get(k, "") for k in ("t", *columns)})
+
+
+def _split_header(name: str) -> tuple[str, str]:
+    m = _HEADER.match(name)
+    if m is None:
+        return name.strip(), ""
+    return m.group(1), (m.group(2) or "")
+
+
+def read_csv(path: str | Path) -> Record:
+    """A record from a CSV file with a header row (see the module docstring)."""
+    import pandas as pd
+
+    p = Path(path)
+    if not p.is_file():
+        raise InputError(f"--data: {str(p)!r} is not a file; allowed a CSV or netCDF record")
+    try:
+        df = pd.read_csv(p, comment="#", skipinitialspace=True)
+    except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        line = " ".join(str(exc).split())[:120]
+        raise InputError(f"{p}: cannot read as CSV ({line})") from None
+    t_col = None
+    cols: dict[str, Any] = {}
+    units: dict[str, str] = {}
+    for raw in df.columns:
+        name, unit = _split_header(str(raw))
+        if name == "t":
+            t_col = raw
+            units["t"] = unit
+        elif name in QUANTITY_UNITS or name in ALIASES:
+            q = ALIASES.get(name, name)
+            if q in cols:
+                raise InputError(f"{p}: two columns give {q}; allowed one")
+            cols[q] = raw
+            units[q] = unit
+    if t_col is None:
+        raise InputError(f"{p}: no column t (the sample times); allowed a header with t [s]")
+    data: dict[str, np.ndarray] = {}
+    for q, raw in {"t": t_col, **cols}.items():
+        v = pd.to_numeric(df[raw], errors="coerce").to_numpy(dtype=float)
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            name = "t" if q == "t" else q
+            raise InputError(
+                f"{p}: column {name} has a missing, non-finite or non-numeric value (NaN) at "
+                f"data row {bad[0] + 1}; allowed finite numbers"
+            )
+        data[q] = v
+    t = data.pop("t")
+    return make_record(t, data, units, str(p))
+
+
+def from_xarray(ds: Any, source: str = "xarray") -> Record:
+    """A record from an :class:`xarray.Dataset` (a coordinate or variable ``t``; units from
+    each variable's ``units`` attribute)."""
+    if "t" not in ds.variables:
+        raise InputError(f"{source}: no coordinate or variable t (the sample times)")
+    cols: dict[str, Any] = {}
+    units = {"t": str(ds["t"].attrs.get("units", ""))}
+    for name in ds.data_vars:
+        q = ALIASES.get(str(name), str(name))
+        if q in QUANTITY_UNITS and q not in cols:
+            cols[q] = ds[name].values
+            units[q] = str(ds[name].attrs.get("units", ""))
+    return make_record(ds["t"].values, cols, units, source)
+
+
+def read_record(data: Any) -> Record:
+    """A record from a path (``.csv``, ``.nc``/``.nc4``/``.netcdf``), an xarray Dataset or a
+    :class:`Record`.
+
+    Raises
+    ------
+    InputError
+        The file is missing or unreadable, or the record fails the checks of
+        :func:`make_record`.
+    """
+    if isinstance(data, Record):
+        return data
+    if hasattr(data, "data_vars"):
+        return from_xarray(data)
+    if not isinstance(data, str | Path):
+        raise InputError(
+            f"--data: expected a CSV or netCDF path or an xarray Dataset, got {type(data).__name__}"
+        )
+    p = Path(data)
+    if p.suffix.lower() in (".nc", ".nc4", ".netcdf", ".h5"):
+        if not p.is_file():
+            raise InputError(f"--data: {str(p)!r} is not a file; allowed a CSV or netCDF record")
+        import xarray as xr
+
+        try:
+            with xr.open_dataset(p) as ds:
+                return from_xarray(ds.load(), str(p))
+        except (OSError, ValueError) as exc:
+            line = " ".join(str(exc).split())[:120]
+            raise InputError(f"{p}: cannot read as netCDF ({line})") from None
+    return read_csv(p)
+
+
+def detect_pulses(
+    t: np.ndarray, y: np.ndarray, noise: float, fraction: float = 0.05
+) -> tuple[np.ndarray, float]:
+    """Onset times [s] of the impact pulses of an acceleration or contact-force record.
+
+    A pulse is a run of samples whose distance from the record's median (free flight, or
+    rest on a wall) exceeds ``threshold = max(6 noise, fraction * largest distance)``; runs
+    closer than two samples merge. The onset is the time of the run's first sample less half
+    a sample interval (the true onset lies between the last quiet sample and the first loud
+    one). Returns ``(onsets, threshold)``.
+    """
+    base = float(np.median(y))
+    d = np.abs(y - base)
+    top = float(d.max()) if d.size else 0.0
+    thr = max(6.0 * noise, fraction * top)
+    loud = d > thr
+    if not loud.any() or not math.isfinite(thr) or top <= 0:
+        return np.zeros(0), thr
+    idx = np.flatnonzero(loud)
+    starts = [idx[0]]
+    for a, b in itertools.pairwise(idx):
+        if b - a > 2:
+            starts.append(b)
+    dt = np.median(np.diff(t))
+    return np.maximum(t[np.asarray(starts)] - 0.5 * dt, 0.0), thr
+
+
+def noise_estimate(y: np.ndarray) -> float:
+    """A robust estimate of white measurement noise [units of y]: the scaled median absolute
+    deviation of the second differences, sigma = 1.4826 MAD(d2 y) / sqrt(6) (the second
+    difference of white noise has variance 6 sigma^2; the median ignores impact pulses and
+    the smooth motion adds ~ a dt^2 per sample, negligible at sensor rates)."""
+    d2 = np.diff(y, 2)
+    if d2.size == 0:
+        return 0.0
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return 1.4826 * mad / math.sqrt(6.0)

@@ -1,0 +1,683 @@
+"""Estimation: global start, local least squares, statistics, profiles, model selection.
+
+Method
+------
+1. *Global stage* (where the objective is multimodal: a wrong impact time makes the record
+   residuals flat or oscillating in the parameters). From ``starts`` points of the unit box
+   (the spec's start and a Latin hypercube, seeded) a short least-squares run on the event
+   residuals when the record shows impacts (else on the record residuals); or scipy's
+   ``differential_evolution`` on the same sum of squares.
+2. *Local stage*: ``scipy.optimize.least_squares`` (trust-region reflective, bounds = the unit
+   box) on the record residuals from the best two global end points; the lower cost wins.
+3. *Statistics* at the optimum p^ with J = d r / d p (r scaled by the noise):
+   s^2 = sum r^2 / (n - k), Cov = s^2 (J^T J)^-1, standard errors sqrt(diag Cov),
+   95 % intervals p^ +- t_{0.975, n-k} se, correlation Cov_ij / (se_i se_j)
+   (Bates & Watts, Nonlinear Regression Analysis and Its Applications, Wiley 1988,
+   doi:10.1002/9780470316757, ch. 2). These linearised intervals are exact for a model
+   linear in p and good where the curvature is small over the interval; the profile
+   likelihood checks that.
+4. *Profile likelihood* of a key: fixed at a grid of values around p^, the others refitted;
+   Delta chi^2 = (sum r^2 - sum r^2 min) / s^2, whose 95 % region is Delta < 3.84
+   (chi^2_1; Venzon & Moolgavkar, Appl. Stat. 37 (1988) 87, doi:10.2307/2347496).
+5. *Model selection* across contact laws: every law fitted the same way (its free parameters
+   that change nothing dropped), then with RSS = sum r^2 on the same noise scale
+   AIC = n ln(RSS/n) + 2k and BIC = n ln(RSS/n) + k ln n (Akaike, IEEE TAC 19 (1974) 716,
+   doi:10.1109/TAC.1974.1100705; Schwarz, Ann. Stat. 6 (1978) 461,
+   doi:10.1214/aos/1176344136); the lowest AIC is selected.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from braidsim.errors import InputError, SimulationError
+from braidsim.fit.data import Record
+from braidsim.fit.problem import FAILED_RESIDUAL, Evaluation, Problem
+from braidsim.fit.spec import FitSpec, FreeParameter
+from braidsim.params import Scenario, load_scenario
+
+Progress = Callable[[str], None]
+
+#: |correlation| above which a pair is reported as not separable
+CORRELATION_LIMIT = 0.99
+#: condition number of the column-scaled J above which J^T J counts as near-singular
+#: (J^T J then has condition above 1e12)
+CONDITION_LIMIT = 1e6
+#: a free parameter whose column of J is below this fraction of the largest does not
+#: change the fitted residuals at the start: the data cannot inform it
+UNINFORMED = 1e-9
+
+
+@dataclass
+class LocalFit:
+    """One local least-squares run."""
+
+    u: np.ndarray
+    cost: float  # 0.5 sum r^2
+    converged: bool
+    nfev: int
+    njev: int
+    message: str
+
+
+@dataclass
+class Statistics:
+    """Estimates and their uncertainty at an optimum (SI)."""
+
+    keys: tuple[str, ...]
+    values: np.ndarray
+    stderr: np.ndarray
+    ci95: np.ndarray  # (k, 2)
+    covariance: np.ndarray
+    correlation: np.ndarray
+    residual_std: float  # s
+    dof: int
+    singular_values: np.ndarray  # of the column-scaled J
+    warnings: list[str]
+
+
+@dataclass
+class Profile:
+    key: str
+    values: np.ndarray
+    delta: np.ndarray  # Delta chi^2
+    ci95: tuple[float | None, float | None]
+
+
+@dataclass
+class LawResult:
+    law: str
+    keys: tuple[str, ...]
+    values: dict[str, float]
+    cost: float
+    n: int
+    k: int
+    aic: float
+    bic: float
+    restitution: float
+    effective_restitution: float
+    converged: bool
+
+
+@dataclass
+class FitResult:
+    """Everything a fit found (see :func:`fit_record`)."""
+
+    law: str
+    keys: tuple[str, ...]
+    free: tuple[FreeParameter, ...]
+    stats: Statistics
+    converged: bool
+    cost: float
+    n_data: int
+    noise: dict[str, float]
+    quantities: tuple[str, ...]
+    record: Record
+    prediction: dict[str, np.ndarray]
+    scenario: Scenario
+    jacobian: str
+    starts: list[dict[str, Any]]
+    profiles: list[Profile] = field(default_factory=list)
+    laws: list[LawResult] = field(default_factory=list)
+    impacts_in_record: int = 0
+    evaluations: int = 0
+    seconds: float = 0.0
+    onsets: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def values(self) -> dict[str, float]:
+        return dict(zip(self.keys, (float(v) for v in self.stats.values), strict=True))
+
+    @property
+    def warnings(self) -> list[str]:
+        return self.stats.warnings
+
+
+def _guard(f: Callable[[np.ndarray], Evaluation], n: int) -> Callable[[np.ndarray], Evaluation]:
+    """A residual function that answers a failed simulation with large residuals (the
+    trust region then shrinks away from the failing parameters) instead of stopping."""
+
+    def g(u: np.ndarray) -> Evaluation:
+        try:
+            return f(u)
+        except SimulationError:
+            return Evaluation(u, np.full(n, FAILED_RESIDUAL), None, None)
+
+    return g
+
+
+def local_fit(
+    problem: Problem, u0: np.ndarray, kind: str = "record", max_nfev: int = 60
+) -> LocalFit:
+    """``scipy.optimize.least_squares`` (trf, unit box) on the record or event residuals."""
+    from scipy.optimize import least_squares
+
+    f = problem.residuals if kind == "record" else problem.event_residuals
+    n = f(u0).r.size
+    cache: dict[bytes, Evaluation] = {}
+
+    def ev(u: np.ndarray, jac: bool) -> Evaluation:
+        key = np.asarray(u, dtype=float).tobytes()
+        e = cache.get(key)
+        if e is not None and (e.J is not None or not jac):
+            return e
+        try:
+            e = f(np.asarray(u, dtype=float), jac)
+        except SimulationError:
+            e = Evaluation(
+                u, np.full(n, FAILED_RESIDUAL), np.zeros((n, len(u))) if jac else None, None
+            )
+        cache.clear()
+        cache[key] = e
+        return e
+
+    u0 = np.clip(np.asarray(u0, dtype=float), 0.0, 1.0)
+    out = least_squares(
+        lambda u: ev(u, False).r,
+        u0,
+        jac=lambda u: ev(u, True).J,
+        bounds=(0.0, 1.0),
+        method="trf",
+        x_scale=1.0,
+        max_nfev=max_nfev,
+        xtol=1e-10,
+        ftol=1e-10,
+        gtol=1e-10,
+    )
+    return LocalFit(
+        np.asarray(out.x),
+        float(out.cost),
+        bool(out.status > 0),
+        int(out.nfev),
+        int(out.njev or 0),
+        str(out.message),
+    )
+
+
+def check_informed(problem: Problem, u: np.ndarray) -> np.ndarray:
+    """Raise :class:`InputError` for a free parameter that does not change the fitted
+    residuals at ``u`` (its column of J is zero): the chosen data cannot inform it.
+    Returns J."""
+    J = problem.residuals(u, jac=True).J
+    assert J is not None
+    norms = np.sqrt(np.sum(J * J, axis=0))
+    top = float(norms.max()) if norms.size else 0.0
+    for key, nrm in zip(problem.keys, norms, strict=True):
+        if not nrm > UNINFORMED * top or top == 0.0:
+            raise InputError(
+                f"fit.free.{key}: the chosen data ({', '.join(problem.quantities)}) do not "
+                f"depend on {key} at the start; allowed a parameter that changes the "
+                "fitted quantity (fix it, or fit another quantity)"
+            )
+    return J
+
+
+def statistics(problem: Problem, u: np.ndarray) -> tuple[Statistics, Evaluation]:
+    """Estimates, standard errors, 95 % intervals, correlation and identifiability
+    warnings at ``u`` (see the module docstring)."""
+    from scipy.stats import t as student_t
+
+    e = problem.residuals(u, jac=True)
+    assert e.J is not None
+    k = u.size
+    n = e.r.size
+    dof = max(n - k, 1)
+    Jp = e.J / problem.dp_du(u)[None, :]  # d r / d p, SI
+    s2 = float(np.sum(e.r * e.r)) / dof
+    D = np.sqrt(np.sum(Jp * Jp, axis=0))
+    D = np.where(D > 0, D, 1.0)
+    Jn = Jp / D[None, :]
+    _, sv, Vt = np.linalg.svd(Jn, full_matrices=False)
+    tiny = sv[0] * 1e-12 if sv.size and sv[0] > 0 else 1.0
+    inv = (Vt.T / np.maximum(sv, tiny) ** 2) @ Vt
+    cov = s2 * inv / np.outer(D, D)
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    corr = np.clip(np.nan_to_num(corr), -1.0, 1.0)
+    values = np.array(list(problem.values(u).values()))
+    q = float(student_t.ppf(0.975, dof))
+    ci = np.column_stack([values - q * se, values + q * se])
+    warnings: list[str] = []
+    keys = problem.keys
+    cond = float(sv[0] / sv[-1]) if sv.size and sv[-1] > 0 else math.inf
+    if cond > CONDITION_LIMIT:
+        v = np.abs(Vt[-1])
+        names = [keys[i] for i in np.flatnonzero(v > 0.3)] or [keys[int(v.argmax())]]
+        warnings.append(
+            f"near-singular J^T J (condition number {cond * cond:.3g}): the data cannot "
+            f"separate {', '.join(names)}; fix one of them or add data that tell them apart"
+        )
+    for i in range(k):
+        for j in range(i + 1, k):
+            if abs(corr[i, j]) > CORRELATION_LIMIT:
+                warnings.append(
+                    f"{keys[i]} and {keys[j]} are correlated (r = {corr[i, j]:+.4f}): the data "
+                    "determine a combination of them, not each one"
+                )
+    for i, p in enumerate(problem.free):
+        if 2 * q * se[i] > p.high - p.low:
+            warnings.append(
+                f"the data barely inform {p.key}: its 95 % interval is wider than its bounds"
+            )
+        if u[i] < 1e-6 or u[i] > 1 - 1e-6:
+            warnings.append(
+                f"{p.key} ended at its bound ({values[i]:.6g} {p.unit}); the interval assumes "
+                "an optimum inside the bounds: widen them"
+            )
+    return (
+        Statistics(keys, values, se, ci, cov, corr, math.sqrt(s2), dof, sv, warnings),
+        e,
+    )
+
+
+def _lhs(k: int, n: int, seed: int) -> np.ndarray:
+    from scipy.stats import qmc
+
+    if n <= 0:
+        return np.zeros((0, k))
+    return qmc.LatinHypercube(d=k, seed=seed).random(n)
+
+
+def global_stage(
+    problem: Problem,
+    method: str,
+    starts: int,
+    seed: int,
+    max_nfev: int,
+    progress: Progress | None = None,
+) -> list[dict[str, Any]]:
+    """End points of the global stage, best first: ``[{"u", "cost", "start"}]``."""
+    kind = "events" if problem.has_events and problem.use_events else "record"
+    u0 = problem.u_start
+    if method == "none" or (starts <= 1 and method == "multistart"):
+        return [{"u": u0, "cost": math.nan, "start": u0, "kind": "none"}]
+    if method == "differential_evolution":
+        from scipy.optimize import differential_evolution
+
+        f = problem.event_residuals if kind == "events" else problem.residuals
+        n = f(u0).r.size
+        g = _guard(f, n)
+
+        def obj(u: np.ndarray) -> float:
+            r = g(u).r
+            return 0.5 * float(np.dot(r, r))
+
+        out = differential_evolution(
+            obj,
+            [(0.0, 1.0)] * u0.size,
+            seed=seed,
+            maxiter=max(10, max_nfev),
+            popsize=max(5, starts),
+            x0=u0,
+            polish=False,
+            tol=1e-8,
+        )
+        return [{"u": np.asarray(out.x), "cost": float(out.fun), "start": u0, "kind": kind}]
+    points = np.vstack([u0[None, :], _lhs(u0.size, starts - 1, seed)])
+    ends = []
+    for i, s in enumerate(points):
+        if progress is not None:
+            progress(f"global stage: start {i + 1} of {len(points)} ({kind} residuals)")
+        try:
+            lf = local_fit(problem, s, kind, max_nfev=max(10, max_nfev // 2))
+        except SimulationError:
+            continue
+        ends.append({"u": lf.u, "cost": lf.cost, "start": s, "kind": kind})
+    if not ends:
+        raise SimulationError("every start of the global stage failed; narrow the bounds")
+    ends.sort(key=lambda d: d["cost"])
+    return ends
+
+
+def _distinct(ends: list[dict[str, Any]], m: int) -> list[np.ndarray]:
+    out: list[np.ndarray] = []
+    for e in ends:
+        if all(np.max(np.abs(e["u"] - o)) > 1e-3 for o in out):
+            out.append(e["u"])
+        if len(out) == m:
+            break
+    return out
+
+
+def fit_problem(
+    problem: Problem,
+    method: str = "multistart",
+    starts: int = 6,
+    seed: int = 1,
+    max_nfev: int = 60,
+    progress: Progress | None = None,
+) -> tuple[LocalFit, list[dict[str, Any]]]:
+    """Global stage, then local least squares on the record residuals from the best two
+    end points; returns the best local fit and the global end points."""
+    ends = global_stage(problem, method, starts, seed, max_nfev, progress)
+    best: LocalFit | None = None
+    for i, u in enumerate(_distinct(ends, 2)):
+        if progress is not None:
+            progress(f"local least squares {i + 1} (record residuals)")
+        lf = local_fit(problem, u, "record", max_nfev=max_nfev)
+        if best is None or lf.cost < best.cost:
+            best = lf
+    assert best is not None
+    return best, ends
+
+
+def profile(
+    problem: Problem,
+    key: str,
+    u_opt: np.ndarray,
+    stats: Statistics,
+    points: int,
+    max_nfev: int,
+) -> Profile:
+    """Profile likelihood of ``key``: fixed on a grid of ``points`` values over
+    p^ +- 4 se (within the bounds), the other free parameters refitted from the optimum."""
+    i = problem.keys.index(key)
+    p = problem.free[i]
+    v0, se = float(stats.values[i]), float(stats.stderr[i])
+    span = 4.0 * se if math.isfinite(se) and se > 0 else 0.25 * (p.high - p.low)
+    grid = np.linspace(max(p.low, v0 - span), min(p.high, v0 + span), points)
+    others = [q for q in problem.free if q.key != key]
+    base = problem.residuals(u_opt).r
+    rss0 = float(np.dot(base, base))
+    s2 = stats.residual_std**2
+    delta = np.empty(points)
+    u_others = np.delete(u_opt, i)
+    for j, v in enumerate(grid):
+        sc = problem.scenario.with_overrides({key: float(v)})
+        if others:
+            sub = Problem(
+                sc,
+                problem.record,
+                others,
+                problem.quantities,
+                problem.sigma,
+                "exact" if problem.exact else "fd",
+            )
+            lf = local_fit(sub, u_others, "record", max_nfev=max_nfev)
+            r = sub.residuals(lf.u).r
+        else:
+            sub = Problem(sc, problem.record, [p], problem.quantities, problem.sigma, "fd")
+            r = sub.residuals(np.array([p.to_unit(float(v))])).r
+        delta[j] = (float(np.dot(r, r)) - rss0) / s2
+    return Profile(key, grid, delta, _crossings(grid, delta, v0, 3.841))
+
+
+def _crossings(
+    x: np.ndarray, d: np.ndarray, x0: float, level: float
+) -> tuple[float | None, float | None]:
+    """Where the profile rises through ``level`` on each side of the optimum x0 (linear
+    interpolation between grid points); None where it stays below within the grid."""
+    lo = hi = None
+    left = np.flatnonzero(x <= x0)
+    for a in left[::-1]:
+        if a + 1 < x.size and d[a] >= level > d[a + 1]:
+            lo = float(x[a] + (level - d[a]) * (x[a + 1] - x[a]) / (d[a + 1] - d[a]))
+            break
+    right = np.flatnonzero(x >= x0)
+    for b in right:
+        if b > 0 and d[b] >= level > d[b - 1]:
+            hi = float(x[b - 1] + (level - d[b - 1]) * (x[b] - x[b - 1]) / (d[b] - d[b - 1]))
+            break
+    return lo, hi
+
+
+def information_criteria(rss: float, n: int, k: int) -> tuple[float, float]:
+    """(AIC, BIC) of a least-squares fit with Gaussian errors of unknown variance."""
+    ll = n * math.log(max(rss, 1e-300) / n)
+    return ll + 2 * k, ll + k * math.log(n)
+
+
+def fit_law(
+    spec: FitSpec, record: Record, law: str, sigma: Mapping[str, float], progress: Progress | None
+) -> tuple[LawResult, Problem, LocalFit, list[dict[str, Any]]]:
+    """Fit with the track contact law ``law`` (free parameters it ignores dropped); returns
+    its result, problem, local fit and the end points of its global stage."""
+    sc = spec.scenario.with_overrides({"contact.track.model": law})
+    pr = Problem(sc, record, spec.free, spec.quantities, sigma, spec.jacobian)
+    J = pr.residuals(pr.u_start, jac=True).J
+    assert J is not None
+    norms = np.sqrt(np.sum(J * J, axis=0))
+    used = [
+        p
+        for p, nrm in zip(spec.free, norms, strict=True)
+        if nrm > UNINFORMED * max(norms.max(), 1e-300)
+    ]
+    if len(used) != len(spec.free):
+        pr = Problem(sc, record, used, spec.quantities, sigma, spec.jacobian)
+    pr.use_events = spec.events
+    lf, ends = fit_problem(
+        pr, spec.global_method, spec.starts, spec.seed, spec.max_evaluations, progress
+    )
+    e = pr.residuals(lf.u)
+    rss = float(np.dot(e.r, e.r))
+    aic, bic = information_criteria(rss, e.r.size, len(used))
+    vals = pr.values(lf.u)
+    fitted = pr.scenario_at(lf.u)
+    assert e.result is not None
+    eff = float(e.result.stats.get("track_effective_restitution", math.nan))
+    return (
+        LawResult(
+            law,
+            pr.keys,
+            vals,
+            0.5 * rss,
+            e.r.size,
+            len(used),
+            aic,
+            bic,
+            float(fitted["contact.track.restitution"]),
+            eff,
+            lf.converged,
+        ),
+        pr,
+        lf,
+        ends,
+    )
+
+
+#: AIC differences below this are numerically equal fits (the same force law reparametrised)
+AIC_TIE = 0.01
+
+
+def select_law(laws: Sequence[LawResult], preferred: str) -> tuple[str, list[str]]:
+    """The law of lowest AIC (among numerically equal fits, ``preferred`` or the first
+    listed), and notes on the laws the data do not tell apart (Delta AIC < 2).
+
+    With the restitution free, every dissipative law of the same exponent gives the same
+    force law for a matching c_r (the laws differ only in the damping factor D(c_r)): their
+    fits are equal and only the fitted restitutions differ.
+    """
+    best = min(lr.aic for lr in laws)
+    ties = [lr for lr in laws if lr.aic - best < AIC_TIE]
+    pick = next((lr for lr in ties if lr.law == preferred), ties[0])
+    notes = []
+    close = [lr for lr in laws if lr.law != pick.law and lr.aic - best < 2.0]
+    if close:
+        eq = [lr for lr in close if lr.aic - best < AIC_TIE]
+        text = ", ".join(f"{lr.law} (Delta AIC {lr.aic - best:.3g})" for lr in close)
+        why = (
+            " (equal fits: the same force law with another restitution; fix "
+            "contact.track.restitution to compare the laws' damping factors)"
+            if eq
+            else ""
+        )
+        notes.append(f"the data do not distinguish {pick.law} from {text}{why}")
+    return pick.law, notes
+
+
+def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) -> FitResult:
+    """Fit ``spec`` to ``record`` (see the module docstring for the method).
+
+    Raises
+    ------
+    InputError
+        A fitted quantity missing from the record; a record without an impact; a free
+        parameter that the data cannot inform.
+    SimulationError
+        The simulator failed at every start.
+    """
+    t0 = time.perf_counter()
+    say = progress or (lambda s: None)
+    problem = Problem(spec.scenario, record, spec.free, spec.quantities, spec.noise, spec.jacobian)
+    problem.use_events = spec.events
+    # a record shorter than one impact cannot inform contact parameters
+    start_run = problem.run(problem.u_start)
+    n_model = int(
+        np.sum(
+            np.asarray(start_run.impacts["pair"] == "track")
+            & ~np.asarray(start_run.impacts["initial"])
+        )
+    )
+    if problem.event_quantity is not None and not problem.has_events and n_model == 0:
+        raise InputError(
+            f"--data: the record {record.source} ({record.duration:g} s) holds no impact; "
+            "allowed a record of at least one impact"
+        )
+    if problem.event_quantity is None and n_model == 0:
+        raise InputError(
+            f"--data: the record {record.source} ({record.duration:g} s) is shorter than the "
+            "first impact of the scenario at the start values; allowed a record of at least "
+            "one impact"
+        )
+    check_informed(problem, problem.u_start)
+    laws = list(spec.laws)
+    law0 = str(spec.scenario["contact.track.model"])
+    law_results: list[LawResult] = []
+    chosen: tuple[Problem, LocalFit] | None = None
+    ends: list[dict[str, Any]] = []
+    law_notes: list[str] = []
+    selected = ""
+    if laws:
+        if law0 not in laws:
+            laws.insert(0, law0)
+        fits: dict[str, tuple[Problem, LocalFit, list[dict[str, Any]]]] = {}
+        for law in laws:
+            say(f"contact law {law}")
+            lr, pr, lf, law_ends = fit_law(spec, record, law, problem.sigma, say)
+            law_results.append(lr)
+            fits[law] = (pr, lf, law_ends)
+        selected, law_notes = select_law(law_results, law0)
+        chosen = fits[selected][:2]
+        ends = fits[selected][2]
+        # by AIC, the selected law first among equal fits
+        law_results.sort(key=lambda r: r.aic - (AIC_TIE if r.law == selected else 0.0))
+    if chosen is None:
+        lf, ends = fit_problem(
+            problem, spec.global_method, spec.starts, spec.seed, spec.max_evaluations, say
+        )
+        chosen = (problem, lf)
+    pr, lf = chosen
+    say("statistics at the optimum")
+    stats, e = statistics(pr, lf.u)
+    stats.warnings.extend(law_notes)
+
+    dropped = [k for k in problem.keys if k not in pr.keys]
+    if dropped:
+        stats.warnings.append(
+            f"the selected law {selected} does not use {', '.join(dropped)}: not estimated"
+        )
+    profiles = []
+    for key in spec.profile:
+        say(f"profile likelihood of {key}")
+        profiles.append(profile(pr, key, lf.u, stats, spec.profile_points, spec.max_evaluations))
+    assert e.result is not None
+    prediction = {q: _predict(e.result, q) for q in pr.quantities}
+    return FitResult(
+        law=str(pr.scenario["contact.track.model"]),
+        keys=pr.keys,
+        free=pr.free,
+        stats=stats,
+        converged=lf.converged,
+        cost=lf.cost,
+        n_data=int(e.r.size),
+        noise=dict(pr.sigma),
+        quantities=pr.quantities,
+        record=record,
+        prediction=prediction,
+        scenario=pr.scenario_at(lf.u),
+        jacobian="exact" if pr.exact else "fd",
+        starts=[
+            {
+                "start": pr.values(d["start"]),
+                "end": pr.values(d["u"]),
+                "cost": d["cost"],
+                "residuals": d["kind"],
+            }
+            for d in ends
+        ],
+        profiles=profiles,
+        laws=law_results,
+        impacts_in_record=int(problem.onsets.size),
+        evaluations=problem.evaluations + pr.evaluations
+        if pr is not problem
+        else problem.evaluations,
+        seconds=time.perf_counter() - t0,
+        onsets=problem.onsets,
+        notes=sorted(problem.notes | pr.notes),
+    )
+
+
+def _predict(res: Any, q: str) -> np.ndarray:
+    from braidsim.fit.problem import predict
+
+    return predict(res, q)
+
+
+def fit(
+    scenario: Scenario | str | Mapping[str, Any],
+    data: Any,
+    free: Mapping[str, Sequence[Any]],
+    quantity: str | Sequence[str] = "x",
+    overrides: Mapping[str, Any] | None = None,
+    progress: Progress | None = None,
+    **options: Any,
+) -> FitResult:
+    """Fit free scenario parameters to a measured record (the Python face of ``braidsim fit``).
+
+    Parameters
+    ----------
+    scenario : Scenario, str or mapping
+        A loaded scenario, a built-in name or a scenario TOML path.
+    data : path, xarray.Dataset or Record
+        The record (see :mod:`braidsim.fit.data`).
+    free : mapping
+        ``{key: [low, high]}``, numbers in SI or unit strings.
+    quantity : str or list of str
+        The record's columns to fit (``x``, ``acceleration``, ``contact_force``).
+    overrides : mapping, optional
+        Applied to the scenario first.
+    **options
+        Any other key of the spec's ``[fit]`` table (``noise``, ``start``, ``jacobian``,
+        ``global_method`` for ``global``, ``starts``, ``events``, ``profile``,
+        ``profile_points``, ``laws``, ``seed``, ``max_evaluations``).
+
+    Returns
+    -------
+    FitResult
+    """
+    from braidsim.fit.data import read_record
+    from braidsim.fit.spec import parse_fit_spec
+
+    if "global_method" in options:  # `global` is a Python keyword
+        options["global"] = options.pop("global_method")
+
+    table: dict[str, Any] = {"fit": {"free": dict(free), "quantity": quantity, **options}}
+    if overrides:
+        table["overrides"] = dict(overrides)
+    if isinstance(scenario, Scenario):
+        spec = parse_fit_spec(table, scenario=scenario)
+    else:
+        table["scenario"] = str(scenario) if not isinstance(scenario, Mapping) else ""
+        spec = parse_fit_spec(
+            table,
+            scenario=load_scenario(scenario) if isinstance(scenario, Mapping) else None,
+        )
+    return fit_record(spec, read_record(data), progress)

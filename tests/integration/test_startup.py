@@ -1,0 +1,140 @@
+"""What the start of the package and of the command line imports.
+
+A warm ``braidsim run`` spends most of its CPU time importing; these tests keep the heavy
+modules out of the paths that do not need them (each check runs in a fresh interpreter and
+reads its ``sys.modules``). Times are measured by ``benchmarks/bench_startup.py``, not here.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import struct
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from braidsim.cli import VERBS
+from braidsim.errors import InputError
+
+#: modules of outputs, plots and parallel runs: never needed to start or to run one simulation
+HEAVY = ("matplotlib", "xarray", "zarr", "dask", "netCDF4", "h5netcdf", "rich.progress")
+
+
+def _modules_after(code: str, *argv: str) -> set[str]:
+    """The names in ``sys.modules`` when a fresh interpreter that ran ``code`` exits (read at
+    exit, so that a command line ending in ``sys.exit`` is covered)."""
+    prelude = (
+        "import atexit, json, sys\n"
+        "def _report(): sys.stderr.write('\\nMODULES ' + json.dumps(sorted(sys.modules)))\n"
+        "atexit.register(_report)\n"
+        f"sys.argv = ['braidsim', *{list(argv)!r}]\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", prelude + code],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    line = proc.stderr.rsplit("MODULES ", 1)[-1]
+    return set(json.loads(line))
+
+
+def _loaded(modules: set[str], names: tuple[str, ...]) -> list[str]:
+    return sorted(n for n in names if n in modules)
+
+
+def test_import_braidsim_loads_no_dependency() -> None:
+    """``import braidsim`` imports its exceptions only; the public names load on first use."""
+    mods = _modules_after("import braidsim")
+    heavy = (*HEAVY, "numba", "numpy", "pint", "pandas", "scipy", "typer")
+    assert _loaded(mods, heavy) == []
+    assert "braidsim.simulate" not in mods
+
+
+def test_public_api_after_lazy_import() -> None:
+    """The public names resolve to the objects of their modules; ``braidsim.simulate`` is the
+    function even when its submodule is imported first."""
+    code = (
+        "import braidsim.simulate, braidsim.params, braidsim.result\n"
+        "import braidsim\n"
+        "assert callable(braidsim.simulate)\n"
+        "assert braidsim.simulate is braidsim.simulate.__globals__['simulate']\n"
+        "assert braidsim.load_scenario is braidsim.params.load_scenario\n"
+        "assert braidsim.Result is braidsim.result.Result\n"
+        "assert set(braidsim.__all__) <= set(dir(braidsim))\n"
+        "for name in braidsim.__all__: getattr(braidsim, name)\n"
+    )
+    _modules_after(code)
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["run", "--help"], ["--version"]])
+def test_cli_start_loads_no_heavy_module(argv: list[str]) -> None:
+    """Help and version load neither the compiled core nor any output library."""
+    mods = _modules_after("from braidsim.cli import main\nmain()", *argv)
+    heavy = (*HEAVY, "numba", "pint", "pandas", "scipy")
+    assert _loaded(mods, heavy) == []
+
+
+def test_cli_run_loads_no_output_module() -> None:
+    """``braidsim run SCENARIO --json`` loads no plotting, storage or dask module, no other
+    verb's module, and no pint: the units of the built-in scenarios are read without it (see
+    the next test)."""
+    mods = _modules_after(
+        "from braidsim.cli import main\nmain()", "run", "paper-3.3", "--duration", "0.01", "--json"
+    )
+    assert _loaded(mods, (*HEAVY, "scipy.integrate", "pint", "pandas")) == []
+    assert "braidsim.cli.run" in mods
+    others = {f"braidsim.cli.{m}" for m in VERBS.values()} - {"braidsim.cli.run"}
+    assert sorted(others & mods) == []
+
+
+def test_verb_table_matches_registrations() -> None:
+    """``braidsim.cli.VERBS`` names every registered verb with the module that registers it."""
+    code = (
+        "import json\n"
+        "from braidsim.cli import VERBS, _register, app\n"
+        "_register()\n"
+        "found = {}\n"
+        "for c in app.registered_commands:\n"
+        "    name = c.name or c.callback.__name__.replace('_', '-')\n"
+        "    found[name] = c.callback.__module__.rsplit('.', 1)[-1]\n"
+        "assert found == VERBS, (found, VERBS)\n"
+    )
+    _modules_after(code)
+
+
+def _bits(x: float) -> bytes:
+    return struct.pack("<d", x)
+
+
+def _read(units: object, text: str, target: str) -> tuple[str, bytes]:
+    """The SI value of ``text`` as bits, or the error it raises (type and message)."""
+    try:
+        return "ok", _bits(units.parse_quantity("key", text, target)[0])  # type: ignore[attr-defined]
+    except InputError as exc:
+        return "InputError", str(exc).encode()
+
+
+def test_units_without_pint_match_pint_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The table of common units in ``braidsim.units`` gives pint's values, bit for bit
+    (finite, zero, signed, huge, tiny, infinite and NaN magnitudes; errors alike)."""
+    from braidsim import units
+
+    rng = np.random.default_rng(13)
+    mags = [0.0, -0.0, 1.0, 0.12, 2.0, 60.0, 200.0, 5e-324, 1e-300, 1e300, math.inf, math.nan]
+    mags += list(rng.lognormal(0.0, 8.0, 200)) + list(-rng.lognormal(0.0, 8.0, 50))
+    cases = [*units._SI_FACTORS, *((f, "rad/s") for f in units._FREQUENCY_FACTORS)]
+    assert len(cases) >= 8
+    for unit_text, target in cases:
+        texts = [f"{m!r} {unit_text}" for m in mags] + [f"{unit_text}", f"3/4 {unit_text}"]
+        fast = [_read(units, t, target) for t in texts]
+        with monkeypatch.context() as mp:
+            mp.setattr(units, "_SI_FACTORS", {})
+            mp.setattr(units, "_FREQUENCY_FACTORS", {})
+            slow = [_read(units, t, target) for t in texts]
+        assert fast == slow, (unit_text, target)
