@@ -25,6 +25,7 @@ VERBS = {
     "basins": "analysis",
     "lyapunov": "analysis",
     "analyze": "analysis",
+    "continue": "continue_",
     "design": "design",
     "fit": "fit",
     "machine": "machine",

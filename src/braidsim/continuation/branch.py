@@ -1,0 +1,891 @@
+"""Pseudo-arclength continuation of periodic orbits, with bifurcations and grazing.
+
+Continuation
+------------
+The orbits of one structure (period, cuts) satisfy r(U) = 0, U = (scaled states, lambda / P),
+one equation fewer than unknowns: a curve. From a point U_i with unit tangent tau_i (the null
+vector of Dr(U_i), oriented as the last one) the next is found by the predictor
+U_p = U_i + h tau_i and Newton's method on
+
+    r(U) = 0,    tau_i . (U - U_p) = 0
+
+(Keller, H. B. (1977), Numerical solution of bifurcation and nonlinear eigenvalue problems,
+in Applications of Bifurcation Theory, Academic Press, 359-384). The step h grows by 1.5
+after a corrector of at most 2 iterations and halves after a failure, between ``min_step``
+and ``max_step`` (in units of the scaled arclength: lambda in units of P = |to - from|, the
+state in units of L and L Omega).
+
+Special points between two consecutive points
+---------------------------------------------
+* fold: the parameter component of the tangent changes sign (a multiplier crosses +1);
+* period doubling: det(M + I) changes sign (a real multiplier crosses -1);
+* Neimark-Sacker: a complex pair crosses the unit circle (|mu| - 1 of the pair nearest the
+  circle changes sign, complex on both sides);
+* grazing: the orbit's contact structure changes (contact onsets per orbit, their walls, or
+  the contacts at a cut): a free-flight gap minimum or a contact's depth reached zero.
+
+Each is located on the secant between the two points (points corrected back onto the
+branch on hyperplanes orthogonal to the secant): by the Illinois variant of regula falsi on
+its test function, by bisection on the contact structure for grazing. Smooth test functions
+and the nonsmooth grazing are kept apart: a multiplier that jumps across the unit circle at
+a grazing is reported as the grazing, not as a bifurcation.
+
+Branch switching at period doubling: the period-2k orbit is sought near the doubling
+point at lambda* +/- delta from z* +/- eps w on alternate periods (w the eigenvector of
+multiplier -1), and continued away from lambda*.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from braidsim.continuation.orbit import (
+    DEFAULT_TOL,
+    ContinuationError,
+    Cut,
+    Orbit,
+    Shooter,
+    cuts_from,
+    finish,
+    reseat,
+    solve_fixed,
+    states_at,
+)
+from braidsim.errors import InputError, SimulationError
+
+SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "grazing")
+
+
+@dataclass
+class SpecialPoint:
+    """A bifurcation or grazing located on a branch.
+
+    Attributes
+    ----------
+    type : str
+        One of :data:`SPECIAL_TYPES`.
+    value : float
+        The parameter there [SI].
+    period : int
+        The orbit's period [forcing cycles].
+    index : int
+        The branch point after which it lies.
+    orbit : Orbit or None
+        The orbit there (for grazing: the last orbit of the earlier structure).
+    detail : str
+        What changed (multiplier, walls).
+    """
+
+    type: str
+    value: float
+    period: int
+    index: int
+    orbit: Orbit | None = None
+    detail: str = ""
+    other: Orbit | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form (SI)."""
+        return {
+            "type": self.type,
+            "value": self.value,
+            "period": self.period,
+            "detail": self.detail,
+        }
+
+
+@dataclass
+class Branch:
+    """A continued branch of periodic orbits.
+
+    Attributes
+    ----------
+    key : str
+        The continuation parameter.
+    period : int
+        k [forcing cycles].
+    points : list of Orbit
+        The orbits, in arclength order.
+    special : list of SpecialPoint
+    stop : str
+        Why the continuation ended.
+    children : list of Branch
+        Branches switched to at period doublings.
+    """
+
+    key: str
+    period: int
+    points: list[Orbit] = field(default_factory=list)
+    special: list[SpecialPoint] = field(default_factory=list)
+    stop: str = ""
+    children: list[Branch] = field(default_factory=list)
+    tangents: list[np.ndarray] = field(default_factory=list, repr=False)
+    steps: list[float] = field(default_factory=list, repr=False)
+
+    @property
+    def values(self) -> np.ndarray:
+        """The parameter at each point [SI]."""
+        return np.array([o.values[self.key] for o in self.points])
+
+    @property
+    def stable(self) -> np.ndarray:
+        """Stability of each point."""
+        return np.array([o.stable for o in self.points])
+
+    def all_branches(self) -> list[Branch]:
+        """This branch and its children, depth first."""
+        out = [self]
+        for c in self.children:
+            out.extend(c.all_branches())
+        return out
+
+
+def _test_pd(o: Orbit) -> float:
+    M = o.monodromy
+    return float(np.linalg.det(M + np.eye(M.shape[0])))
+
+
+def _below_minus_one(o: Orbit) -> int:
+    """Real multipliers below -1 (a period doubling changes their number by one; a
+    sign change of det(M + I) without it is a complex pair turning real, or noise)."""
+    mu = o.multipliers
+    real = np.abs(mu.imag) <= 1e-9 * np.maximum(1.0, np.abs(mu))
+    return int(np.count_nonzero(real & (mu.real < -1.0)))
+
+
+def _test_ns(o: Orbit) -> float | None:
+    mu = o.multipliers
+    cx = mu[np.abs(mu.imag) > 1e-9 * np.maximum(1.0, np.abs(mu))]
+    if cx.size == 0:
+        return None
+    return float(np.abs(cx[np.argmin(np.abs(np.abs(cx) - 1.0))]) - 1.0)
+
+
+def signature(o: Orbit) -> tuple[Any, ...]:
+    """The contact structure of an orbit: onsets per orbit on each wall and the contacts at
+    the cuts (a change between two points is a grazing)."""
+    p = o.profile
+    walls = tuple(sorted(zip(p.onset_pairs.tolist(), p.onset_walls.tolist(), strict=True)))
+    return (walls, tuple(c.modes for c in o.cuts), tuple(c.v0_state for c in o.cuts))
+
+
+def _null_vector(DR: np.ndarray) -> np.ndarray:
+    _, _, vt = np.linalg.svd(DR)
+    v = vt[-1]
+    return v / np.linalg.norm(v)
+
+
+class Continuer:
+    """Runs the continuation of one branch (see :func:`continue_orbit`)."""
+
+    def __init__(
+        self,
+        system: Any,
+        key: str,
+        bounds: tuple[float, float],
+        *,
+        method: str = "auto",
+        tol: float = DEFAULT_TOL,
+        step: float = 0.02,
+        min_step: float = 1e-6,
+        max_step: float = 0.1,
+        max_points: int = 200,
+        pscale: float | None = None,
+        on_point: Callable[[Orbit], None] | None = None,
+        stop_on: str | None = None,
+    ) -> None:
+        lo, hi = sorted(bounds)
+        self.stop_on = stop_on
+        self.system = system
+        self.key = key
+        self.lo, self.hi = lo, hi
+        self.method = method
+        self.tol = tol
+        self.h0, self.hmin, self.hmax = step, min_step, max_step
+        self.max_points = max_points
+        self.pscale = pscale if pscale else (hi - lo if hi > lo else max(abs(hi), 1.0))
+        self.on_point = on_point
+
+    # -- pieces ----------------------------------------------------------------------
+    def shooter(self, o: Orbit) -> Shooter:
+        return Shooter(
+            self.system,
+            dict(o.values),
+            self.key,
+            o.period,
+            o.phase,
+            o.cuts,
+            self.method,
+            self.pscale,
+        )
+
+    def tangent(
+        self, sh: Shooter, U: np.ndarray, prev: np.ndarray | None, direction: float
+    ) -> np.ndarray:
+        _, DR, _ = sh.residual(U)
+        tau = _null_vector(DR)
+        if prev is not None and prev.size == tau.size:
+            if float(tau @ prev) < 0:
+                tau = -tau
+        elif tau[-1] * direction < 0:
+            tau = -tau
+        return tau
+
+    def correct(self, sh: Shooter, Up: np.ndarray, normal: np.ndarray) -> Orbit:
+        """Newton on r(U) = 0, normal . (U - Up) = 0."""
+        from braidsim.continuation.orbit import newton
+
+        def F(U: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
+            R, DR, Js = sh.residual(U)
+            G = np.concatenate([R, [float(normal @ (U - Up))]])
+            return G, np.vstack([DR, normal]), Js
+
+        U, res, its, Js = newton(F, Up, self.tol, max_iter=8)
+        o = finish(sh, U, res, its, Js)
+        return o
+
+    def at_value(self, sh: Shooter, U0: np.ndarray, lam: float) -> Orbit:
+        """Correct onto the branch at the parameter value ``lam``."""
+        e = np.zeros(U0.size)
+        e[-1] = 1.0
+        Up = U0.copy()
+        Up[-1] = lam / self.pscale
+        return self.correct(sh, Up, e)
+
+    # -- the run ------------------------------------------------------------------------
+    def run(self, start: Orbit, direction: float, branch: Branch | None = None) -> Branch:
+        br = branch if branch is not None else Branch(self.key, start.period)
+        if branch is None:
+            br.points.append(start)
+            if self.on_point:
+                self.on_point(start)
+        o = br.points[-1]
+        sh = self.shooter(o)
+        U = sh.pack(o.z, o.values[self.key])
+        tau = self.tangent(sh, U, br.tangents[-1] if br.tangents else None, direction)
+        if not br.tangents:
+            br.tangents.append(tau)
+        h = br.steps[-1] if br.steps else self.h0
+        reseated = False
+        while len(br.points) < self.max_points:
+            try:
+                nxt = self.correct(sh, U + h * tau, tau)
+            except (ContinuationError, SimulationError, np.linalg.LinAlgError) as exc:
+                h *= 0.5
+                if h < self.hmin:
+                    if not reseated:
+                        try:
+                            o = reseat(o, self.system, self.method)
+                        except (ContinuationError, SimulationError):
+                            lam_o = o.values[self.key]
+                            br.stop = (
+                                f"step below {self.hmin:g} at {self.key} = {lam_o:.6g} ({exc})"
+                            )
+                            break
+                        sh = self.shooter(o)
+                        U = sh.pack(o.z, o.values[self.key])
+                        tau = self.tangent(
+                            sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
+                        )
+                        h = self.h0
+                        reseated = True
+                        continue
+                    br.stop = (
+                        f"step below {self.hmin:g} at {self.key} = {o.values[self.key]:.6g} ({exc})"
+                    )
+                    jumped = self.past_grazing(
+                        br, direction if not br.tangents else float(np.sign(tau[-1]) or direction)
+                    )
+                    if jumped is None:
+                        break
+                    o = jumped
+                    sh = self.shooter(o)
+                    U = sh.pack(o.z, o.values[self.key])
+                    tau = self.tangent(sh, U, None, float(np.sign(tau[-1]) or direction))
+                    h = self.h0
+                    reseated = False
+                    continue
+                continue
+            reseated = False
+            lam = nxt.values[self.key]
+            done = False
+            if lam > self.hi or lam < self.lo:
+                edge = self.hi if lam > self.hi else self.lo
+                try:
+                    nxt = self.at_value(sh, sh.pack(nxt.z, lam), edge)
+                except (ContinuationError, SimulationError):
+                    br.stop = f"could not land on the end value {edge:g}"
+                    break
+                done = True
+            sh_new = self.shooter(nxt)
+            U_new = sh_new.pack(nxt.z, nxt.values[self.key])
+            try:
+                tau_new = self.tangent(sh_new, U_new, tau, direction)
+            except (ContinuationError, SimulationError) as exc:
+                br.stop = f"tangent failed at {self.key} = {lam:.6g} ({exc})"
+                break
+            n_special = len(br.special)
+            self.detect(br, o, nxt, sh, U, U_new, tau, tau_new)
+            if self.stop_on and any(sp.type == self.stop_on for sp in br.special[n_special:]):
+                br.points.append(nxt)
+                br.stop = f"found a {self.stop_on} point"
+                break
+            # a grazing may have changed the cuts' structure: re-solve with the new one
+            nxt2 = self.restructure(nxt)
+            if nxt2 is not nxt:
+                nxt = nxt2
+                sh_new = self.shooter(nxt)
+                U_new = sh_new.pack(nxt.z, nxt.values[self.key])
+                tau_new = self.tangent(
+                    sh_new, U_new, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
+                )
+            br.points.append(nxt)
+            br.tangents.append(tau_new)
+            if self.on_point:
+                self.on_point(nxt)
+            o, sh, U, tau = nxt, sh_new, U_new, tau_new
+            if nxt.iterations <= 2:
+                h = min(h * 1.5, self.hmax)
+            elif nxt.iterations >= 5:
+                h *= 0.7
+            br.steps.append(h)
+            if len(br.points) > 3 and self._closed(br, sh_new, U_new, h):
+                br.stop = f"the branch closed on itself at {self.key} = {lam:.6g}"
+                break
+            if done:
+                br.stop = f"reached {self.key} = {nxt.values[self.key]:.6g}"
+                break
+            # keep the cuts away from onsets and exits
+            prof = o.profile
+            T = prof.period / o.period
+            w = 2 * math.pi / T
+            tcut = o.phase / w
+            if any(
+                prof.event_distance(tcut + j * prof.period / o.segments) < 0.01 * prof.period
+                for j in range(o.segments)
+            ):
+                try:
+                    o = reseat(o, self.system, self.method)
+                    br.points[-1] = o
+                    sh = self.shooter(o)
+                    U = sh.pack(o.z, o.values[self.key])
+                    tau = self.tangent(sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction)
+                    br.tangents[-1] = tau
+                except (ContinuationError, SimulationError):
+                    pass
+        else:
+            br.stop = f"max_points = {self.max_points} reached"
+        return br
+
+    def past_grazing(self, br: Branch, direction: float) -> Orbit | None:
+        """Where a family ends at a grazing the corrector cannot step over (a contact that
+        lifts off: beyond it the orbit has a new short flight and a new impact): when the
+        last points' distance to grazing extrapolates to zero within one step, record the
+        grazing there and seed the orbit just beyond it from a run started on the last
+        orbit. None when that does not apply or fails."""
+        from braidsim.continuation.orbit import seed_orbit
+
+        if len(br.points) < 2:
+            return None
+        o1, o2 = br.points[-2], br.points[-1]
+        a1, a2 = o1.profile.approach, o2.profile.approach
+        l1, l2 = o1.values[self.key], o2.values[self.key]
+        if not (math.isfinite(a1) and math.isfinite(a2)) or a1 <= a2 or l1 == l2:
+            return None
+        lg = l2 - a2 * (l2 - l1) / (a2 - a1)
+        if abs(lg - l2) > 2 * abs(l2 - l1):
+            return None
+        sp = SpecialPoint(
+            "grazing",
+            float(lg),
+            o2.period,
+            len(br.points) - 1,
+            o2,
+            "the family ends where its distance to grazing extrapolates to zero",
+        )
+        br.special.append(sp)
+        beyond = lg + 0.5 * (l2 - l1) + 1e-3 * self.pscale * float(np.sign(l2 - l1))
+        if not (self.lo <= beyond <= self.hi):
+            return None
+        n = 2 * self.system.prepare(o2.values).n_coords
+        t0 = o2.phase / self.system.prepare(o2.values).omega
+        c0 = o2.cuts[0]
+        try:
+            nxt = seed_orbit(
+                self.system,
+                {**o2.values, self.key: beyond},
+                o2.period,
+                segments=o2.segments,
+                transient_cycles=100,
+                method=self.method,
+                tol=self.tol,
+                start=(t0, o2.z[0][:n], c0.modes, c0.v0s(o2.z[0][n:])),
+            )
+        except (ContinuationError, SimulationError, InputError):
+            return None
+        if signature(nxt) == signature(o2):
+            # a run from there settles on an orbit of the same structure (for a resting
+            # contact: one with another latched speed, which sets its damping)
+            return None
+        sp.detail += f"; onsets per orbit {list(signature(o2)[0])} -> {list(signature(nxt)[0])}"
+        sp.other = nxt
+        br.points.append(nxt)
+        if self.on_point:
+            self.on_point(nxt)
+        br.stop = ""
+        return nxt
+
+    def _closed(self, br: Branch, sh: Shooter, U: np.ndarray, h: float) -> bool:
+        """Whether the newest point is back at the first one (a closed branch, an isola)."""
+        first = br.points[0]
+        if first.cuts != br.points[-1].cuts or first.phase != br.points[-1].phase:
+            return False
+        U0 = sh.pack(first.z, first.values[self.key])
+        return bool(U0.size == U.size and np.linalg.norm(U - U0) < 0.5 * h)
+
+    def restructure(self, o: Orbit) -> Orbit:
+        """The orbit re-solved with cuts that match its contacts, when they changed."""
+        prep = self.system.prepare(o.values)
+        cuts = cuts_from(o.profile, prep.omega, o.phase, o.period, o.segments, 0.0)
+        if cuts == o.cuts or (
+            [c.modes for c in cuts] == [c.modes for c in o.cuts]
+            and [c.v0_state for c in cuts] == [c.v0_state for c in o.cuts]
+        ):
+            return o
+        n = 2 * prep.n_coords
+        c0 = o.cuts[0]
+        t0 = o.phase / prep.omega
+        times = t0 + np.arange(o.segments) * o.profile.period / o.segments
+        try:
+            z = states_at(
+                self.system, o.values, t0, o.z[0][:n], c0.modes, c0.v0s(o.z[0][n:]), times, cuts
+            )
+            return solve_fixed(
+                self.system, o.values, o.period, o.phase, cuts, z, self.method, self.tol
+            )
+        except (ContinuationError, SimulationError):
+            return o
+
+    # -- detection and location ------------------------------------------------------
+    def _secant_point(self, sh: Shooter, Ua: np.ndarray, Ub: np.ndarray, t: float) -> Orbit:
+        d = Ub - Ua
+        return self.correct(sh, Ua + t * d, d / np.linalg.norm(d))
+
+    def _locate(
+        self,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        fa: float,
+        fb: float,
+        f: Callable[[Orbit], float | None],
+    ) -> Orbit | None:
+        a, b = 0.0, 1.0
+        best = None
+        side = 0
+        for _ in range(20):
+            t = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
+            t = min(max(t, a + 0.02 * (b - a)), b - 0.02 * (b - a))
+            try:
+                o = self._secant_point(sh, Ua, Ub, t)
+            except (ContinuationError, SimulationError, np.linalg.LinAlgError):
+                return best
+            ft = f(o)
+            if ft is None:
+                return best
+            best = o
+            if abs(ft) < 1e-10 or (b - a) < 1e-6:
+                break
+            if (ft > 0) == (fa > 0):
+                a, fa = t, ft
+                if side == -1:
+                    fb *= 0.5
+                side = -1
+            else:
+                b, fb = t, ft
+                if side == 1:
+                    fa *= 0.5
+                side = 1
+        return best
+
+    def _locate_grazing(self, oa: Orbit, ob: Orbit) -> tuple[Orbit | None, Orbit | None]:
+        """Bisect in the parameter between two orbits of different contact structure. Each
+        trial is solved at fixed parameter from the last orbit of ``oa``'s structure, so the
+        bracket closes on where *that* family grazes (a family of the other structure may
+        overlap it: hysteresis at a grazing)."""
+        sig_a = signature(oa)
+        la, lb = oa.values[self.key], ob.values[self.key]
+        best_a: Orbit = oa
+        best_b: Orbit | None = ob
+        hist = [oa]
+        for _ in range(40):
+            lam = 0.5 * (la + lb)
+            try:
+                o: Orbit | None = solve_fixed(
+                    self.system,
+                    {**best_a.values, self.key: lam},
+                    best_a.period,
+                    best_a.phase,
+                    best_a.cuts,
+                    best_a.z,
+                    self.method,
+                    self.tol,
+                )
+            except (ContinuationError, SimulationError, np.linalg.LinAlgError):
+                o = None
+            if o is not None and signature(o) == sig_a:
+                la, best_a = lam, o
+                hist.append(o)
+            else:
+                lb = lam
+                if o is not None:
+                    best_b = o
+            if abs(lb - la) < 1e-7 * self.pscale:
+                break
+        self.grazing_value = float(la)
+        # the distance to grazing is linear in the parameter near a regular grazing: the
+        # secant of the last two orbits' approach distances finds its zero when the corrector
+        # gave up before the bracket closed (a stiff contact near lift-off)
+        if len(hist) >= 2:
+            o1, o2 = hist[-2], hist[-1]
+            a1, a2 = o1.profile.approach, o2.profile.approach
+            l1, l2 = o1.values[self.key], o2.values[self.key]
+            if math.isfinite(a1) and math.isfinite(a2) and a1 != a2 and l1 != l2:
+                lg = l2 - a2 * (l2 - l1) / (a2 - a1)
+                if min(la, lb) <= lg <= max(la, lb):
+                    self.grazing_value = float(lg)
+        return best_a, best_b
+
+    def detect(
+        self,
+        br: Branch,
+        oa: Orbit,
+        ob: Orbit,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        ta: np.ndarray,
+        tb: np.ndarray,
+    ) -> None:
+        idx = len(br.points) - 1
+        k = oa.period
+        if signature(oa) != signature(ob):
+            ga, gb = self._locate_grazing(oa, ob)
+            lam = self.grazing_value
+            pa, pb = signature(oa)[0], signature(ob)[0]
+            detail = f"onsets per orbit (pair, wall) {list(pa)} -> {list(pb)}"
+            if signature(oa)[1:] != signature(ob)[1:]:
+                detail += "; contacts at the section change"
+            br.special.append(SpecialPoint("grazing", float(lam), k, idx, ga, detail, gb))
+            # (the multipliers jump at the grazing: no smooth test across it; next to a
+            # grazing of a stiff contact they are not reliable on the near side either)
+            return
+        self.detect_smooth(br, oa, ob, sh, Ua, Ub, ta, tb, idx)
+
+    def detect_smooth(
+        self,
+        br: Branch,
+        oa: Orbit,
+        ob: Orbit,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        ta: np.ndarray,
+        tb: np.ndarray,
+        idx: int,
+    ) -> None:
+        """Folds, period doublings and Neimark-Sacker points between two orbits of one
+        structure."""
+        k = oa.period
+        if ta[-1] * tb[-1] < 0:
+
+            def f_fold(o: Orbit) -> float:
+                s = self.shooter(o)
+                U = s.pack(o.z, o.values[self.key])
+                return float(self.tangent(s, U, ta, 1.0)[-1])
+
+            of = self._locate(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
+            lam = (
+                of.values[self.key]
+                if of is not None
+                else 0.5 * (oa.values[self.key] + ob.values[self.key])
+            )
+            br.special.append(
+                SpecialPoint("fold", float(lam), k, idx, of, "a multiplier crosses +1")
+            )
+        pa, pb = _test_pd(oa), _test_pd(ob)
+        if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
+            op = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
+            lam = (
+                op.values[self.key]
+                if op is not None
+                else 0.5 * (oa.values[self.key] + ob.values[self.key])
+            )
+            br.special.append(
+                SpecialPoint("period_doubling", float(lam), k, idx, op, "a multiplier crosses -1")
+            )
+        na, nb = _test_ns(oa), _test_ns(ob)
+        if na is not None and nb is not None and na * nb < 0:
+            on = self._locate(sh, Ua, Ub, na, nb, _test_ns)
+            lam = (
+                on.values[self.key]
+                if on is not None
+                else 0.5 * (oa.values[self.key] + ob.values[self.key])
+            )
+            br.special.append(
+                SpecialPoint(
+                    "neimark_sacker",
+                    float(lam),
+                    k,
+                    idx,
+                    on,
+                    "a complex pair crosses the unit circle",
+                )
+            )
+
+
+def continue_orbit(
+    system: Any,
+    orbit: Orbit,
+    key: str,
+    to: float,
+    *,
+    both_directions: bool = False,
+    bounds: tuple[float, float] | None = None,
+    method: str = "auto",
+    tol: float = DEFAULT_TOL,
+    step: float = 0.02,
+    min_step: float = 1e-6,
+    max_step: float = 0.1,
+    max_points: int = 200,
+    switch: bool = True,
+    max_depth: int = 2,
+    on_point: Callable[[Orbit], None] | None = None,
+) -> Branch:
+    """Continue ``orbit`` in the parameter ``key`` towards ``to`` [SI].
+
+    Parameters
+    ----------
+    system : ScenarioSystem or ModelSystem
+    orbit : Orbit
+        The start (e.g. :func:`~braidsim.continuation.orbit.seed_orbit`), solved at
+        ``orbit.values[key]``.
+    key : str
+        The continuation parameter (a scenario key or a record field).
+    to : float
+        Where to stop [SI]; the branch also stops when it leaves ``bounds`` (default the
+        interval between the start and ``to``), after ``max_points``, or when the step falls
+        below ``min_step``.
+    both_directions : bool
+        Also continue backwards from the start (the points are joined in arclength order).
+    step, min_step, max_step : float
+        Arclength steps (scaled: parameter in units of |to - start|).
+    switch : bool
+        Switch to the period-2k branch at each period doubling (up to ``max_depth`` doublings).
+
+    Returns
+    -------
+    Branch
+    """
+    system.check_key(key)
+    lam0 = float(orbit.values.get(key, system.value(key)))
+    if key not in orbit.values:
+        orbit = Orbit(
+            {**orbit.values, key: lam0},
+            orbit.period,
+            orbit.phase,
+            orbit.cuts,
+            orbit.z,
+            orbit.monodromy,
+            orbit.multipliers,
+            orbit.profile,
+            orbit.residual,
+            orbit.iterations,
+        )
+    if not math.isfinite(to) or to == lam0:
+        raise InputError(
+            f"continuation.to: {to!r} must differ from the start {lam0:g}; allowed another value"
+        )
+    bnd = bounds if bounds is not None else (min(lam0, to), max(lam0, to))
+    cont = Continuer(
+        system,
+        key,
+        bnd,
+        method=method,
+        tol=tol,
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        pscale=abs(to - lam0),
+        on_point=on_point,
+    )
+    direction = 1.0 if to > lam0 else -1.0
+    br = cont.run(orbit, direction)
+    if both_directions:
+        back = cont.run(orbit, -direction)
+        br = _join(back, br)
+    if switch and max_depth > 0:
+        for sp in list(br.special):
+            if sp.type != "period_doubling" or sp.orbit is None:
+                continue
+            child = switch_period_doubling(
+                system, sp, key, cont, max_depth=max_depth - 1, switch=switch
+            )
+            if child is not None:
+                br.children.append(child)
+    return br
+
+
+def _join(back: Branch, fwd: Branch) -> Branch:
+    pts = list(reversed(back.points[1:])) + fwd.points
+    n_back = len(back.points) - 1
+    sps = []
+    for sp in back.special:
+        sps.append(
+            SpecialPoint(
+                sp.type, sp.value, sp.period, n_back - sp.index, sp.orbit, sp.detail, sp.other
+            )
+        )
+    for sp in fwd.special:
+        sps.append(
+            SpecialPoint(
+                sp.type, sp.value, sp.period, sp.index + n_back, sp.orbit, sp.detail, sp.other
+            )
+        )
+    tans = [-t for t in reversed(back.tangents[1:])] + fwd.tangents
+    return Branch(
+        fwd.key,
+        fwd.period,
+        pts,
+        sps,
+        f"{back.stop}; {fwd.stop}",
+        back.children + fwd.children,
+        tans,
+    )
+
+
+def doubled_guess(orbit: Orbit, offset: np.ndarray) -> tuple[tuple[Cut, ...], list[np.ndarray]]:
+    """Cuts and states of a period-2k guess: z* + offset at the first cut of the first
+    period, z* - offset at the first cut of the second (the other cuts as on the orbit)."""
+    m = orbit.segments
+    zs = [orbit.z[j % m].copy() for j in range(2 * m)]
+    zs[0] = zs[0] + offset
+    zs[m] = zs[m] - offset
+    return orbit.cuts + orbit.cuts, zs
+
+
+def switch_period_doubling(
+    system: Any,
+    sp: SpecialPoint,
+    key: str,
+    cont: Continuer,
+    *,
+    max_depth: int = 1,
+    switch: bool = True,
+) -> Branch | None:
+    """The period-2k branch born at a period doubling, continued away from it (None when no
+    distinct period-2k orbit is found next to it)."""
+    o = sp.orbit
+    if o is None:
+        return None
+    lam = sp.value
+    Ls, Vs = system.scales(o.values)
+    n = o.z[0].size
+    n_y = 2 * system.prepare(o.values).n_coords
+    scale = np.array([Ls if (i % 2 == 0 and i < n_y) else Vs for i in range(n)])
+    from braidsim.continuation.orbit import seed_orbit
+
+    mu, V = np.linalg.eig(o.monodromy)
+    w = np.real(V[:, int(np.argmin(np.abs(mu + 1.0)))])
+    w = w / np.max(np.abs(w / scale))
+    prep = system.prepare(o.values)
+    t0 = o.phase / prep.omega
+    n_y = 2 * prep.n_coords
+    c0 = o.cuts[0]
+    attempts: list[tuple[float, float | None]] = []
+    for dl in (0.01, -0.01, 0.03, -0.03):
+        # a run started next to the orbit on the side where it is unstable settles on a
+        # stable period-2k orbit (a supercritical doubling) ...
+        attempts.append((dl, None))
+        # ... Newton from z* +/- eps w on alternate periods finds others
+        for eps in (0.05, 0.3, 1.0):
+            attempts.append((dl, eps))
+    for dl, e in attempts:
+        vals = dict(o.values)
+        vals[key] = lam + dl * cont.pscale
+        if not (cont.lo <= vals[key] <= cont.hi):
+            continue
+        try:
+            if e is None:
+                y0 = o.z[0][:n_y] + 0.05 * w[:n_y]
+                o2 = seed_orbit(
+                    system,
+                    vals,
+                    2 * o.period,
+                    segments=2 * o.segments,
+                    transient_cycles=200,
+                    method=cont.method,
+                    tol=cont.tol,
+                    start=(t0, y0, c0.modes, c0.v0s(o.z[0][n_y:])),
+                )
+            else:
+                cuts, zs = doubled_guess(o, e * w)
+                o2 = solve_fixed(
+                    system, vals, 2 * o.period, o.phase, cuts, zs, cont.method, cont.tol
+                )
+        except (ContinuationError, SimulationError, InputError, np.linalg.LinAlgError):
+            continue
+        if o2.segments % 2 == 0:
+            half = o2.segments // 2
+            n2 = min(o2.z[0].size, o2.z[half].size, scale.size)
+            d = float(np.max(np.abs((o2.z[0][:n2] - o2.z[half][:n2]) / scale[:n2])))
+        else:
+            d = 1.0
+        if d < 1e-4:
+            continue
+        sub = Continuer(
+            system,
+            key,
+            (cont.lo, cont.hi),
+            method=cont.method,
+            tol=cont.tol,
+            step=cont.h0,
+            min_step=cont.hmin,
+            max_step=cont.hmax,
+            max_points=cont.max_points,
+            pscale=cont.pscale,
+            on_point=cont.on_point,
+        )
+        br = sub.run(o2, 1.0 if dl > 0 else -1.0)
+        if switch and max_depth > 0:
+            for sp2 in list(br.special):
+                if sp2.type == "period_doubling" and sp2.orbit is not None:
+                    ch = switch_period_doubling(system, sp2, key, sub, max_depth=max_depth - 1)
+                    if ch is not None:
+                        br.children.append(ch)
+        return br
+    return None
+
+
+def orbit_at(
+    system: Any, branch: Branch, value: float, method: str = "auto", tol: float = DEFAULT_TOL
+) -> Orbit:
+    """The branch's orbit at the parameter ``value`` [SI], solved from the nearest point
+    (the first in arclength order among those nearest). Raises :class:`ContinuationError`
+    when the value is outside the branch or Newton fails there."""
+    v = branch.values
+    if not (v.min() <= value <= v.max()):
+        raise ContinuationError(
+            f"{branch.key} = {value:g} is outside the branch ({v.min():g} to {v.max():g})"
+        )
+    i = int(np.argmin(np.abs(v - value)))
+    o = branch.points[i]
+    return solve_fixed(
+        system, {**o.values, branch.key: float(value)}, o.period, o.phase, o.cuts, o.z, method, tol
+    )

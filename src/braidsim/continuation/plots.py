@@ -1,0 +1,204 @@
+"""Figures of continuation results: bifurcation diagrams and the safe operating map.
+
+* :func:`plot_branches`: the stroboscopic position of each orbit (x - h at forcing phase 0,
+  one curve per sample of a period-k orbit) against the parameter, stable solid and unstable
+  dashed, special points marked; a brute-force bifurcation diagram of the same range can be
+  drawn beneath as grey dots.
+* :func:`plot_operating_map`: boundary curves (fold, period doubling, grazing) in the plane
+  of two parameters over the brute-force regime map of the same range.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from braidsim.analysis.plots import REGIME_COLORS, parameter_axis
+from braidsim.plotting import new_figure
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from braidsim.continuation.branch import Branch
+    from braidsim.continuation.twopar import BoundaryCurve
+
+MARKERS = {"fold": "s", "period_doubling": "D", "neimark_sacker": "*", "grazing": "o"}
+CURVE_STYLE = {
+    "fold": ("C3", "-"),
+    "period_doubling": ("C2", "-."),
+    "neimark_sacker": ("C4", ":"),
+    "grazing": ("k", "--"),
+}
+
+
+def _segments(stable: np.ndarray) -> list[tuple[int, int, bool]]:
+    """Runs of equal stability as (start, stop inclusive of the next point, stable)."""
+    out = []
+    i = 0
+    n = stable.size
+    while i < n - 1:
+        j = i
+        while j < n - 1 and stable[j + 1] == stable[i]:
+            j += 1
+        out.append((i, min(j + 1, n - 1), bool(stable[i])))
+        i = j + 1 if j > i else i + 1
+    return out
+
+
+def plot_branches(
+    branches: Sequence[Branch],
+    title: str | None = None,
+    brute: Any | None = None,
+    ax: Any | None = None,
+) -> Figure:
+    """Bifurcation diagram of continued branches (module docstring).
+
+    ``brute``: a :class:`braidsim.analysis.BifurcationDiagram` of the same parameter, drawn
+    beneath as grey dots."""
+    if ax is None:
+        fig = new_figure(6.8, 4.4)
+        ax = fig.add_subplot(1, 1, 1)
+    else:
+        fig = ax.figure
+    key = branches[0].key
+    f, label = parameter_axis(key)
+    if brute is not None:
+        p, u, _ = brute.points()
+        ax.plot(p * f, u * 1e3, ".", color="0.65", ms=2, label="brute force (settled runs)")
+    seen: set[str] = set()
+    for b_i, br in enumerate(branches):
+        if len(br.points) < 2:
+            continue
+        v = br.values * f
+        su = np.array([o.profile.strobe_u for o in br.points]) * 1e3
+        st = br.stable
+        color = f"C{b_i % 10}"
+        for a, b, stable in _segments(st):
+            for s in range(su.shape[1]):
+                lab = None
+                key_l = f"period {br.period} {'stable' if stable else 'unstable'}"
+                if key_l not in seen and s == 0:
+                    lab = key_l
+                    seen.add(key_l)
+                ax.plot(
+                    v[a : b + 1],
+                    su[a : b + 1, s],
+                    ls="-" if stable else "--",
+                    lw=1.3 if stable else 0.9,
+                    color=color,
+                    label=lab,
+                )
+        for sp in br.special:
+            o = sp.orbit if sp.orbit is not None else br.points[min(sp.index, len(br.points) - 1)]
+            y = o.profile.strobe_u * 1e3
+            lab = sp.type.replace("_", " ")
+            ax.plot(
+                np.full(y.size, sp.value * f),
+                y,
+                MARKERS.get(sp.type, "x"),
+                ms=5,
+                mfc="none",
+                color="k",
+                label=None if lab in seen else lab,
+            )
+            seen.add(lab)
+    ax.set_xlabel(label)
+    ax.set_ylabel("$x - h$ at forcing phase 0 / mm")
+    ax.grid(True, lw=0.3, alpha=0.6)
+    ax.legend(fontsize=7, frameon=False, loc="best")
+    ax.set_title(title or "periodic orbits: stable solid, unstable dashed", fontsize=10)
+    return fig
+
+
+def plot_operating_map(
+    curves: Sequence[BoundaryCurve],
+    *,
+    regimes: tuple[np.ndarray, np.ndarray, Sequence[Sequence[str]]] | None = None,
+    marks: Sequence[tuple[float, float, str]] = (),
+    bound: tuple[np.ndarray, np.ndarray] | None = None,
+    title: str | None = None,
+) -> Figure:
+    """The safe operating map: boundary curves in (key2, key1) over a regime map.
+
+    Parameters
+    ----------
+    curves : BoundaryCurve
+        Drawn with key2 on the x axis and key1 (the branch parameter) on the y axis.
+    regimes : (values1, values2, labels), optional
+        A brute-force regime map: labels[i][j] the regime at (values1[i], values2[j]).
+    marks : (value1, value2, text)
+        Points to mark (e.g. the paper's cases).
+    bound : (values2, values1), optional
+        An analytic curve (dotted), e.g. the contact-loss bound a_p = h_a omega_h^2.
+    """
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    fig = new_figure(6.8, 4.8)
+    ax = fig.add_subplot(1, 1, 1)
+    if not curves and regimes is None:
+        return fig
+    key1 = curves[0].key1 if curves else ""
+    key2 = curves[0].key2 if curves else ""
+    f1, lab1 = parameter_axis(key1) if key1 else (1.0, "")
+    f2, lab2 = parameter_axis(key2) if key2 else (1.0, "")
+    handles: list[Any] = []
+    if regimes is not None:
+        v1, v2, labels = regimes
+        names = sorted({lab for row in labels for lab in row})
+        idx = np.array([[names.index(lab) for lab in row] for row in labels], dtype=float)
+        cmap = ListedColormap([REGIME_COLORS.get(n, "#000000") for n in names])
+        ax.pcolormesh(
+            np.asarray(v2) * f2,
+            np.asarray(v1) * f1,
+            idx,
+            cmap=cmap,
+            vmin=-0.5,
+            vmax=len(names) - 0.5,
+            shading="nearest",
+            alpha=0.35,
+        )
+        handles += [
+            Patch(color=REGIME_COLORS.get(n, "#000"), alpha=0.35, label=n.replace("_", " "))
+            for n in names
+        ]
+    seen: set[str] = set()
+    for c in curves:
+        color, ls = CURVE_STYLE.get(c.type, ("k", "-"))
+        lab = f"{c.type.replace('_', ' ')} (period {c.period})"
+        (ln,) = ax.plot(
+            np.asarray(c.p2) * f2,
+            np.asarray(c.p1) * f1,
+            ls=ls,
+            color=color,
+            lw=1.6,
+            marker=".",
+            ms=3,
+            label=None if lab in seen else lab,
+        )
+        if lab not in seen:
+            handles.append(ln)
+        seen.add(lab)
+    if bound is not None:
+        (ln,) = ax.plot(
+            np.asarray(bound[0]) * f2,
+            np.asarray(bound[1]) * f1,
+            ":",
+            color="0.3",
+            lw=1.2,
+            label="contact-loss bound $a_p = h_a\\omega_h^2$",
+        )
+        handles.append(ln)
+    for a, b, text in marks:
+        ax.plot(b * f2, a * f1, "k*", ms=9)
+        ax.annotate(text, (b * f2, a * f1), textcoords="offset points", xytext=(5, 5), fontsize=7)
+    ax.set_xlabel(lab2)
+    ax.set_ylabel(lab1)
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.legend(handles=handles, fontsize=7, frameon=True, loc="upper left")
+    ax.set_title(
+        title or "safe operating map: boundaries over the brute-force regimes", fontsize=10
+    )
+    return fig

@@ -1,0 +1,249 @@
+"""Continuation of periodic orbits: shooting, Floquet multipliers, the command line.
+
+References no one here wrote: the exact variational monodromy against a central
+finite-difference one (two independent derivatives of the same map); multipliers that must
+not depend on where the period is cut (a similarity invariant of the monodromy); the brute
+force stroboscopic diagram and the analytic contact-loss bound a_p = h_a omega_h^2 are in
+``test_continuation_slow.py`` and below.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim.continuation import ScenarioSystem, seed_orbit
+from braidsim.continuation.branch import continue_orbit, orbit_at
+from braidsim.continuation.orbit import recut, solve_fixed
+from braidsim.continuation.results import (
+    branch_dataset,
+    open_branch,
+    orbit_from_dataset,
+    write_branch,
+)
+from braidsim.errors import InputError
+
+HA = "track.vibration_amplitude"
+
+
+@pytest.fixture(scope="module")
+def system() -> ScenarioSystem:
+    return ScenarioSystem(braidsim.load_scenario("paper-3.3"))
+
+
+@pytest.fixture(scope="module")
+def bouncing(system: ScenarioSystem):
+    """The period-1 orbit with one impact per vibration cycle at h_a = 0.1 mm."""
+    return seed_orbit(system, {HA: 0.1e-3}, 1, method="fd")
+
+
+def test_bouncing_orbit_is_periodic_and_stable(system, bouncing) -> None:
+    o = bouncing
+    assert o.profile.impacts == 1
+    assert o.stable
+    # one forcing period from the section returns to the same state
+    from braidsim.continuation.fdmap import advance
+
+    prep = system.prepare(o.values)
+    t0 = o.phase / prep.omega
+    seg = advance(prep, t0, t0 + prep.period, o.z[0], o.cuts[0].modes, (math.nan, math.nan))
+    assert np.allclose(seg.y1, o.z[0], rtol=0, atol=1e-12 * 0 + 1e-11)
+
+
+def test_exact_monodromy_matches_finite_differences(system) -> None:
+    """Multipliers of the exact variational map against the central-difference map, on an
+    unstable impacting orbit (h_a = 0.12 mm, one impact per cycle) and on the period-3 orbit
+    the paper's run settles near."""
+    for period in (1, 3):
+        o = seed_orbit(system, {HA: 0.12e-3}, period, method="fd")
+        oe = solve_fixed(system, o.values, period, o.phase, o.cuts, o.z, "exact")
+        mu_f = o.multipliers
+        mu_e = oe.multipliers
+        # central differences at 1e-5 of the scales: agreement to 1e-3 of the spectral radius
+        scale = float(np.max(np.abs(mu_e)))
+        assert scale > 0.5
+        assert np.max(np.abs(mu_e - mu_f)) < 1e-3 * scale
+        L, V = system.scales(o.values)
+        assert abs(oe.z[0][0] - o.z[0][0]) < 1e-6 * L
+        assert abs(oe.z[0][1] - o.z[0][1]) < 1e-6 * V
+
+
+def test_multipliers_do_not_depend_on_the_cut(system, bouncing) -> None:
+    """The same orbit cut in free flight at several phases, inside the contact (the latched
+    approach speed joins the state) and into 3 shooting segments: same multipliers (the
+    exact map; central differences inside a stiff contact are good to about 1e-2 only)."""
+    ref = solve_fixed(
+        system, bouncing.values, 1, bouncing.phase, bouncing.cuts, bouncing.z, "exact"
+    ).multipliers
+    prof = bouncing.profile
+    w = system.prepare(bouncing.values).omega
+    t_on = float(prof.onsets[0])
+    t_mid = t_on + 0.5 * (float(prof.exits[0]) - t_on) % prof.period
+    inside = recut(bouncing, system, w * t_mid, method="exact")
+    assert inside.cuts[0].modes[0] != 0 and inside.cuts[0].v0_state[0]
+    assert inside.z[0].size == 3
+    cases = [recut(bouncing, system, ph, method="exact") for ph in (0.3, 2.0)]
+    cases += [inside, recut(bouncing, system, bouncing.phase, segments=3, method="exact")]
+    for o in cases:
+        # the latched speed is set again at the next onset from (x, x') alone: the extra
+        # multiplier of a cut inside the contact is 0, the others are those of a free cut
+        mu = o.multipliers
+        assert np.allclose(np.sort_complex(mu[:2]), np.sort_complex(ref), atol=1e-5)
+        assert np.all(np.abs(mu[2:]) < 1e-6)
+
+
+def test_period_doubling_and_switched_branch(system, bouncing) -> None:
+    """Continuing the bouncing orbit finds one period doubling in [0.09, 0.13] mm; the
+    period-2 branch born there is stable next to it and is no period-1 orbit."""
+    br = continue_orbit(
+        system, bouncing, HA, 0.13e-3, bounds=(0.09e-3, 0.13e-3), method="fd", max_depth=1
+    )
+    pds = [s for s in br.special if s.type == "period_doubling"]
+    assert len(pds) == 1
+    assert 0.118e-3 < pds[0].value < 0.123e-3
+    # stable before, unstable after
+    v = br.values
+    assert br.stable[v < pds[0].value - 1e-7].all()
+    assert not br.stable[v > pds[0].value + 1e-7].any()
+    (child,) = br.children
+    assert child.period == 2 and child.stable[:3].all()
+    su = child.points[1].profile.strobe_u
+    assert abs(su[0] - su[1]) > 1e-6
+    # the branch's orbit at a value between points
+    o = orbit_at(system, br, 0.105e-3, method="fd")
+    assert o.values[HA] == pytest.approx(0.105e-3)
+
+
+def test_dataset_round_trip_and_restart(system, bouncing, tmp_path) -> None:
+    br = continue_orbit(system, bouncing, HA, 0.11e-3, method="fd", switch=False, max_points=6)
+    ds = branch_dataset(br, "paper-3.3")
+    assert ds.sizes["point"] == len(br.points)
+    p = write_branch(ds, tmp_path / "b.nc")
+    back = open_branch(p)
+    assert back.attrs["parameter"] == HA
+    np.testing.assert_array_equal(back["value"].values, br.values)
+    o = orbit_from_dataset(system, back, -1, method="fd")
+    assert np.allclose(o.multipliers, br.points[-1].multipliers, atol=1e-6)
+    z = write_branch(ds, tmp_path / "b.zarr")
+    assert open_branch(z).sizes["point"] == len(br.points)
+
+
+def test_not_continuable_keys(system) -> None:
+    for key, word in (
+        ("initial.x", "not a parameter"),
+        ("simulation.rtol", "not a parameter"),
+        ("contact.track.model", "not a number"),
+        ("track.vibration_amplitud", "did you mean"),
+    ):
+        with pytest.raises(InputError, match=word):
+            system.check_key(key)
+
+
+def test_transfers_must_repeat_with_the_vibration() -> None:
+    sc = braidsim.load_scenario("paper-3.3", overrides={"transfer.period": "0.251 s"})
+    with pytest.raises(InputError, match=r"transfer\.period"):
+        ScenarioSystem(sc).prepare({})
+    ok = braidsim.load_scenario("paper-3.3", overrides={"transfer.period": "0.25 s"})
+    assert ScenarioSystem(ok).prepare({}).transfer_period == pytest.approx(0.25)
+
+
+def _spec(tmp_path, body: str):
+    p = tmp_path / "spec.toml"
+    p.write_text('scenario = "paper-3.3"\n' + body, encoding="utf-8")
+    return p
+
+
+def test_cli_json_and_restart(tmp_path) -> None:
+    from braidsim.cli import _register
+    from braidsim.cli.common import run_app
+
+    _register()
+    body = (
+        '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n'
+        'to = "0.11 mm"\nmax_points = 5\nmethod = "fd"\nswitch = false\n'
+    )
+    spec = _spec(tmp_path, body)
+    out = tmp_path / "out"
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = run_app(["continue", str(spec), "--out", str(out), "--json"])
+    assert rc == 0
+    assert buf.getvalue().count("\n") == 1  # one JSON object, nothing else on stdout
+    data = json.loads(buf.getvalue())
+    assert data["braidsim_version"] == braidsim.__version__
+    (b,) = data["branches"]
+    assert b["parameter"] == HA and b["period"] == 1
+    pt = b["points"][0]
+    assert set(pt) >= {"value", "stable", "multipliers", "max_depth", "min_gap", "peak_force"}
+    assert pt["value"] == pytest.approx(1e-4)
+    assert (out / "branch_0.nc").is_file() and (out / "points.csv").is_file()
+    # restart from the saved branch's last point
+    spec2 = _spec(
+        tmp_path,
+        body.replace('from = "0.1 mm"\n', f'restart = "{out / "branch_0.nc"}"\n'),
+    )
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = run_app(["continue", str(spec2), "--out", str(tmp_path / "out2"), "--json"])
+    assert rc == 0
+    b2 = json.loads(buf.getvalue())["branches"][0]
+    assert b2["points"][0]["value"] == pytest.approx(b["points"][-1]["value"])
+
+
+@pytest.mark.parametrize(
+    ("body", "code", "words"),
+    [
+        (  # the carrier rests (period 1): no period-2 orbit to seed
+            '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.05 mm"\n'
+            'to = "0.06 mm"\nperiod = 2\nmethod = "fd"\n',
+            1,
+            "set period = 1",
+        ),
+        ('[continuation]\nparameter = "initial.x"\nfrom = 0\nto = "1 mm"\n', 2, "initial.x"),
+        ('[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n', 2, "to"),
+        (
+            '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n'
+            'to = "0.2 mm"\nseed = ["2 mm", "0.3 m/s"]\nmethod = "fd"\n',
+            2,
+            "continuation.seed",
+        ),
+        (
+            '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n'
+            'to = "0.2 mm"\nperiod = 0\n',
+            2,
+            "continuation.period",
+        ),
+    ],
+)
+def test_cli_bad_input(tmp_path, capsys, body: str, code: int, words: str) -> None:
+    from braidsim.cli import _register
+    from braidsim.cli.common import run_app
+
+    _register()
+    rc = run_app(["continue", str(_spec(tmp_path, body)), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert rc == code
+    assert words in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+def test_multiple_shooting_branch_matches_single_shooting(system, bouncing) -> None:
+    """A branch continued with 2 shooting segments has the orbits and multipliers of the
+    single-shooting one at the same parameter values."""
+    o2 = seed_orbit(system, {HA: 0.1e-3}, 1, segments=2, method="fd")
+    assert o2.segments == 2
+    br2 = continue_orbit(system, o2, HA, 0.11e-3, method="fd", switch=False, max_points=4)
+    assert len(br2.points) == 4
+    single = continue_orbit(system, bouncing, HA, 0.11e-3, method="fd", switch=False, max_points=8)
+    for o in br2.points[1:]:
+        ref = orbit_at(system, single, o.values[HA], method="fd")
+        mu, mu_ref = np.sort_complex(o.multipliers), np.sort_complex(ref.multipliers)
+        assert np.allclose(mu, mu_ref, atol=1e-4)
+        assert abs(o.profile.strobe_u[0] - ref.profile.strobe_u[0]) < 1e-10

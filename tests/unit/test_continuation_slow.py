@@ -1,0 +1,88 @@
+"""Continuation against references computed another way (slow: tens of seconds each).
+
+* The stable branches against the brute-force stroboscopic bifurcation diagram of
+  :mod:`braidsim.analysis` over the same range (settled runs, no Newton), and the detected
+  period doubling against the diagram's change from period 1 to period 2.
+* The lift-off (the grazing where the resting contact's depth first touches zero) against
+  the analytic contact-loss bound h_a omega_h^2 = a_p of a rigid contact, approached as the
+  contact stiffness grows.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim.analysis import bifurcation
+from braidsim.analysis.regimes import contact_loss_bound
+from braidsim.continuation import ScenarioSystem, seed_orbit
+from braidsim.continuation.branch import continue_orbit, orbit_at
+
+HA = "track.vibration_amplitude"
+pytestmark = pytest.mark.slow
+
+
+def test_stable_branch_and_doubling_match_brute_force() -> None:
+    sc = braidsim.load_scenario("paper-3.3")
+    system = ScenarioSystem(sc)
+    seed = seed_orbit(system, {HA: 0.1e-3}, 1, method="fd")
+    br = continue_orbit(
+        system,
+        seed,
+        HA,
+        0.125e-3,
+        both_directions=True,
+        bounds=(0.09e-3, 0.125e-3),
+        method="fd",
+        max_depth=1,
+    )
+    (pd,) = [s for s in br.special if s.type == "period_doubling"]
+    values = np.array([0.095, 0.0975, 0.1, 0.1025, 0.115, 0.1175, 0.1225]) * 1e-3
+    diag = bifurcation(sc, HA, values, transient_cycles=300, cycles=24)
+    L = 1e-4
+    matched = 0
+    for v, st in zip(values, diag.states, strict=True):
+        if st.regime.label != "periodic_one_sided":
+            continue  # another attractor (chatter) that the start happened to find
+        if st.regime.period == 1:
+            o = orbit_at(system, br, float(v), method="fd")
+            assert o.stable
+            assert abs(o.profile.strobe_u[0] - np.median(st.strobe_u)) < 1e-3 * L
+            matched += 1
+        elif st.regime.period == 2:
+            # beyond the doubling: the period-2 branch switched to there
+            assert v > pd.value
+            (child,) = br.children
+            o2 = orbit_at(system, child, float(v), method="fd")
+            assert o2.stable
+            brute = np.sort(np.unique(np.round(st.strobe_u, 9)))[[0, -1]]
+            assert np.allclose(np.sort(o2.profile.strobe_u), brute, atol=1e-2 * L)
+            matched += 1
+    assert matched >= 6
+    # the diagram's period 1 -> 2 change brackets the located doubling
+    per = dict(zip(values, diag.periods, strict=True))
+    assert per[0.1175e-3] == 1 and per[0.1225e-3] == 2
+    assert 0.1175e-3 < pd.value < 0.1225e-3
+
+
+def test_lift_off_approaches_the_rigid_contact_bound() -> None:
+    """|h_lift / (a_p / omega_h^2) - 1| falls as K grows (friction off, as the bound
+    assumes) and is below 1 % at K = 1e11 N/m^1.5."""
+    errors = []
+    for K in (1e8, 1e9, 1e10, 1e11):
+        sc = braidsim.load_scenario(
+            "paper-3.3", overrides={"friction.law": "none", "contact.track.stiffness": K}
+        )
+        system = ScenarioSystem(sc)
+        o = seed_orbit(system, {HA: 0.05e-3}, 1, method="exact")
+        assert o.profile.impacts == 0  # resting on the inner wall
+        br = continue_orbit(system, o, HA, 0.12e-3, method="exact", switch=False, max_points=60)
+        g = [s for s in br.special if s.type == "grazing"]
+        bound = contact_loss_bound(sc)["critical_amplitude"]
+        errors.append(g[0].value / bound - 1.0)
+    assert all(e < 0 for e in errors)  # a compliant contact lifts off first
+    assert all(abs(b) < abs(a) for a, b in itertools.pairwise(errors))
+    assert abs(errors[-1]) < 0.01
