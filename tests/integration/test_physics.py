@@ -207,6 +207,20 @@ def test_restart_continues_a_run_exactly() -> None:
     assert second.final["x"] == pytest.approx(whole.final["x"], abs=1e-9)
 
 
+def test_a_start_state_without_a_step_chooses_one() -> None:
+    """``State.step = 0`` (a state made by hand, or from another tool) means "choose the
+    first step afresh": the continued run starts as a new one would, and ends where the
+    whole run does."""
+    import dataclasses
+
+    whole = braidsim.simulate("paper-3.3", duration=0.1, sample_interval=0)
+    first = braidsim.simulate("paper-3.3", duration=0.05, sample_interval=0)
+    fresh = dataclasses.replace(first.final_state, step=0.0, err_old=1e-4, onset_q=0.0)
+    second = braidsim.simulate("paper-3.3", duration=0.05, sample_interval=0, start=fresh)
+    assert second.final["t"] == pytest.approx(0.1)
+    assert second.final["x"] == pytest.approx(whole.final["x"], abs=1e-7)
+
+
 @pytest.mark.parametrize("divisor", [47, 48, 49, 50, 51])
 def test_run_ends_exactly_at_its_duration(divisor: int) -> None:
     """Rounding must never leave a sliver before the end that the step control calls a

@@ -242,7 +242,10 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             if SENS is not None:
                 tangent_scales(SENS.S, n_dof2, SENS.SMAX)
         else:
-            # a continuation (CONTINUED): the contacts carried over open new episodes
+            # a continuation (CONTINUED): the contacts carried over open new episodes; a
+            # step of 0 means "choose one", as for a new run
+            if not r.h > 0.0:
+                r.h = min(1e-6, hmax, t_end - t)
             for pair in range(n_pairs):
                 open_ep[pair] = -1
                 if modes[pair] != 0:
