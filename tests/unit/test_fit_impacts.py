@@ -212,6 +212,21 @@ def test_two_records_at_two_speeds_narrow_the_intervals(tmp_path, capsys):
     assert (out / "fitted_residuals.csv").read_text(encoding="utf-8").count("\n") == 1 + 2 * 15
     assert (out / "residuals.png").stat().st_size > 0
 
+    # --data repeated replaces the spec's list (and its overrides)
+    argv = ["fit", str(tmp_path / "spec.toml"), "--json"]
+    code, stdout, err = _cli([*argv, "--data", str(tmp_path / "a.csv")], capsys)
+    assert code == 0, err
+    one = json.loads(stdout)
+    assert one["n_data"] == 15 and "records" not in one
+    code, stdout, err = _cli(
+        [*argv, "--data", str(tmp_path / "a.csv"), "--data", str(tmp_path / "a.csv")], capsys
+    )
+    assert code == 0, err
+    two = json.loads(stdout)
+    assert two["n_data"] == 30 and len(two["records"]) == 2
+    for k in both.keys:  # the same record twice: the same estimate
+        assert two["estimates"][k]["value"] == pytest.approx(one["estimates"][k]["value"], rel=1e-5)
+
     # a free parameter overridden per record, and a bad data entry: one line, exit 2
     bad = tmp_path / "bad.toml"
     bad.write_text(

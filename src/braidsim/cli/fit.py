@@ -18,6 +18,7 @@ def fit(
         list[Path] | None,
         typer.Option(
             "--data",
+            metavar="<path>",
             help="Measured record: CSV (t and x, acceleration, contact_force; units in "
             "brackets) or netCDF; or an impact list (CSV: t and peak_force, velocity, "
             "rebound_velocity). Repeat to fit several records together (they replace the "
