@@ -15,19 +15,23 @@ from braidsim.cli.common import app, guarded, print_json
 def fit(
     spec: Annotated[Path, typer.Argument(help="Fit spec TOML (see braidsim.fit.spec).")],
     data: Annotated[
-        Path | None,
+        list[Path] | None,
         typer.Option(
             "--data",
+            metavar="<path>",
             help="Measured record: CSV (t and x, acceleration, contact_force; units in "
-            "brackets) or netCDF. Default: the spec's data key.",
+            "brackets) or netCDF; or an impact list (CSV: t and peak_force, velocity, "
+            "rebound_velocity). Repeat to fit several records together (they replace the "
+            "spec's data list, overrides included). Default: the spec's data key.",
         ),
     ] = None,
     out: Annotated[Path | None, typer.Option("--out", help="Report directory to write.")] = None,
     json_: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
 ) -> None:
-    """Fit the spec's free scenario parameters to a measured record (least squares with a
-    global start): estimates, standard errors, 95 % intervals, correlations, identifiability
-    warnings, profiles, contact-law selection, and the fitted scenario as TOML in --out."""
+    """Fit the spec's free scenario parameters to one or more measured records or impact
+    lists (least squares with a global start): estimates, standard errors, 95 % intervals,
+    correlations, identifiability warnings, profiles, contact-law selection, and the fitted
+    scenario as TOML in --out."""
     from braidsim.cli.progress import enabled
     from braidsim.errors import InputError
     from braidsim.fit import fit_record, load_fit_spec, read_record
@@ -35,10 +39,10 @@ def fit(
     from braidsim.io import check_output_directory
 
     s = load_fit_spec(spec)
-    source = data if data is not None else s.data
-    if source is None:
+    items = [(p, {}) for p in data] if data else list(s.datasets)
+    if not items:
         raise InputError("--data: missing; allowed a CSV or netCDF record (or data = in the spec)")
-    record = read_record(source)
+    records = [(read_record(p), ov) for p, ov in items]
     if out is not None:
         check_output_directory(out, REPORT_KIND)  # fail before the fit, not after it
 
@@ -49,9 +53,9 @@ def fit(
 
         first = f"{COMPILE_NOTE}; then fitting" if kernel_needs_compile() else "fitting"
         with Console(stderr=True).status(first) as status:
-            res = fit_record(s, record, progress=lambda line: status.update(line))
+            res = fit_record(s, records, progress=lambda line: status.update(line))
     else:
-        res = fit_record(s, record)
+        res = fit_record(s, records)
     result = write_report(res, s, out) if out is not None else summary(res)
     if json_:
         print_json(result)

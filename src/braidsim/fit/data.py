@@ -16,7 +16,22 @@ Sources: a CSV file with a header row (a name may carry its unit in brackets, ``
 as ``braidsim run --out`` writes ``series.csv``; SI without one; other columns are ignored;
 ``track_contact_force`` is read as ``contact_force``), a netCDF file or an
 :class:`xarray.Dataset` (a coordinate or variable ``t``; units from each variable's
-``units`` attribute, SI without one).
+``units`` attribute, SI without one), or in Python a :class:`pandas.DataFrame` or a dict of
+arrays with the same column names.
+
+An *impact list* is the other kind of record: one row per track impact, its onset time
+``t`` [s] (strictly increasing) and one or more of
+
+========================  ==========  ==================================================
+name                      SI unit     what the model compares it with
+========================  ==========  ==================================================
+``peak_force``            N           the impact's largest contact-force magnitude
+``velocity``              m/s         its approach speed at onset (>= 0)
+``rebound_velocity``      m/s         its separation speed at the end of the contact
+========================  ==========  ==================================================
+
+The kind is told by the columns: impact columns make an impact list, sample columns a
+sampled record; a table with both is refused.
 """
 
 from __future__ import annotations
@@ -35,6 +50,12 @@ from braidsim.errors import InputError
 
 #: measured quantities and their SI units (pint expressions)
 QUANTITY_UNITS: dict[str, str] = {"x": "m", "acceleration": "m/s**2", "contact_force": "N"}
+#: quantities of an impact list and their SI units
+IMPACT_UNITS: dict[str, str] = {
+    "peak_force": "N",
+    "velocity": "m/s",
+    "rebound_velocity": "m/s",
+}
 #: other names accepted for a quantity (the column names of ``braidsim run --out``)
 ALIASES: dict[str, str] = {"track_contact_force": "contact_force", "ax": "acceleration"}
 #: largest record read [samples]
@@ -73,11 +94,35 @@ class Record:
         return float(np.median(np.diff(self.t)))
 
 
+@dataclass(frozen=True)
+class ImpactList:
+    """A measured list of track impacts in SI (see the module docstring).
+
+    Attributes
+    ----------
+    t : ndarray
+        Impact onset times [s], strictly increasing, >= 0.
+    columns : dict
+        ``{quantity: values}`` in SI (see :data:`IMPACT_UNITS`), each as long as ``t``.
+    source : str
+    """
+
+    t: np.ndarray
+    columns: Mapping[str, np.ndarray]
+    source: str = "impact list"
+    units_read: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def duration(self) -> float:
+        """Onset time of the last impact [s]."""
+        return float(self.t[-1])
+
+
 def _factor(where: str, unit: str, quantity: str) -> float:
     """The factor that converts values in ``unit`` to the SI unit of ``quantity``."""
     from braidsim.units import to_si
 
-    target = "s" if quantity == "t" else QUANTITY_UNITS[quantity]
+    target = "s" if quantity == "t" else {**QUANTITY_UNITS, **IMPACT_UNITS}[quantity]
     if not unit:
         return 1.0
     try:
@@ -152,6 +197,65 @@ def make_record(
     return Record(tt, out, source, {k: units.get(k, "") for k in ("t", *columns)})
 
 
+def make_impact_list(
+    t: Any,
+    columns: Mapping[str, Any],
+    units: Mapping[str, str] | None = None,
+    source: str = "impact list",
+) -> ImpactList:
+    """A checked :class:`ImpactList` from arrays (values in ``units``, SI where not given).
+
+    Raises
+    ------
+    InputError
+        No impact, no known quantity, NaN, negative or non-increasing times, negative
+        peak forces or speeds, a unit that does not match its quantity.
+    """
+    units = dict(units or {})
+    tt = np.asarray(t, dtype=float).ravel() * _factor(
+        f"{source}: column t", units.get("t", ""), "t"
+    )
+    if tt.size == 0:
+        raise InputError(f"{source}: no impact; allowed an impact list of at least one row")
+    bad = np.flatnonzero(~np.isfinite(tt))
+    if bad.size:
+        raise InputError(f"{source}: column t has a missing or non-finite value at row {bad[0]}")
+    if tt[0] < 0:
+        raise InputError(
+            f"{source}: column t starts at {tt[0]:g} s; allowed times >= 0 (measured from the "
+            "scenario's start)"
+        )
+    bad = np.flatnonzero(np.diff(tt) <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InputError(
+            f"{source}: impact times are not strictly increasing at row {i} "
+            f"(t = {tt[i - 1]:.9g} s then {tt[i]:.9g} s); allowed one row per impact in "
+            "the order they happen"
+        )
+    out: dict[str, np.ndarray] = {}
+    for name, values in columns.items():
+        if name not in IMPACT_UNITS:
+            raise InputError(
+                f"{source}: unknown impact quantity {name!r}; allowed {', '.join(IMPACT_UNITS)}"
+            )
+        v = np.asarray(values, dtype=float).ravel()
+        if v.shape != tt.shape:
+            raise InputError(f"{source}: column {name} has {v.size} values for {tt.size} times")
+        bad = np.flatnonzero(~np.isfinite(v) | (v < 0))
+        if bad.size:
+            raise InputError(
+                f"{source}: column {name} has a missing, non-finite or negative value at row "
+                f"{bad[0]} (t = {tt[bad[0]]:.9g} s); allowed finite magnitudes >= 0"
+            )
+        out[name] = v * _factor(f"{source}: column {name}", units.get(name, ""), name)
+    if not out:
+        raise InputError(
+            f"{source}: no impact quantity; allowed one or more of {', '.join(IMPACT_UNITS)}"
+        )
+    return ImpactList(tt, out, source, {k: units.get(k, "") for k in ("t", *columns)})
+
+
 def _split_header(name: str) -> tuple[str, str]:
     m = _HEADER.match(name)
     if m is None:
@@ -159,8 +263,57 @@ def _split_header(name: str) -> tuple[str, str]:
     return m.group(1), (m.group(2) or "")
 
 
-def read_csv(path: str | Path) -> Record:
-    """A record from a CSV file with a header row (see the module docstring)."""
+def from_table(table: Mapping[Any, Any], source: str) -> Record | ImpactList:
+    """A record or an impact list from named columns (``{header: values}``; a header may
+    carry its unit in brackets, ``peak_force [kN]``); the kind is told by the columns."""
+    t_col = None
+    cols: dict[str, Any] = {}
+    units: dict[str, str] = {}
+    for raw in table:
+        name, unit = _split_header(str(raw))
+        if name == "t":
+            t_col = raw
+            units["t"] = unit
+        elif name in QUANTITY_UNITS or name in ALIASES or name in IMPACT_UNITS:
+            q = ALIASES.get(name, name)
+            if q in cols:
+                raise InputError(f"{source}: two columns give {q}; allowed one")
+            cols[q] = raw
+            units[q] = unit
+    if t_col is None:
+        raise InputError(
+            f"{source}: no column t (the sample or impact times); allowed a header with t [s]"
+        )
+    impact = [q for q in cols if q in IMPACT_UNITS]
+    if impact and len(impact) != len(cols):
+        raise InputError(
+            f"{source}: columns {', '.join(cols)} mix sampled quantities and impact "
+            "quantities; allowed one kind per record"
+        )
+    data: dict[str, np.ndarray] = {}
+    for q, raw in {"t": t_col, **cols}.items():
+        v = np.asarray(table[raw])
+        if v.dtype.kind not in "biuf":
+            import pandas as pd
+
+            v = pd.to_numeric(pd.Series(v.ravel()), errors="coerce").to_numpy(dtype=float)
+        v = v.astype(float)
+        bad = np.flatnonzero(~np.isfinite(v))
+        if bad.size:
+            raise InputError(
+                f"{source}: column {q} has a missing, non-finite or non-numeric value (NaN) at "
+                f"data row {bad[0] + 1}; allowed finite numbers"
+            )
+        data[q] = v
+    t = data.pop("t")
+    if impact:
+        return make_impact_list(t, data, units, source)
+    return make_record(t, data, units, source)
+
+
+def read_csv(path: str | Path) -> Record | ImpactList:
+    """A record or an impact list from a CSV file with a header row (see the module
+    docstring)."""
     import pandas as pd
 
     p = Path(path)
@@ -171,35 +324,7 @@ def read_csv(path: str | Path) -> Record:
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         line = " ".join(str(exc).split())[:120]
         raise InputError(f"{p}: cannot read as CSV ({line})") from None
-    t_col = None
-    cols: dict[str, Any] = {}
-    units: dict[str, str] = {}
-    for raw in df.columns:
-        name, unit = _split_header(str(raw))
-        if name == "t":
-            t_col = raw
-            units["t"] = unit
-        elif name in QUANTITY_UNITS or name in ALIASES:
-            q = ALIASES.get(name, name)
-            if q in cols:
-                raise InputError(f"{p}: two columns give {q}; allowed one")
-            cols[q] = raw
-            units[q] = unit
-    if t_col is None:
-        raise InputError(f"{p}: no column t (the sample times); allowed a header with t [s]")
-    data: dict[str, np.ndarray] = {}
-    for q, raw in {"t": t_col, **cols}.items():
-        v = pd.to_numeric(df[raw], errors="coerce").to_numpy(dtype=float)
-        bad = np.flatnonzero(~np.isfinite(v))
-        if bad.size:
-            name = "t" if q == "t" else q
-            raise InputError(
-                f"{p}: column {name} has a missing, non-finite or non-numeric value (NaN) at "
-                f"data row {bad[0] + 1}; allowed finite numbers"
-            )
-        data[q] = v
-    t = data.pop("t")
-    return make_record(t, data, units, str(p))
+    return from_table({c: df[c].to_numpy() for c in df.columns}, str(p))
 
 
 def from_xarray(ds: Any, source: str = "xarray") -> Record:
@@ -217,9 +342,10 @@ def from_xarray(ds: Any, source: str = "xarray") -> Record:
     return make_record(ds["t"].values, cols, units, source)
 
 
-def read_record(data: Any) -> Record:
-    """A record from a path (``.csv``, ``.nc``/``.nc4``/``.netcdf``), an xarray Dataset or a
-    :class:`Record`.
+def read_record(data: Any) -> Record | ImpactList:
+    """A record from a path (``.csv``, ``.nc``/``.nc4``/``.netcdf``), an xarray Dataset, a
+    pandas DataFrame or dict of arrays (named columns), a :class:`Record` or an
+    :class:`ImpactList`.
 
     Raises
     ------
@@ -227,10 +353,14 @@ def read_record(data: Any) -> Record:
         The file is missing or unreadable, or the record fails the checks of
         :func:`make_record`.
     """
-    if isinstance(data, Record):
+    if isinstance(data, Record | ImpactList):
         return data
     if hasattr(data, "data_vars"):
         return from_xarray(data)
+    if isinstance(data, Mapping):
+        return from_table(data, "dict")
+    if hasattr(data, "columns") and hasattr(data, "to_numpy"):
+        return from_table({c: data[c].to_numpy() for c in data.columns}, "DataFrame")
     if not isinstance(data, str | Path):
         raise InputError(
             f"--data: expected a CSV or netCDF path or an xarray Dataset, got {type(data).__name__}"

@@ -37,8 +37,15 @@ from typing import Any
 import numpy as np
 
 from braidsim.errors import InputError, SimulationError
-from braidsim.fit.data import Record
-from braidsim.fit.problem import FAILED_RESIDUAL, Evaluation, Problem
+from braidsim.fit.data import ImpactList, Record
+from braidsim.fit.problem import (
+    FAILED_RESIDUAL,
+    Evaluation,
+    ImpactProblem,
+    MultiProblem,
+    Problem,
+    single_problem,
+)
 from braidsim.fit.spec import FitSpec, FreeParameter
 from braidsim.params import Scenario, load_scenario
 
@@ -118,7 +125,7 @@ class FitResult:
     n_data: int
     noise: dict[str, float]
     quantities: tuple[str, ...]
-    record: Record
+    record: Record | ImpactList
     prediction: dict[str, np.ndarray]
     scenario: Scenario
     jacobian: str
@@ -130,6 +137,9 @@ class FitResult:
     seconds: float = 0.0
     onsets: np.ndarray = field(default_factory=lambda: np.zeros(0))
     notes: list[str] = field(default_factory=list)
+    #: every record fitted (one entry for a single record): source, kind, data, model,
+    #: residual and noise per quantity
+    parts: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def values(self) -> dict[str, float]:
@@ -393,18 +403,11 @@ def profile(
     for j, v in enumerate(grid):
         sc = problem.scenario.with_overrides({key: float(v)})
         if others:
-            sub = Problem(
-                sc,
-                problem.record,
-                others,
-                problem.quantities,
-                problem.sigma,
-                "exact" if problem.exact else "fd",
-            )
+            sub = problem.rebuild(sc, others, "exact" if problem.exact else "fd")
             lf = local_fit(sub, u_others, "record", max_nfev=max_nfev)
             r = sub.residuals(lf.u).r
         else:
-            sub = Problem(sc, problem.record, [p], problem.quantities, problem.sigma, "fd")
+            sub = problem.rebuild(sc, [p], "fd")
             r = sub.residuals(np.array([p.to_unit(float(v))])).r
         delta[j] = (float(np.dot(r, r)) - rss0) / s2
     return Profile(key, grid, delta, _crossings(grid, delta, v0, 3.841))
@@ -436,12 +439,13 @@ def information_criteria(rss: float, n: int, k: int) -> tuple[float, float]:
 
 
 def fit_law(
-    spec: FitSpec, record: Record, law: str, sigma: Mapping[str, float], progress: Progress | None
+    spec: FitSpec, base: Problem, law: str, progress: Progress | None
 ) -> tuple[LawResult, Problem, LocalFit, list[dict[str, Any]]]:
     """Fit with the track contact law ``law`` (free parameters it ignores dropped); returns
-    its result, problem, local fit and the end points of its global stage."""
+    its result, problem (``base`` rebuilt), local fit and the end points of its global
+    stage."""
     sc = spec.scenario.with_overrides({"contact.track.model": law})
-    pr = Problem(sc, record, spec.free, spec.quantities, sigma, spec.jacobian)
+    pr = base.rebuild(sc, spec.free, spec.jacobian)
     J = pr.residuals(pr.u_start, jac=True).J
     assert J is not None
     norms = np.sqrt(np.sum(J * J, axis=0))
@@ -451,7 +455,7 @@ def fit_law(
         if nrm > UNINFORMED * max(norms.max(), 1e-300)
     ]
     if len(used) != len(spec.free):
-        pr = Problem(sc, record, used, spec.quantities, sigma, spec.jacobian)
+        pr = base.rebuild(sc, used, spec.jacobian)
     pr.use_events = spec.events
     lf, ends = fit_problem(
         pr, spec.global_method, spec.starts, spec.seed, spec.max_evaluations, progress
@@ -513,40 +517,139 @@ def select_law(laws: Sequence[LawResult], preferred: str) -> tuple[str, list[str
     return pick.law, notes
 
 
-def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) -> FitResult:
-    """Fit ``spec`` to ``record`` (see the module docstring for the method).
+#: a record, or several: each a record (or impact list) or ``(record, overrides)``
+Records = Record | ImpactList | Sequence[Record | ImpactList | tuple[Any, Mapping[str, Any]]]
+
+
+def _items(records: Any) -> list[tuple[Record | ImpactList, dict[str, Any]]]:
+    if isinstance(records, Record | ImpactList):
+        return [(records, {})]
+    out = []
+    for item in records:
+        if isinstance(item, tuple):
+            out.append((item[0], dict(item[1] or {})))
+        else:
+            out.append((item, {}))
+    if not out:
+        raise InputError("--data: no record; allowed one or more records")
+    return out
+
+
+def build_problem(spec: FitSpec, records: Records) -> Problem:
+    """The problem of one record, or a :class:`MultiProblem` of several (each on the
+    scenario with its own overrides)."""
+    items = _items(records)
+    free = set(spec.keys)
+    parts = []
+    for i, (rec, ov) in enumerate(items):
+        for key in ov:
+            if key in free:
+                raise InputError(
+                    f"data[{i}].overrides.{key}: a free parameter; allowed fixed keys only "
+                    "(e.g. initial.vx)"
+                )
+        sc = spec.scenario.with_overrides(ov) if ov else spec.scenario
+        parts.append(single_problem(sc, rec, spec.free, spec.quantities, spec.noise, spec.jacobian))
+    if len(parts) == 1 and not items[0][1]:
+        return parts[0]
+    return MultiProblem(spec.scenario, parts, [ov for _, ov in items])
+
+
+def _parts(problem: Problem) -> list[Problem]:
+    return list(problem.parts) if isinstance(problem, MultiProblem) else [problem]
+
+
+def _source(problem: Problem) -> str:
+    return problem.impacts.source if isinstance(problem, ImpactProblem) else problem.record.source
+
+
+def _check_covers_an_impact(problem: Problem) -> None:
+    """A record shorter than one impact cannot inform contact parameters; an impact list
+    needs as many model impacts as it holds."""
+    for part in _parts(problem):
+        start_run = part.run(part.u_start)
+        if isinstance(part, ImpactProblem):
+            try:
+                part.model_values(start_run)
+            except SimulationError as exc:
+                raise InputError(
+                    f"--data: at the start values {exc}; allowed an impact list the scenario "
+                    "can reach (check its times, the scenario's overrides and the start)"
+                ) from None
+            continue
+        record = part.record
+        n_model = int(
+            np.sum(
+                np.asarray(start_run.impacts["pair"] == "track")
+                & ~np.asarray(start_run.impacts["initial"])
+            )
+        )
+        if part.event_quantity is not None and not part.has_events and n_model == 0:
+            raise InputError(
+                f"--data: the record {record.source} ({record.duration:g} s) holds no impact; "
+                "allowed a record of at least one impact"
+            )
+        if part.event_quantity is None and n_model == 0:
+            raise InputError(
+                f"--data: the record {record.source} ({record.duration:g} s) is shorter than "
+                "the first impact of the scenario at the start values; allowed a record of at "
+                "least one impact"
+            )
+
+
+def _first_record(problem: Problem) -> Record | ImpactList:
+    first = _parts(problem)[0]
+    return first.impacts if isinstance(first, ImpactProblem) else first.record
+
+
+def _part_table(problem: Problem, u: np.ndarray) -> list[dict[str, Any]]:
+    """Per record: source, kind, times, measured and model values and noise."""
+    out = []
+    for part in _parts(problem):
+        res = part.run(u)
+        if isinstance(part, ImpactProblem):
+            model = part.model_values(res)
+            data = {"t": part.impacts.t, **part.impacts.columns}
+            t = part.impacts.t
+            kind = "impacts"
+        else:
+            model = {q: _predict(res, q) for q in part.quantities}
+            data = dict(part.record.columns)
+            t = part.record.t
+            kind = "series"
+        out.append(
+            {
+                "source": _source(part),
+                "kind": kind,
+                "t": t,
+                "quantities": part.quantities,
+                "data": {q: data[q] for q in part.quantities},
+                "model": model,
+                "noise": dict(part.sigma),
+            }
+        )
+    return out
+
+
+def fit_record(spec: FitSpec, record: Records, progress: Progress | None = None) -> FitResult:
+    """Fit ``spec`` to ``record``: a sampled record, an impact list, or a sequence of them
+    (each optionally ``(record, overrides)``), fitted together (see the module docstring
+    for the method).
 
     Raises
     ------
     InputError
-        A fitted quantity missing from the record; a record without an impact; a free
-        parameter that the data cannot inform.
+        A fitted quantity missing from the record; a record without an impact; an impact
+        list with more impacts than the model gives; a free parameter that the data cannot
+        inform.
     SimulationError
         The simulator failed at every start.
     """
     t0 = time.perf_counter()
     say = progress or (lambda s: None)
-    problem = Problem(spec.scenario, record, spec.free, spec.quantities, spec.noise, spec.jacobian)
+    problem = build_problem(spec, record)
     problem.use_events = spec.events
-    # a record shorter than one impact cannot inform contact parameters
-    start_run = problem.run(problem.u_start)
-    n_model = int(
-        np.sum(
-            np.asarray(start_run.impacts["pair"] == "track")
-            & ~np.asarray(start_run.impacts["initial"])
-        )
-    )
-    if problem.event_quantity is not None and not problem.has_events and n_model == 0:
-        raise InputError(
-            f"--data: the record {record.source} ({record.duration:g} s) holds no impact; "
-            "allowed a record of at least one impact"
-        )
-    if problem.event_quantity is None and n_model == 0:
-        raise InputError(
-            f"--data: the record {record.source} ({record.duration:g} s) is shorter than the "
-            "first impact of the scenario at the start values; allowed a record of at least "
-            "one impact"
-        )
+    _check_covers_an_impact(problem)
     check_informed(problem, problem.u_start)
     laws = list(spec.laws)
     law0 = str(spec.scenario["contact.track.model"])
@@ -561,7 +664,7 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
         fits: dict[str, tuple[Problem, LocalFit, list[dict[str, Any]]]] = {}
         for law in laws:
             say(f"contact law {law}")
-            lr, pr, lf, law_ends = fit_law(spec, record, law, problem.sigma, say)
+            lr, pr, lf, law_ends = fit_law(spec, problem, law, say)
             law_results.append(lr)
             fits[law] = (pr, lf, law_ends)
         selected, law_notes = select_law(law_results, law0)
@@ -588,8 +691,7 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
     for key in spec.profile:
         say(f"profile likelihood of {key}")
         profiles.append(profile(pr, key, lf.u, stats, spec.profile_points, spec.max_evaluations))
-    assert e.result is not None
-    prediction = {q: _predict(e.result, q) for q in pr.quantities}
+    parts = _part_table(pr, lf.u)
     return FitResult(
         law=str(pr.scenario["contact.track.model"]),
         keys=pr.keys,
@@ -600,8 +702,8 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
         n_data=int(e.r.size),
         noise=dict(pr.sigma),
         quantities=pr.quantities,
-        record=record,
-        prediction=prediction,
+        record=_first_record(pr),
+        prediction=parts[0]["model"],
         scenario=pr.scenario_at(lf.u),
         jacobian="exact" if pr.exact else "fd",
         starts=[
@@ -615,13 +717,19 @@ def fit_record(spec: FitSpec, record: Record, progress: Progress | None = None) 
         ],
         profiles=profiles,
         laws=law_results,
-        impacts_in_record=int(problem.onsets.size),
+        impacts_in_record=int(
+            sum(
+                p.impacts.t.size if isinstance(p, ImpactProblem) else p.onsets.size
+                for p in _parts(problem)
+            )
+        ),
         evaluations=problem.evaluations + pr.evaluations
         if pr is not problem
         else problem.evaluations,
         seconds=time.perf_counter() - t0,
         onsets=problem.onsets,
         notes=sorted(problem.notes | pr.notes),
+        parts=parts,
     )
 
 
@@ -646,12 +754,17 @@ def fit(
     ----------
     scenario : Scenario, str or mapping
         A loaded scenario, a built-in name or a scenario TOML path.
-    data : path, xarray.Dataset or Record
-        The record (see :mod:`braidsim.fit.data`).
+    data : path, xarray.Dataset, DataFrame, dict of arrays, Record or ImpactList, or a list
+        The record (see :mod:`braidsim.fit.data`): samples or an impact list, told by its
+        columns. A list fits several records together (stacked residuals, one covariance);
+        an item ``(record, overrides)`` runs that record on the scenario with its own
+        overrides (e.g. ``{"initial.vx": "0.5 m/s"}``).
     free : mapping
         ``{key: [low, high]}``, numbers in SI or unit strings.
     quantity : str or list of str
-        The record's columns to fit (``x``, ``acceleration``, ``contact_force``).
+        The record's columns to fit (``x``, ``acceleration``, ``contact_force``); an impact
+        list fits its onset times and every column it has unless some are named here
+        (``peak_force``, ``velocity``, ``rebound_velocity``).
     overrides : mapping, optional
         Applied to the scenario first.
     **options
@@ -680,4 +793,9 @@ def fit(
             table,
             scenario=load_scenario(scenario) if isinstance(scenario, Mapping) else None,
         )
+    if isinstance(data, list):
+        items: list[Any] = [
+            (read_record(d[0]), d[1]) if isinstance(d, tuple) else read_record(d) for d in data
+        ]
+        return fit_record(spec, items, progress)
     return fit_record(spec, read_record(data), progress)

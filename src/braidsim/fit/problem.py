@@ -22,15 +22,29 @@ sigma_t for the model's impacts against their nearest measured ones (so that ext
 impacts cost too); sigma_t is the sample interval. The global stage of the fit works on
 them; the final fit and its statistics on the record residuals.
 
+*Impact-list residuals* (:class:`ImpactProblem`): each measured impact k (onset t_dk) is
+matched to a model track impact j(k), the matching that keeps their order and minimises
+sum_k (t_mj(k) - t_dk)^2 (dynamic programming; the nearest in time when that keeps the
+order); then r = (t_mj(k) - t_dk) / sigma_t and, for each given quantity q of the list,
+(q_mj(k) - q_dk) / sigma_q. Default noise: sigma_t = 1e-4 s (a 10 kHz sensor's sample
+interval), sigma_q = 5 % of the median measured |q| (the scale of the intervals comes from
+the residuals, s^2 = sum r^2 / (n - k): only the ratios of the sigmas weight the fit).
+
+*Several records* (:class:`MultiProblem`): each record with its own problem (and its own
+scenario overrides, e.g. another initial speed), the residual vectors and Jacobians
+stacked, one covariance for the shared free parameters.
+
 Parameters are handled in the unit box u in [0, 1]^k (:class:`FreeParameter`).
 
 Jacobians
 ---------
 ``exact``: the forward sensitivities of the simulator (``simulate(..., sensitivities=keys)``,
 derivatives of the sampled state, acceleration and contact force and of each impact's onset
-time), times d p / d u. ``fd``: central differences in u with step h = 1e-5 (one-sided
-at the bounds); the solver's tolerance (relative 1e-8) makes their error about 1e-8 / h
-relative, small against the noise of a measurement, and they need no support from the core.
+time, approach speed and peak force), times d p / d u. The rebound speed of an impact list
+has no sensitivity: its rows take central differences (with a note).
+``fd``: central differences in u with step h = 1e-5 (one-sided at the bounds); the solver's
+tolerance (relative 1e-8) makes their error about 1e-8 / h relative, small against the noise
+of a measurement, and they need no support from the core.
 """
 
 from __future__ import annotations
@@ -43,7 +57,7 @@ from typing import Any
 import numpy as np
 
 from braidsim.errors import InputError, SimulationError
-from braidsim.fit.data import Record, detect_pulses, noise_estimate
+from braidsim.fit.data import ImpactList, Record, detect_pulses, noise_estimate
 from braidsim.fit.spec import FreeParameter
 from braidsim.params import Scenario
 from braidsim.result import Result
@@ -364,6 +378,10 @@ class Problem:
                 J[:, j] = (f(up) - f(dn)) / (2 * h)
         return J
 
+    def rebuild(self, scenario: Scenario, free: Sequence[FreeParameter], jacobian: str) -> Problem:
+        """The same data and noise with another scenario and free set (profiles, laws)."""
+        return Problem(scenario, self.record, free, self.quantities, self.sigma, jacobian)
+
     def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
         """The finite-difference Jacobian d r / d u (the fallback, and the cross-check of the
         exact one), of the record or the event residuals."""
@@ -373,3 +391,305 @@ class Problem:
             return self._fd(u, lambda v: self._record_r(self.run(v)), r0)
         r0 = self._event_r(self.run(u))
         return self._fd(u, lambda v: self._event_r(self.run(v)), r0)
+
+
+#: default noise of an impact list: onset times [s] ...
+IMPACT_TIME_NOISE = 1e-4
+#: ... and the other quantities, relative to the median measured magnitude
+IMPACT_RELATIVE_NOISE = 0.05
+
+
+def match_impacts(td: np.ndarray, tm: np.ndarray) -> np.ndarray:
+    """Indices j(k) into ``tm`` (strictly increasing) matching the measured onsets ``td``:
+    the order-keeping assignment of least sum (tm[j(k)] - td[k])^2, by dynamic programming
+    over C[k, j] = min(C[k, j - 1], C[k - 1, j - 1] + (tm[j] - td[k])^2).
+    Needs ``tm.size >= td.size``."""
+    n, m = td.size, tm.size
+    d2 = (tm[None, :] - td[:, None]) ** 2
+    take = np.full((n, m), np.inf)  # cost with measured k matched to model j
+    best = np.zeros(m)  # C[k - 1, j]: the first k measured within model 0..j
+    for k in range(n):
+        prev = np.r_[0.0, best[:-1]] if k == 0 else np.r_[np.inf, best[:-1]]
+        take[k] = prev + d2[k]
+        take[k, :k] = np.inf
+        best = np.minimum.accumulate(take[k])
+    out = np.empty(n, dtype=int)
+    hi = m - 1
+    for k in range(n - 1, -1, -1):
+        out[k] = int(np.argmin(take[k, : hi + 1]))
+        hi = out[k] - 1
+    return out
+
+
+class ImpactProblem(Problem):
+    """The fit of ``free`` parameters of ``scenario`` to a measured impact list.
+
+    The model runs to 1.2 t_last + 10 ms (t_last the list's last onset), so that the last
+    impact ends and a model impact late against the list can still be matched.
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        record: ImpactList,
+        free: Sequence[FreeParameter],
+        quantities: Sequence[str] = (),
+        noise: Mapping[str, float] | None = None,
+        jacobian: str = "auto",
+    ) -> None:
+        self.scenario = scenario
+        self.impacts = record
+        self.free = tuple(free)
+        self.keys = tuple(p.key for p in self.free)
+        chosen = [q for q in quantities if q in record.columns] or list(record.columns)
+        self.quantities = ("t", *chosen)
+        noise = noise or {}
+        sig = {"t": float(noise.get("t") or IMPACT_TIME_NOISE)}
+        for q in chosen:
+            med = float(np.median(np.abs(record.columns[q])))
+            s = noise.get(q) or IMPACT_RELATIVE_NOISE * med
+            sig[q] = float(s) if s > 0 else 1e-9
+        self.sigma = sig
+        self.duration = 1.2 * record.duration + 0.01
+        if jacobian == "exact" and not exact_available():
+            raise InputError(
+                "fit.jacobian: 'exact' needs the simulator's forward sensitivities, which this "
+                "installation lacks; allowed auto or fd"
+            )
+        self.exact = jacobian == "exact" or (jacobian == "auto" and exact_available())
+        self.jacobian_choice = jacobian
+        self.notes: set[str] = set()
+        self.event_quantity = None
+        self.onsets = np.zeros(0)
+        self.pulse_threshold = math.nan
+        self.evaluations = 0
+        self.use_events = False
+        self.n_t = record.t.size
+
+    @property
+    def source(self) -> str:
+        return self.impacts.source
+
+    def run(self, u: np.ndarray, sensitivities: bool = False) -> Result:
+        """Simulate at ``u`` to :attr:`duration` (impacts only; one sample at the end)."""
+        from braidsim.simulate import simulate
+
+        self.evaluations += 1
+        kw: dict[str, Any] = {"sensitivities": list(self.keys)} if sensitivities else {}
+        return simulate(
+            self.scenario_at(u),
+            duration=self.duration,
+            sample_times=np.array([self.duration]),
+            record_events=False,
+            **kw,
+        )
+
+    def model_rows(self, res: Result) -> np.ndarray:
+        """Rows of ``res.impacts`` matched to the measured impacts (see :func:`match_impacts`).
+
+        Raises
+        ------
+        SimulationError
+            The model has fewer track impacts than the list.
+        """
+        imp = res.impacts
+        rows = np.flatnonzero(np.asarray(imp["pair"] == "track") & ~np.asarray(imp["initial"]))
+        n = self.impacts.t.size
+        if rows.size < n:
+            raise SimulationError(
+                f"the model gives {rows.size} track impacts up to t = {self.duration:g} s, "
+                f"fewer than the {n} of the impact list {self.impacts.source}"
+            )
+        tm = np.asarray(imp["t"], dtype=float)[rows]
+        return rows[match_impacts(self.impacts.t, tm)]
+
+    def model_values(self, res: Result) -> dict[str, np.ndarray]:
+        """The matched model impacts' values of each fitted quantity (SI)."""
+        imp = res.impacts
+        rows = self.model_rows(res)
+        out = {"t": np.asarray(imp["t"], dtype=float)[rows]}
+        for q in self.quantities[1:]:
+            v = np.asarray(imp[q], dtype=float)[rows]
+            if q == "peak_force":
+                v = np.abs(v)
+            if not np.all(np.isfinite(v)):
+                k = int(np.flatnonzero(~np.isfinite(v))[0])
+                raise SimulationError(
+                    f"the model's impact at t = {out['t'][k]:.6g} s has no {q} (its contact "
+                    "lasts to the end of the run)"
+                )
+            out[q] = v
+        return out
+
+    def _r_of(self, res: Result) -> np.ndarray:
+        m = self.model_values(res)
+        data = {"t": self.impacts.t, **self.impacts.columns}
+        return np.concatenate([(m[q] - data[q]) / self.sigma[q] for q in self.quantities])
+
+    def _record_r(self, res: Result) -> np.ndarray:
+        return self._r_of(res)
+
+    def _record_J_exact(self, res: Result, u: np.ndarray) -> np.ndarray:
+        from braidsim.sensitivity import IMPACT_QUANTITIES
+
+        rows = self.model_rows(res)
+        S = np.asarray(res.sensitivity.impacts)[rows]  # (n, k, 5)
+        peak = np.asarray(res.impacts["peak_force"], dtype=float)[rows]
+        blocks = []
+        fd_rows = []
+        n = rows.size
+        for i, q in enumerate(self.quantities):
+            if q == "rebound_velocity":
+                blocks.append(np.zeros((n, len(self.keys))))
+                fd_rows.append(i)
+                continue
+            b = S[:, :, IMPACT_QUANTITIES.index(q)] / self.sigma[q]
+            if q == "peak_force":
+                b = b * np.sign(peak)[:, None]
+            blocks.append(b * self.dp_du(u)[None, :])
+        J = np.nan_to_num(np.vstack(blocks))
+        if fd_rows:
+            self.notes.add(
+                "rebound_velocity: the sensitivities do not give the rebound speed; its rows "
+                "of the Jacobian are central differences"
+            )
+            sl = np.concatenate([np.arange(i * n, (i + 1) * n) for i in fd_rows])
+            r0 = self._r_of(res)
+            Jfd = self._fd(u, lambda v: self._r_of(self.run(v)), r0)
+            J[sl] = Jfd[sl]
+        return J
+
+    def residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
+        """Impact-list residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""
+        return Problem.residuals(self, u, jac)
+
+    def event_residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
+        # the impact-list residuals are event residuals already
+        return self.residuals(u, jac)
+
+    @property
+    def has_events(self) -> bool:
+        return False
+
+    def rebuild(
+        self, scenario: Scenario, free: Sequence[FreeParameter], jacobian: str
+    ) -> ImpactProblem:
+        return ImpactProblem(
+            scenario, self.impacts, free, self.quantities[1:], self.sigma, jacobian
+        )
+
+    def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
+        u = np.asarray(u, dtype=float)
+        r0 = self._r_of(self.run(u))
+        return self._fd(u, lambda v: self._r_of(self.run(v)), r0)
+
+
+def single_problem(
+    scenario: Scenario,
+    record: Record | ImpactList,
+    free: Sequence[FreeParameter],
+    quantities: Sequence[str],
+    noise: Mapping[str, float] | None,
+    jacobian: str,
+) -> Problem:
+    """The problem of one record of either kind."""
+    if isinstance(record, ImpactList):
+        return ImpactProblem(scenario, record, free, quantities, noise, jacobian)
+    qs = [q for q in quantities if q in record.columns or q not in _IMPACT_NAMES] or list(
+        record.columns
+    )
+    return Problem(scenario, record, free, qs, noise, jacobian)
+
+
+_IMPACT_NAMES = ("t", "peak_force", "velocity", "rebound_velocity")
+
+
+class MultiProblem(Problem):
+    """Several records fitted together: ``parts`` (one problem each, built on the scenario
+    with the record's own overrides) share the free parameters; residuals and Jacobians
+    are stacked, so the statistics give one covariance."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        parts: Sequence[Problem],
+        overrides: Sequence[Mapping[str, Any]],
+    ) -> None:
+        self.scenario = scenario
+        self.parts = list(parts)
+        self.part_overrides = [dict(o) for o in overrides]
+        first = self.parts[0]
+        self.free = first.free
+        self.keys = first.keys
+        self.quantities = tuple(dict.fromkeys(q for p in self.parts for q in p.quantities))
+        self.jacobian_choice = first.jacobian_choice
+        self.notes = first.notes
+        for p in self.parts:
+            p.notes = self.notes  # one set of notes
+        self.event_quantity = first.event_quantity
+        self.onsets = first.onsets
+        self.pulse_threshold = first.pulse_threshold
+        self.n_t = sum(p.n_t for p in self.parts)
+
+    @property
+    def sigma(self) -> dict[str, float]:  # type: ignore[override]
+        return dict(self.parts[0].sigma)
+
+    @property
+    def record(self) -> Record:  # type: ignore[override]
+        return self.parts[0].record
+
+    @property
+    def exact(self) -> bool:  # type: ignore[override]
+        return all(p.exact for p in self.parts)
+
+    @property
+    def evaluations(self) -> int:  # type: ignore[override]
+        return sum(p.evaluations for p in self.parts)
+
+    @property
+    def use_events(self) -> bool:
+        return self.parts[0].use_events
+
+    @use_events.setter
+    def use_events(self, value: bool) -> None:
+        for p in self.parts:
+            p.use_events = value
+
+    def run(self, u: np.ndarray, sensitivities: bool = False) -> Result:
+        """The first record's run (the others through :meth:`residuals`)."""
+        return self.parts[0].run(u, sensitivities)
+
+    def residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
+        es = [p.residuals(u, jac) for p in self.parts]
+        J = None
+        if jac:
+            J = np.vstack([e.J for e in es if e.J is not None])
+        return Evaluation(
+            np.asarray(u, dtype=float), np.concatenate([e.r for e in es]), J, es[0].result
+        )
+
+    def event_residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
+        es = [
+            p.event_residuals(u, jac) if p.has_events else p.residuals(u, jac) for p in self.parts
+        ]
+        J = np.vstack([e.J for e in es if e.J is not None]) if jac else None
+        return Evaluation(
+            np.asarray(u, dtype=float), np.concatenate([e.r for e in es]), J, es[0].result
+        )
+
+    @property
+    def has_events(self) -> bool:
+        return any(p.has_events for p in self.parts)
+
+    def rebuild(
+        self, scenario: Scenario, free: Sequence[FreeParameter], jacobian: str
+    ) -> MultiProblem:
+        parts = [
+            p.rebuild(scenario.with_overrides(o) if o else scenario, free, jacobian)
+            for p, o in zip(self.parts, self.part_overrides, strict=True)
+        ]
+        return MultiProblem(scenario, parts, self.part_overrides)
+
+    def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
+        return np.vstack([p.jacobian_fd(u, kind) for p in self.parts])

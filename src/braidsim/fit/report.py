@@ -9,6 +9,10 @@ Files of ``braidsim fit ... --out DIR``:
 * ``residuals.png``: the record and the fitted model, and the scaled residuals;
 * ``profiles.png``: the profile likelihoods (when the spec asks for some);
 * ``fitted_series.csv``: t, each fitted quantity measured and modelled, and the residual.
+
+An impact list, or several records fitted together, give ``fitted_residuals.csv`` instead of
+``fitted_series.csv`` (one row per datum: record, kind, quantity, t, measured, model and
+scaled residual) and a ``residuals.png`` of the scaled residuals of each record.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from braidsim.fit.data import QUANTITY_UNITS
+from braidsim.fit.data import IMPACT_UNITS, QUANTITY_UNITS, Record
 from braidsim.fit.estimate import FitResult
 from braidsim.fit.spec import FitSpec
 
@@ -29,6 +33,34 @@ REPORT_KIND = "fit"
 
 def _f(v: float) -> float | None:
     return float(v) if math.isfinite(v) else None
+
+
+def _single_series(res: FitResult) -> bool:
+    """Whether the fit is of one sampled record (the plots and CSV of the samples)."""
+    return isinstance(res.record, Record) and len(res.parts) <= 1
+
+
+def _record_summary(res: FitResult) -> dict[str, Any]:
+    rec = res.record
+    if isinstance(rec, Record):
+        return {
+            "source": rec.source,
+            "samples": int(rec.t.size),
+            "duration": rec.duration,
+            "sample_interval": rec.sample_interval,
+        }
+    return {"source": rec.source, "impacts": int(rec.t.size), "duration": rec.duration}
+
+
+def _describe(res: FitResult) -> str:
+    rec = res.record
+    what = (
+        f"{rec.t.size} samples over {rec.duration:g} s"
+        if isinstance(rec, Record)
+        else f"{rec.t.size} impacts up to {rec.duration:g} s"
+    )
+    more = f" (and {len(res.parts) - 1} more records)" if len(res.parts) > 1 else ""
+    return f"record {rec.source}: {what}{more}"
 
 
 def summary(res: FitResult) -> dict[str, Any]:
@@ -62,16 +94,22 @@ def summary(res: FitResult) -> dict[str, Any]:
         "notes": list(res.notes),
         "jacobian": res.jacobian,
         "impacts_in_record": res.impacts_in_record,
-        "record": {
-            "source": res.record.source,
-            "samples": int(res.record.t.size),
-            "duration": res.record.duration,
-            "sample_interval": res.record.sample_interval,
-        },
+        "record": _record_summary(res),
         "global": res.starts,
         "simulations": res.evaluations,
         "seconds": res.seconds,
     }
+    if len(res.parts) > 1:
+        out["records"] = [
+            {
+                "source": part["source"],
+                "kind": part["kind"],
+                "rows": int(np.asarray(part["t"]).size),
+                "quantities": list(part["quantities"]),
+                "noise": part["noise"],
+            }
+            for part in res.parts
+        ]
     if res.profiles:
         out["profiles"] = {
             p.key: {
@@ -182,7 +220,10 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
         if v is not None:
             flat[key] = _plain(v)
     flat["contact.track.model"] = res.law
-    flat["simulation.duration"] = f"{res.record.duration!r} s"
+    duration = max(float(np.max(np.asarray(part["t"]))) for part in res.parts)
+    if not isinstance(res.record, Record) or len(res.parts) > 1:
+        duration = 1.2 * duration + 0.01  # the impact lists' runs (see ImpactProblem)
+    flat["simulation.duration"] = f"{duration!r} s"
     for key, value in res.values.items():
         unit = SCHEMA[key].unit
         flat[key] = f"{value!r} {unit}" if unit else value
@@ -192,8 +233,7 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
             flat[key] = f"{v!r} {unit}"
     head = [
         f"# {res.scenario.name}: the fitted scenario (braidsim fit, contact law {res.law})",
-        f"# record {res.record.source}: {res.record.t.size} samples over {res.record.duration:g} s;"
-        f" fitted {', '.join(res.quantities)}",
+        f"# {_describe(res)}; fitted {', '.join(res.quantities)}",
     ]
     for i, k in enumerate(res.keys):
         unit = SCHEMA[k].unit
@@ -215,6 +255,7 @@ def residual_figure(res: FitResult) -> Any:
     from braidsim.plotting import new_figure
 
     qs = res.quantities
+    assert isinstance(res.record, Record)
     fig = new_figure(8.0, 3.0 * len(qs) + 0.8)
     axes = fig.subplots(
         2 * len(qs), 2, height_ratios=[2, 1] * len(qs), width_ratios=[3, 1], squeeze=False
@@ -262,6 +303,48 @@ def residual_figure(res: FitResult) -> Any:
     return fig
 
 
+def parts_figure(res: FitResult) -> Any:
+    """The scaled residuals of every record and quantity against time (impact lists and
+    several records)."""
+    from braidsim.plotting import new_figure
+
+    n = len(res.parts)
+    fig = new_figure(8.0, 2.2 * n + 0.8)
+    axes = np.atleast_1d(fig.subplots(n, 1, squeeze=False)[:, 0])
+    for ax, part in zip(axes, res.parts, strict=True):
+        t = np.asarray(part["t"])
+        for j, q in enumerate(part["quantities"]):
+            r = (part["model"][q] - part["data"][q]) / part["noise"][q]
+            ax.plot(t, r, "o" if part["kind"] == "impacts" else ".", ms=3, color=f"C{j}", label=q)
+        ax.axhline(0.0, color="0.3", lw=0.6)
+        ax.set_ylabel("residual / $\\sigma$")
+        ax.set_title(f"{part['source']} ({part['kind']})", fontsize=8)
+        ax.grid(True, lw=0.3, alpha=0.6)
+        ax.legend(fontsize=7, frameon=False)
+    axes[-1].set_xlabel("t [s]")
+    return fig
+
+
+def parts_csv(res: FitResult) -> str:
+    """One row per datum: record, kind, quantity, t, measured, model, scaled residual (SI)."""
+    import io
+
+    buf = io.StringIO()
+    buf.write("record,kind,quantity,unit,t [s],measured,model,residual\n")
+    units = {**QUANTITY_UNITS, **IMPACT_UNITS, "t": "s"}
+    for part in res.parts:
+        t = np.asarray(part["t"])
+        for q in part["quantities"]:
+            d, m = np.asarray(part["data"][q]), np.asarray(part["model"][q])
+            r = (m - d) / part["noise"][q]
+            u = units[q].replace("**", "^")
+            src = json.dumps(part["source"])
+            for row in zip(t, d, m, r, strict=True):
+                buf.write(f"{src},{part['kind']},{q},{u}," + ",".join(f"{v:.10g}" for v in row))
+                buf.write("\n")
+    return buf.getvalue()
+
+
 def profile_figure(res: FitResult) -> Any:
     """Delta chi^2 of each profiled key against its value, with the 95 % level 3.84 and
     the linearised interval."""
@@ -289,6 +372,7 @@ def profile_figure(res: FitResult) -> Any:
 
 
 def series_csv(res: FitResult) -> str:
+    assert isinstance(res.record, Record)
     cols = ["t [s]"]
     arrs = [res.record.t]
     for q in res.quantities:
@@ -316,13 +400,15 @@ def write_report(res: FitResult, spec: FitSpec, out: str | Path) -> dict[str, An
 
     data = summary(res)
     with atomic_directory(out, REPORT_KIND) as tmp:
-        files = ["fit.json", "fitted_scenario.toml", "residuals.png", "fitted_series.csv"]
+        single = _single_series(res)
+        table = "fitted_series.csv" if single else "fitted_residuals.csv"
+        files = ["fit.json", "fitted_scenario.toml", "residuals.png", table]
         (tmp / "fitted_scenario.toml").write_text(fitted_scenario_toml(res, spec), encoding="utf-8")
-        save(residual_figure(res), tmp / "residuals.png")
+        save(residual_figure(res) if single else parts_figure(res), tmp / "residuals.png")
         if res.profiles:
             save(profile_figure(res), tmp / "profiles.png")
             files.append("profiles.png")
-        (tmp / "fitted_series.csv").write_text(series_csv(res), encoding="utf-8")
+        (tmp / table).write_text(series_csv(res) if single else parts_csv(res), encoding="utf-8")
         data = {**data, "out": str(Path(out)), "files": files}
         from braidsim.provenance import version
 

@@ -4,16 +4,25 @@
 
     scenario = "paper-3.1"               # a built-in name or a scenario TOML (relative to
                                          # this file)
-    data = "record.csv"                  # optional: the record (--data replaces it)
+    data = "record.csv"                  # optional: the record (--data replaces it); or
+                                         # several fitted together, each a path or a table
+                                         # {path = "...", overrides = {...}}:
+                                         # data = [{path = "a.csv", overrides =
+                                         #   {"initial.vx" = "0.3 m/s"}}, "b.csv"]
     [overrides]                          # optional, unit strings
     "track.vibration_amplitude" = "0 mm"
 
     [fit]
     free = { "contact.track.restitution" = [0.2, 0.95], "track.clearance" = ["2 mm", "4 mm"] }
-    quantity = "x"                       # a column, or a list: ["x", "acceleration"]
+    quantity = "x"                       # a column, or a list: ["x", "acceleration"];
+                                         # an impact list fits t and all its columns
+                                         # unless some (peak_force, velocity,
+                                         # rebound_velocity) are named
     start = { "track.clearance" = "3 mm" }   # optional; default the scenario's value
     noise = { x = "2 um" }               # optional sensor noise (standard deviation) per
                                          # quantity; default estimated from the record
+                                         # (impact lists: t = "0.1 ms", others 5 % of the
+                                         # median measured value)
     jacobian = "auto"                    # auto | exact | fd (central differences)
     global = "multistart"                # multistart | differential_evolution | none
     starts = 6                           # start points of the global stage
@@ -37,10 +46,13 @@ from pathlib import Path
 from typing import Any
 
 from braidsim.errors import InputError
-from braidsim.fit.data import QUANTITY_UNITS
+from braidsim.fit.data import IMPACT_UNITS, QUANTITY_UNITS
 from braidsim.params import SCHEMA, Scenario, load_scenario
 from braidsim.specfile import check_keys, closest_hint, expect_table, read_toml_file
 from braidsim.units import to_si
+
+#: every quantity a record or an impact list can give, with its SI unit
+ALL_UNITS: dict[str, str] = {**QUANTITY_UNITS, "t": "s", **IMPACT_UNITS}
 
 TOP_KEYS = ("scenario", "data", "overrides", "fit", "name", "description")
 FIT_KEYS = (
@@ -118,6 +130,8 @@ class FitSpec:
     seed: int = 1
     max_evaluations: int = 60
     data: Path | None = None
+    #: several records: (path, scenario overrides) each; ``data`` is the first path
+    datasets: tuple[tuple[Path, Mapping[str, Any]], ...] = ()
     path: Path | None = None
     scenario_ref: str = ""
     overrides: Mapping[str, Any] = field(default_factory=dict)
@@ -195,21 +209,54 @@ def free_parameters(
 
 
 def _quantities(value: Any) -> tuple[str, ...]:
+    names = [*QUANTITY_UNITS, *IMPACT_UNITS]
     items = [value] if isinstance(value, str) else value
     if not isinstance(items, list | tuple) or not items:
         raise InputError(
-            f"fit.quantity: {value!r} is not allowed; allowed one or a list of "
-            f"{', '.join(QUANTITY_UNITS)}"
+            f"fit.quantity: {value!r} is not allowed; allowed one or a list of {', '.join(names)}"
         )
     out = []
     for q in items:
-        if q not in QUANTITY_UNITS:
+        if q not in names:
             raise InputError(
-                f"fit.quantity: {q!r} is not allowed{closest_hint(str(q), list(QUANTITY_UNITS))}; "
-                f"allowed {', '.join(QUANTITY_UNITS)}"
+                f"fit.quantity: {q!r} is not allowed{closest_hint(str(q), names)}; "
+                f"allowed {', '.join(names)}"
             )
         if q not in out:
             out.append(q)
+    return tuple(out)
+
+
+def _datasets(data: Any, base: Path | None) -> tuple[tuple[Path, Mapping[str, Any]], ...]:
+    """The spec's ``data``: a path, or a list of paths and tables ``{path, overrides}``."""
+    if data is None:
+        return ()
+
+    def path_of(where: str, v: Any) -> Path:
+        if not isinstance(v, str) or not v:
+            raise InputError(f"{where}: {v!r} is not allowed; allowed a path")
+        return Path(v) if base is None or Path(v).is_absolute() else base / v
+
+    if isinstance(data, str):
+        return ((path_of("data", data), {}),)
+    if not isinstance(data, list) or not data:
+        raise InputError(
+            f"data: {data!r} is not allowed; allowed a path or a list of paths and tables "
+            "{path, overrides}"
+        )
+    out = []
+    for i, item in enumerate(data):
+        where = f"data[{i}]"
+        if isinstance(item, Mapping):
+            check_keys(f"{where}.", item, ("path", "overrides"))
+            ov = dict(expect_table(f"{where}.overrides", item.get("overrides", {})))
+            for key in ov:
+                if key not in SCHEMA:
+                    hint = closest_hint(str(key), list(SCHEMA))
+                    raise InputError(f"{where}.overrides: unknown scenario key {key!r}{hint}")
+            out.append((path_of(f"{where}.path", item.get("path")), ov))
+        else:
+            out.append((path_of(where, item), {}))
     return tuple(out)
 
 
@@ -251,15 +298,11 @@ def parse_fit_spec(
     quantities = _quantities(fit.get("quantity", "x"))
     noise = {}
     for q, v in expect_table("fit.noise", fit.get("noise", {})).items():
-        if q not in QUANTITY_UNITS:
-            raise InputError(
-                f"fit.noise.{q}: unknown quantity; allowed {', '.join(QUANTITY_UNITS)}"
-            )
-        s = to_si(f"fit.noise.{q}", v, QUANTITY_UNITS[q])
+        if q not in ALL_UNITS:
+            raise InputError(f"fit.noise.{q}: unknown quantity; allowed {', '.join(ALL_UNITS)}")
+        s = to_si(f"fit.noise.{q}", v, ALL_UNITS[q])
         if not (math.isfinite(s) and s > 0):
-            raise InputError(
-                f"fit.noise.{q}: {s:g} is out of range; allowed > 0 {QUANTITY_UNITS[q]}"
-            )
+            raise InputError(f"fit.noise.{q}: {s:g} is out of range; allowed > 0 {ALL_UNITS[q]}")
         noise[q] = s
     profile = fit.get("profile", [])
     if isinstance(profile, str):
@@ -287,12 +330,8 @@ def parse_fit_spec(
     events = fit.get("events", True)
     if not isinstance(events, bool):
         raise InputError(f"fit.events: {events!r} is not allowed; allowed true or false")
-    data = table.get("data")
-    data_path = None
-    if data is not None:
-        if not isinstance(data, str):
-            raise InputError(f"data: {data!r} is not allowed; allowed a path")
-        data_path = Path(data) if base is None or Path(data).is_absolute() else base / data
+    datasets = _datasets(table.get("data"), base)
+    data_path = datasets[0][0] if datasets else None
     return FitSpec(
         scenario=sc,
         free=free,
@@ -308,6 +347,7 @@ def parse_fit_spec(
         seed=_int("fit.seed", fit.get("seed", 1), 0, 2**31 - 1),
         max_evaluations=_int("fit.max_evaluations", fit.get("max_evaluations", 60), 2, 100_000),
         data=data_path,
+        datasets=datasets,
         path=path,
         scenario_ref=scen_ref,
         overrides=overrides,
