@@ -356,9 +356,19 @@ class DaskExecutor:
         if self.client is not None:
             return self.client, []
         if self.scheduler is not None:
+            import dask
+
+            saved = {k: dask.config.get(k, None) for k in ("scheduler", "scheduler-address")}
             try:
                 client = Client(self.scheduler, timeout="20s")
             except Exception as exc:  # a bad address raises ValueError, TypeError or OSError
+                # leave no trace of the failed client: a half-made one left as the default
+                # (or in dask's config) would be picked up by a later dask computation of
+                # this process, xarray's netCDF writer included
+                dask.config.set(saved)
+                import gc
+
+                gc.collect()
                 text = str(exc).splitlines()[0][:120] if str(exc) else exc.__class__.__name__
                 raise InputError(
                     f"--scheduler: cannot connect to {self.scheduler!r} ({text}); allowed the "
