@@ -10,6 +10,8 @@ are smooth, so neighbouring values share their high bytes). The file is written 
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -22,6 +24,21 @@ if TYPE_CHECKING:
 COMPLEVEL = 4
 
 
+@contextlib.contextmanager
+def local_writes() -> Iterator[None]:
+    """Write netCDF files with this process's own locks. xarray takes a dask.distributed lock
+    whenever a distributed client is registered as the default, even for data in memory; a
+    client left over from a failed connection (``sweep --scheduler``) then makes every write
+    of the process fail. The synchronous scheduler keeps writes local."""
+    try:
+        import dask
+    except ImportError:  # pragma: no cover - dask comes with xarray's extras here
+        yield
+        return
+    with dask.config.set(scheduler="synchronous"):
+        yield
+
+
 def write_series_netcdf(result: Result, path: str | Path) -> Path:
     """Write :meth:`Result.to_xarray` as compressed netCDF4 (zlib + shuffle); the file is
     whole or absent."""
@@ -31,6 +48,7 @@ def write_series_netcdf(result: Result, path: str | Path) -> Path:
     }
 
     def write(tmp: Path) -> None:
-        ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding)
+        with local_writes():
+            ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding)
 
     return atomic_write_with(path, write)

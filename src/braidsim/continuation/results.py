@@ -204,7 +204,13 @@ def write_branch(ds: Any, path: str | Path) -> Path:
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         return p
-    return atomic_write_with(p, lambda t: ds.to_netcdf(t, engine="h5netcdf"))
+    from braidsim.export import local_writes
+
+    def write(t: Path) -> None:
+        with local_writes():
+            ds.to_netcdf(t, engine="h5netcdf")
+
+    return atomic_write_with(p, write)
 
 
 def open_branch(path: str | Path) -> Any:
