@@ -6,7 +6,10 @@ search). The comparison means something only if both integrate the same equation
 paper-3.3 (x only, 0.5 s, 33 contact episodes, chatter on the vibrating inner wall) every
 episode must agree in wall, onset and end time and peak force, to well within the finer
 accuracy level the benchmark times (1.2e-7 relative peak force) at tight tolerances, and
-to the expected error at a moderate tolerance.
+to the expected error at a moderate tolerance. The tight comparison is made at rtol 1e-13:
+the lean loop trusts its error estimate on the first step of each contact, which the
+Hertz onset makes 11 times too small, so at 1e-12 its own error is 1e-8 (braidsim's,
+which corrects that step, 6e-10).
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ def _both(rtol: float, atol_x: float, atol_v: float) -> tuple[np.ndarray, object
 
 @pytest.mark.parametrize(
     ("rtol", "atol_x", "atol_v", "peak_tol", "time_tol"),
-    [(1e-12, 1e-16, 1e-13, 1e-8, 1e-9), (1e-10, 1e-15, 1e-11, 1e-5, 1e-7)],
+    [(1e-13, 1e-17, 1e-14, 1e-8, 1e-9), (1e-10, 1e-15, 1e-11, 1e-5, 1e-7)],
 )
 def test_lean_loop_matches_simulate_on_paper_3_3(
     rtol: float, atol_x: float, atol_v: float, peak_tol: float, time_tol: float
