@@ -439,9 +439,10 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
-        if sample_events(model, n_pairs, t, h, RC, modes, n, ys, GS, K[0], K[6], INF0, INF1):
+        # (the event functions read the coordinates and speeds only)
+        if sample_events(model, n_pairs, t, h, RC, modes, n_dof2, ys, GS, K[0], K[6], INF0, INF1):
             for j in range(2 * n_pairs):
-                th = locate_event(model, j, t, h, RC, modes, n, ys, GS)
+                th = locate_event(model, j, t, h, RC, modes, n_dof2, ys, GS)
                 if th < theta_ev:
                     theta_ev = th
                     j_ev = j
