@@ -19,7 +19,6 @@ from braidsim.core.interfaces import (
     derivatives,
     dissipation_index,
     model_size,
-    pair_gaps,
     pair_onset_step,
 )
 from braidsim.core.layout import (
@@ -53,7 +52,7 @@ from braidsim.core.solver.dopri5 import (
     rk_step,
 )
 from braidsim.core.solver.events import N_SUB, locate_event, sample_events
-from braidsim.core.solver.pairs import I_DN, I_PD, NI, pair_infos
+from braidsim.core.solver.pairs import I_DN, I_PD, NI, gaps, pair_infos
 from braidsim.core.solver.recorders import (
     close_episode,
     episode_start_values,
@@ -117,7 +116,7 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
     ``min_impact_velocity``), as after a transfer.
     """
     for pair in range(npair):
-        g_in, g_out, rate = pair_gaps(model, pair, t, y)
+        g_in, g_out, rate = gaps(model, pair, t, y)
         mode = 0
         p = 0.0
         pd = 0.0
@@ -556,7 +555,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                 y[i] = ye[i]
             pair = j_ev // 2
             side = -1 if j_ev % 2 == 0 else 1
-            _, _, rate_in = pair_gaps(model, pair, t_ev, y)
+            _, _, rate_in = gaps(model, pair, t_ev, y)
             rate = -rate_in if side < 0 else rate_in  # penetration rate into this wall
             ev_onset = modes[pair] == 0
             ev_ie = open_ep[pair]

@@ -42,11 +42,18 @@ NI = len(INFO_FIELDS)
 
 
 @helper
+def gaps(model, pair, t, y):
+    """:func:`~braidsim.core.interfaces.pair_gaps` as a call, for the places that need it
+    once per event (compiled once, not inlined at each)."""
+    return pair_gaps(model, pair, t, y)
+
+
+@helper
 def pair_forces(model, pair, t, y, mode, v0):
     """(p, p', F_k, F_c, N) of a pair in contact mode ``mode`` (zeros when free)."""
     if mode == 0:
         return 0.0, 0.0, 0.0, 0.0, 0.0
-    g_in, g_out, rate = pair_gaps(model, pair, t, y)
+    g_in, g_out, rate = gaps(model, pair, t, y)
     p, pd = penetration(mode, g_in, g_out, rate)
     fk, fc, nn = pair_law(model, pair, p, pd, v0)
     return p, pd, fk, fc, nn

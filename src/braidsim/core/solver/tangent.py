@@ -44,7 +44,6 @@ from braidsim.core.interfaces import (
     derivatives_jvp,
     model_size,
     pair_gap_accel,
-    pair_gaps,
     pair_gaps_jvp,
     pair_law_jvp,
     penetration,
@@ -68,6 +67,7 @@ from braidsim.core.solver.dopri5 import (
     RK_C,
     dense_eval,
 )
+from braidsim.core.solver.pairs import gaps
 
 # with numba's reference counting: the tangent records come out of a typed list
 helper = njit(cache=True, error_model="numpy")
@@ -189,7 +189,7 @@ def pair_tangent(model, dm, pair, t, y, s, mode, v0, dv0):
     """(dp, dp', dN) of a pair in contact mode ``mode`` at fixed t (zeros when free)."""
     if mode == 0:
         return 0.0, 0.0, 0.0
-    g_in, g_out, rate = pair_gaps(model, pair, t, y)
+    g_in, g_out, rate = gaps(model, pair, t, y)
     dg_in, dg_out, drate = pair_gaps_jvp(model, dm, pair, t, y, s)
     p, pd = penetration(mode, g_in, g_out, rate)
     dp, dpd = penetration_jvp(mode, dg_in, dg_out, drate)
@@ -230,7 +230,7 @@ def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2,
     the episode opened (onset) or closed (exit), -1 for none. Returns False when the
     event is grazing (its normal speed too small for the event time to be differentiable).
     """
-    _, _, rate_in = pair_gaps(model, pair, t, y)
+    _, _, rate_in = gaps(model, pair, t, y)
     gdot = rate_in if side < 0 else -rate_in  # d(gap to this wall)/dt
     if abs(gdot) < 1e-3 * model.min_impact_velocity:
         return False
@@ -262,7 +262,7 @@ def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2,
 def start_contact(model, SENS, pair, t, y, mode, ie, initial):
     """Tangents of the latched speed (and of the episode's first values) of a contact the
     start policy opens at t (at the start of a run or right after a transfer)."""
-    g_in, g_out, rate = pair_gaps(model, pair, t, y)
+    g_in, g_out, rate = gaps(model, pair, t, y)
     _, pd = penetration(mode, g_in, g_out, rate)
     for d in range(SENS.S.shape[0]):
         dm = SENS.tangents[d]
