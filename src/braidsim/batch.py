@@ -67,15 +67,17 @@ from braidsim.core import CARRIER_COLUMNS, RawRun
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
+from braidsim.regimes import CONTACT_PATTERNS, FAILED, contact_pattern
 from braidsim.result import UNITS as SERIES_UNITS
 
 if TYPE_CHECKING:
     import pandas as pd
     import xarray as xr
 
-REGIMES = ("no_contact", "resting_contact", "one_sided_impacts", "two_sided_impacts")
-"""Regime labels, index = code; -1 is ``failed``."""
-REGIME_FAILED = -1
+REGIMES = CONTACT_PATTERNS
+"""Regime labels (the contact patterns of :mod:`braidsim.regimes`), index = code; -1 is
+``failed``."""
+REGIME_FAILED = FAILED
 
 
 @dataclass(frozen=True)
@@ -315,16 +317,11 @@ def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -
         v = EP["velocity"][onset & mine]
         values[METRIC_INDEX[f"{pname}_max_approach_speed"]] = float(v.max()) if v.size else 0.0
         values[METRIC_INDEX[f"{pname}_contact_fraction"]] = float(overlap[mine].sum()) / (t1 - t0)
-    inner, outer = counts[("track", "inner")], counts[("track", "outer")]
-    if inner and outer:
-        regime = 3
-    elif inner or outer:
-        regime = 2
-    elif values[METRIC_INDEX["track_contact_fraction"]] > 0.0:
-        regime = 1
-    else:
-        regime = 0
-    values[METRIC_INDEX["regime"]] = regime
+    values[METRIC_INDEX["regime"]] = contact_pattern(
+        values[METRIC_INDEX["track_contact_fraction"]] > 0.0,
+        counts[("track", "inner")],
+        counts[("track", "outer")],
+    )
 
 
 # ----------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ from braidsim.analysis import (
     run_spectra,
     steady_state,
 )
+from braidsim.batch import simulate_batch
 from braidsim.cli import main
 
 
@@ -397,3 +398,21 @@ def test_energy_balance_closes_across_transfers() -> None:
     # the term matters: without it the residual is the jumps of the transfers
     without = float(np.max(np.abs(eb.residual + eb.transfer_work))) / eb.exchanged
     assert without > 1e-5 and without > 100 * eb.closure
+
+
+@pytest.mark.parametrize(
+    ("name", "pattern"),
+    [
+        ("paper-3.4b", "resting_contact"),
+        ("paper-3.3", "one_sided_impacts"),
+        ("paper-3.4a", "two_sided_impacts"),
+    ],
+)
+def test_batch_regime_is_the_pattern_the_steady_state_refines(name: str, pattern: str) -> None:
+    """One vocabulary: over the same window a batch run reports as its regime the contact
+    pattern of the steady-state regime the analysis finds."""
+    ss = steady_state(name)
+    t0, t1 = ss.window
+    batch = simulate_batch(name, [{}], duration=t1, window=(t0, t1))
+    assert ss.regime.pattern == pattern
+    assert batch.regime_labels()[0] == pattern

@@ -56,18 +56,12 @@ import numpy as np
 
 from braidsim.errors import InputError
 from braidsim.params import Scenario, load_scenario
+from braidsim.regimes import STEADY_REGIMES, contact_pattern, pattern_of
 
 if TYPE_CHECKING:
     from braidsim.result import Result, State
 
-REGIME_LABELS = (
-    "no_contact",
-    "resting_contact",
-    "periodic_one_sided",
-    "periodic_two_sided",
-    "chattering",
-    "irregular",
-)
+REGIME_LABELS = STEADY_REGIMES
 """Regime labels (module docstring); ``failed`` marks a run that failed numerically."""
 IMPACTING = ("periodic_one_sided", "periodic_two_sided", "chattering", "irregular")
 """The labels of steady states with impacts."""
@@ -276,10 +270,17 @@ class Regime:
     impacts_per_cycle: float
     rule: str
 
+    @property
+    def pattern(self) -> str:
+        """The contact pattern this regime refines (:mod:`braidsim.regimes`): the
+        ``regime`` a batch or a sweep reports for the same window."""
+        return pattern_of(self.label, self.walls)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form."""
         return {
             "label": self.label,
+            "pattern": self.pattern,
             "period": self.period,
             "walls": self.walls,
             "impacts_per_cycle": self.impacts_per_cycle,
@@ -439,9 +440,10 @@ def classify(
     walls = _walls(inner_impacts, outer_impacts)
     rate = n_imp / cycles if cycles > 0 else math.nan
     q = detect_period(strobe, period_tol * length_scale, max_period)
-    if not contacts:
+    pattern = contact_pattern(contacts, inner_impacts, outer_impacts)
+    if pattern == 0:
         return Regime("no_contact", q, walls, rate, "no track contact in the window")
-    if n_imp == 0:
+    if pattern == 1:
         return Regime("resting_contact", q, walls, rate, "in contact, no contact onset")
     if longest_contact > stick_time:
         return Regime(
