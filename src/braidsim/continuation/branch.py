@@ -59,6 +59,14 @@ from braidsim.continuation.orbit import (
 from braidsim.errors import InputError, SimulationError
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "grazing")
+LOCATE_RTOL = 1e-9
+"""Bracket width, relative to the continuation's parameter scale |to - from|, to which
+fold, period-doubling and Neimark-Sacker points are located."""
+
+
+def lam_of(o: Orbit, key: str) -> float:
+    """The orbit's value of the continuation parameter [SI]."""
+    return float(o.values[key])
 
 
 @dataclass
@@ -79,6 +87,11 @@ class SpecialPoint:
         The orbit there (for grazing: the last orbit of the earlier structure).
     detail : str
         What changed (multiplier, walls).
+    other : Orbit or None
+        For grazing: the first orbit of the other structure.
+    tolerance : float
+        Width of the parameter bracket the point was located in [SI] (NaN: not located
+        by a bracketing solve).
     """
 
     type: str
@@ -88,6 +101,7 @@ class SpecialPoint:
     orbit: Orbit | None = None
     detail: str = ""
     other: Orbit | None = field(default=None, repr=False)
+    tolerance: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -96,6 +110,7 @@ class SpecialPoint:
             "value": self.value,
             "period": self.period,
             "detail": self.detail,
+            "tolerance": self.tolerance,
         }
 
 
@@ -330,7 +345,8 @@ class Continuer:
                 br.stop = f"tangent failed at {self.key} = {lam:.6g} ({exc})"
                 break
             n_special = len(br.special)
-            self.detect(br, o, nxt, sh, U, U_new, tau, tau_new)
+            # both ends in the units of ``sh`` (the scales follow the shooter's base values)
+            self.detect(br, o, nxt, sh, U, sh.pack(nxt.z, lam_of(nxt, self.key)), tau, tau_new)
             if self.stop_on and any(sp.type == self.stop_on for sp in br.special[n_special:]):
                 br.points.append(nxt)
                 br.stop = f"found a {self.stop_on} point"
@@ -476,31 +492,36 @@ class Continuer:
         d = Ub - Ua
         return self.correct(sh, Ua + t * d, d / np.linalg.norm(d))
 
-    def _locate(
+    def _illinois(
         self,
-        sh: Shooter,
-        Ua: np.ndarray,
-        Ub: np.ndarray,
         fa: float,
         fb: float,
-        f: Callable[[Orbit], float | None],
-    ) -> Orbit | None:
+        trial: Callable[[float], tuple[Orbit, float | None]],
+        xtol: float,
+    ) -> tuple[Orbit | None, float, float]:
+        """The Illinois variant of regula falsi on [0, 1] (Dowell, M. and Jarratt, P.
+        (1971), BIT 11, 168-174, doi:10.1007/BF01934364): ``trial(t)`` gives the orbit at
+        t and its test function. Returns (the trial orbit with the smallest |f|, the zero
+        of the final bracket's secant, the bracket's width); stops when the width is below
+        ``xtol`` or f vanishes."""
         a, b = 0.0, 1.0
-        best = None
+        best: Orbit | None = None
+        fbest = math.inf
         side = 0
-        for _ in range(20):
+        for _ in range(60):
             t = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
-            t = min(max(t, a + 0.02 * (b - a)), b - 0.02 * (b - a))
+            # keep the trial inside the bracket (and away from its ends, so that it shrinks)
+            t = min(max(t, a + 0.01 * (b - a)), b - 0.01 * (b - a))
             try:
-                o = self._secant_point(sh, Ua, Ub, t)
+                o, ft = trial(t)
             except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                return best
-            ft = f(o)
-            if ft is None:
-                return best
-            best = o
-            if abs(ft) < 1e-10 or (b - a) < 1e-6:
                 break
+            if ft is None:
+                break
+            if abs(ft) < fbest:
+                best, fbest = o, abs(ft)
+            if ft == 0.0:
+                return best, t, 0.0
             if (ft > 0) == (fa > 0):
                 a, fa = t, ft
                 if side == -1:
@@ -511,7 +532,73 @@ class Continuer:
                 if side == 1:
                     fa *= 0.5
                 side = 1
-        return best
+            if b - a < xtol:
+                break
+        t_star = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        return best, float(t_star), float(b - a)
+
+    def _locate(
+        self,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        fa: float,
+        fb: float,
+        f: Callable[[Orbit], float | None],
+    ) -> tuple[Orbit | None, float, float]:
+        """Locate the zero of ``f`` between two branch points by bracketing along the
+        branch. Where the branch is a graph over the parameter (no fold between them) the
+        unknown is the parameter itself and each trial orbit is found by Newton's method
+        at that fixed value (:meth:`at_value`) from the nearer end; otherwise (a fold: the
+        parameter is not monotone) the unknown is the position on the chord and the trial
+        is corrected onto the branch on the hyperplane normal to the chord. Returns
+        (orbit, value [SI], bracket width [SI])."""
+        la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
+        xtol_abs = LOCATE_RTOL * self.pscale
+        if la != lb:
+
+            def trial(t: float) -> tuple[Orbit, float | None]:
+                lam = la + t * (lb - la)
+                U0 = Ua if t < 0.5 else Ub
+                o = self.at_value(sh, U0, lam)
+                return o, f(o)
+
+            o, t_star, w = self._illinois(fa, fb, trial, xtol_abs / abs(lb - la))
+            if o is not None and w * abs(lb - la) <= 100 * xtol_abs:
+                return o, la + t_star * (lb - la), w * abs(lb - la)
+
+        def on_chord(t: float) -> tuple[Orbit, float | None]:
+            o = self._secant_point(sh, Ua, Ub, t)
+            return o, f(o)
+
+        o, t_star, w = self._illinois(fa, fb, on_chord, 1e-9)
+        if o is None:
+            return None, 0.5 * (la + lb), abs(lb - la)
+        return o, lam_of(o, self.key), w * abs(lb - la)
+
+    def _locate_fold(
+        self,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        fa: float,
+        fb: float,
+        f: Callable[[Orbit], float | None],
+    ) -> tuple[Orbit | None, float, float]:
+        """A fold between two points: the zero of the tangent's parameter component, by
+        regula falsi along the chord (the parameter itself is stationary there). Returns
+        (orbit, value [SI], width of the final bracket in the parameter [SI], an upper
+        bound: the value's own error is of second order in it)."""
+        la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
+
+        def on_chord(t: float) -> tuple[Orbit, float | None]:
+            o = self._secant_point(sh, Ua, Ub, t)
+            return o, f(o)
+
+        o, _, w = self._illinois(fa, fb, on_chord, 1e-9)
+        if o is None:
+            return None, 0.5 * (la + lb), abs(lb - la)
+        return o, lam_of(o, self.key), w * max(abs(lb - la), 1e-300)
 
     def _locate_grazing(self, oa: Orbit, ob: Orbit) -> tuple[Orbit | None, Orbit | None]:
         """Bisect in the parameter between two orbits of different contact structure. Each
@@ -609,42 +696,30 @@ class Continuer:
                 U = s.pack(o.z, o.values[self.key])
                 return float(self.tangent(s, U, ta, 1.0)[-1])
 
-            of = self._locate(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
-            lam = (
-                of.values[self.key]
-                if of is not None
-                else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            )
+            of, lam, w = self._locate_fold(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
             br.special.append(
-                SpecialPoint("fold", float(lam), k, idx, of, "a multiplier crosses +1")
+                SpecialPoint("fold", lam, k, idx, of, "a multiplier crosses +1", tolerance=w)
             )
         pa, pb = _test_pd(oa), _test_pd(ob)
         if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
-            op = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
-            lam = (
-                op.values[self.key]
-                if op is not None
-                else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            )
+            op, lam, w = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
             br.special.append(
-                SpecialPoint("period_doubling", float(lam), k, idx, op, "a multiplier crosses -1")
+                SpecialPoint(
+                    "period_doubling", lam, k, idx, op, "a multiplier crosses -1", tolerance=w
+                )
             )
         na, nb = _test_ns(oa), _test_ns(ob)
         if na is not None and nb is not None and na * nb < 0:
-            on = self._locate(sh, Ua, Ub, na, nb, _test_ns)
-            lam = (
-                on.values[self.key]
-                if on is not None
-                else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            )
+            on, lam, w = self._locate(sh, Ua, Ub, na, nb, _test_ns)
             br.special.append(
                 SpecialPoint(
                     "neimark_sacker",
-                    float(lam),
+                    lam,
                     k,
                     idx,
                     on,
                     "a complex pair crosses the unit circle",
+                    tolerance=w,
                 )
             )
 
