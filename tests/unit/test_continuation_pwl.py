@@ -9,39 +9,20 @@ braidsim's side runs the compiled :class:`~braidsim.core.ImpactOscillator` with 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
-from braidsim.continuation import ModelSystem, seed_orbit
+from braidsim.continuation import seed_orbit
 from braidsim.continuation.branch import continue_orbit, orbit_at
 from braidsim.continuation.orbit import recut
-from braidsim.core import ImpactOscillator, KelvinVoigtContact
-
-pwl = pytest.importorskip("reference.pwl_oscillator")
-
-
-def oscillator(p) -> ModelSystem:
-    law = KelvinVoigtContact(p.contact_stiffness, p.contact_damping, allow_tension=True)
-    rec = ImpactOscillator(
-        p.mass,
-        p.stiffness,
-        p.damping,
-        p.force_amplitude,
-        p.force_frequency,
-        p.force_phase,
-        math.inf,
-        p.gap,
-        law,
-    )
-    return ModelSystem(rec, length_scale=p.gap, name="pwl")
+from reference import pwl_oscillator as pwl
+from reference.pwl_braidsim import oscillator_system
 
 
 @pytest.mark.parametrize("name", ["stable_p1", "stable_p1_stiff"])
 def test_periodic_orbit_and_multipliers(name: str) -> None:
     ref = pwl.periodic_orbit(pwl.PARAMETER_SETS[name], 1, pwl.ORBIT_GUESSES[(name, 1)])
-    system = oscillator(ref.params)
+    system = oscillator_system(ref.params)
     o = seed_orbit(system, {}, 1, transient_cycles=200, method="fd")
     o0 = recut(o, system, 0.0, method="fd")  # the reference's section, t = 0
     assert o0.cuts[0].modes == (0, 0)
@@ -58,7 +39,7 @@ def test_period_doubling_in_the_forcing_frequency() -> None:
     reference's period-2 orbit."""
     base = pwl.PARAMETER_SETS["period_doubled"]
     p = base._replace(force_frequency=2.2)
-    system = oscillator(p)
+    system = oscillator_system(p)
     o = seed_orbit(system, {}, 1, transient_cycles=200, method="fd")
     br = continue_orbit(system, o, "force_frequency", 2.45, method="fd", max_depth=1, max_points=60)
     (pd,) = [s for s in br.special if s.type == "period_doubling"]
