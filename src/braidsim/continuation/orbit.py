@@ -451,7 +451,9 @@ class Shooter:
     """The shooting equations of one orbit structure (period, cuts) of a system.
 
     Unknowns U = (z_0 / S_0, ..., z_{m-1} / S_{m-1}, lambda / P) scaled by the state scales
-    S_j and the parameter scale P. ``key`` None solves at fixed parameters.
+    S_j and the parameter scale P. ``key`` None solves at fixed parameters. With ``key2``
+    a second parameter is free as well, U = (..., lambda / P, lambda_2 / P_2) (two-parameter
+    continuation of a bifurcation).
     """
 
     system: Any
@@ -463,6 +465,24 @@ class Shooter:
     method: str = "auto"
     pscale: float = 1.0
     evaluations: int = 0
+    key2: str | None = None
+    pscale2: float = 1.0
+
+    @property
+    def free(self) -> list[tuple[str, float]]:
+        """The free parameters and their scales, in the order of U's last entries."""
+        out = [] if self.key is None else [(self.key, self.pscale)]
+        if self.key2 is not None:
+            out.append((self.key2, self.pscale2))
+        return out
+
+    def values_of(self, U: np.ndarray) -> dict[str, float]:
+        """Parameter values [SI] at the unknowns U."""
+        v = dict(self.values)
+        nf = len(self.free)
+        for i, (k, sc) in enumerate(self.free):
+            v[k] = float(U[U.size - nf + i]) * sc
+        return v
 
     def times(self, values: Mapping[str, float]) -> np.ndarray:
         """The cut times t_0..t_m [s] at ``values``."""
@@ -493,17 +513,23 @@ class Shooter:
             v[self.key] = float(lam)
         return v
 
-    def pack(self, z: Sequence[np.ndarray], lam: float | None) -> np.ndarray:
-        """Scaled unknowns from SI states (and the parameter)."""
+    def pack(
+        self, z: Sequence[np.ndarray], lam: float | None, lam2: float | None = None
+    ) -> np.ndarray:
+        """Scaled unknowns from SI states (and the free parameters)."""
         vals = self.values_at(lam)
         parts = [np.asarray(z[j]) / self.scale(j, vals) for j in range(len(self.cuts))]
         if self.key is not None:
             parts.append(np.array([float(lam) / self.pscale]))  # type: ignore[arg-type]
+        if self.key2 is not None:
+            p2 = float(self.values[self.key2]) if lam2 is None else float(lam2)
+            parts.append(np.array([p2 / self.pscale2]))
         return np.concatenate(parts)
 
     def unpack(self, U: np.ndarray) -> tuple[list[np.ndarray], float | None]:
         """SI states and parameter from scaled unknowns."""
-        lam = float(U[-1]) * self.pscale if self.key is not None else None
+        nf = len(self.free)
+        lam = float(U[U.size - nf]) * self.pscale if self.key is not None else None
         vals = self.values_at(lam)
         out = []
         i = 0
@@ -515,8 +541,8 @@ class Shooter:
     def residual(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
         """Scaled residuals r, their Jacobian (rows r, columns U) and the segment Jacobians
         J_j (SI) of the state maps."""
-        z, lam = self.unpack(U)
-        vals = self.values_at(lam)
+        z, _ = self.unpack(U)
+        vals = self.values_of(U)
         try:
             prep = self.system.prepare(vals)
         except InputError as exc:  # a Newton iterate outside the parameter's range
@@ -530,7 +556,8 @@ class Shooter:
         DR = np.zeros((N, U.size))
         Js = []
         n = 2 * prep.n_coords
-        keys = [self.key] if self.key is not None else []
+        free = self.free
+        keys = [k for k, _ in free]
         fkey = frequency_key(self.system)
         for j in range(m):
             cj, cn = self.cuts[j], self.cuts[(j + 1) % m]
@@ -563,9 +590,9 @@ class Shooter:
             R[offs[j] : offs[j + 1]] = (out - z[jn]) / Sn
             DR[offs[j] : offs[j + 1], offs[j] : offs[j + 1]] += J * Sj[None, :] / Sn[:, None]
             DR[offs[j] : offs[j + 1], offs[jn] : offs[jn + 1]] -= np.eye(sizes[jn])
-            if self.key is not None:
-                dp = np.concatenate([fm.jac_p[:, 0], np.asarray(fm.dv0_dp)[co, 0]])
-                if self.key == fkey:
+            for ip, (key, psc) in enumerate(free):
+                dp = np.concatenate([fm.jac_p[:, ip], np.asarray(fm.dv0_dp)[co, ip]])
+                if key == fkey:
                     # the cut times move with the forcing frequency: t_j = (theta_j) / Omega
                     f1 = np.zeros(n)
                     f0 = np.zeros(n)
@@ -585,7 +612,7 @@ class Shooter:
                     )
                     w = prep.omega
                     dp[:n] += f1 * (-tt[j + 1] / w) - fm.jac_y @ f0 * (-tt[j] / w)
-                DR[offs[j] : offs[j + 1], -1] = dp * self.pscale / Sn
+                DR[offs[j] : offs[j + 1], N + ip] = dp * psc / Sn
         # a change of the section structure along the way (a contact that stays open)
         return R, DR, Js
 
@@ -627,8 +654,8 @@ def newton(
 
 def finish(sh: Shooter, U: np.ndarray, res: float, its: int, Js: Sequence[np.ndarray]) -> Orbit:
     """The :class:`Orbit` of converged unknowns."""
-    z, lam = sh.unpack(U)
-    vals = sh.values_at(lam)
+    z, _ = sh.unpack(U)
+    vals = sh.values_of(U)
     M = monodromy_of(Js)
     mu = sort_multipliers(np.linalg.eigvals(M))
     tt = sh.times(vals)
