@@ -16,12 +16,12 @@ import math
 import numpy as np
 import pytest
 
-from braidsim.continuation import seed_orbit
+from braidsim.continuation import ModelSystem, seed_orbit
 from braidsim.continuation.branch import continue_orbit
 from braidsim.continuation.twopar import bifurcation_function, trace_boundary
 from braidsim.errors import InputError
 from reference import pwl_oscillator as pwl
-from reference.pwl_braidsim import oscillator_system
+from reference.pwl_braidsim import braidsim_oscillator, oscillator_system
 
 W, F = "force_frequency", "force_amplitude"
 
@@ -97,3 +97,37 @@ def test_test_functions_and_bad_input(doubling) -> None:
         trace_boundary(system, br, pd, F, 1.5, steps=0)
     with pytest.raises(InputError, match="force_amplitud"):
         trace_boundary(system, br, pd, "force_amplitud", 1.5)
+
+
+def test_neimark_sacker_of_the_linear_oscillator() -> None:
+    """Without a wall the forced oscillator m x'' + c x' + k x = F cos(Omega t) is linear:
+    its orbit's multipliers are exp(lambda T), lambda = -c / 2m +- i sqrt(k/m - c^2/4m^2), a
+    complex pair of modulus exp(-c T / 2m) that crosses the unit circle at c = 0 whatever
+    k is. Continued in c from 0.05 to -0.05 N s/m the branch has one Neimark-Sacker point,
+    at c = 0; followed in k it stays at c = 0."""
+    p = pwl.PARAMETER_SETS["stable_p1"]._replace(gap=math.inf, damping=0.05)
+    system = ModelSystem(braidsim_oscillator(p), length_scale=1.0)
+    o = seed_orbit(system, {}, 1, transient_cycles=400, method="fd")
+    T = 2 * math.pi / p.force_frequency
+    lam = complex(-p.damping / 2, math.sqrt(p.stiffness - p.damping**2 / 4))
+    mu = np.exp(lam * T)
+    assert np.allclose(
+        np.sort_complex(o.multipliers), np.sort_complex([mu, mu.conjugate()]), atol=1e-6
+    )
+    br = continue_orbit(system, o, "damping", -0.05, method="fd", switch=False, max_points=40)
+    (ns,) = [s for s in br.special if s.type == "neimark_sacker"]
+    assert abs(ns.value) < 1e-8
+    assert ns.orbit is not None and np.allclose(np.abs(ns.orbit.multipliers), 1.0, atol=1e-7)
+    c = trace_boundary(
+        system,
+        br,
+        ns,
+        "stiffness",
+        1.5,
+        steps=2,
+        method="fd",
+        range1=(-0.05, 0.05),
+        range2=(0.7, 1.5),
+    )
+    assert len(c.p1) >= 3 and c.p2[-1] == pytest.approx(1.5)
+    assert max(abs(x) for x in c.p1) < 1e-8

@@ -508,6 +508,10 @@ def _trace_smooth(
 # ----------------------------------------------------------------------------------------
 
 
+class GrazingLost(ContinuationError):
+    """The approaching orbit family ends before it grazes (the grazing curve ends)."""
+
+
 class _GrazingPlane:
     """Orbits of the approaching structure at points of the scaled parameter plane."""
 
@@ -623,8 +627,19 @@ class _GrazingPlane:
             s_b = nb
         s_a, a_a, o_a = pts[-1]
         ext = _extrapolated(pts)
-        s_star = ext if ext is not None and s_a <= ext <= s_b else s_a
-        return qc + s_star * n, a_a, o_a
+        if (
+            ext is None
+            or not (s_a <= ext <= s_b + GRAZING_XTOL)
+            or a_a > 0.05 * max(p[1] for p in pts)
+        ):
+            # the family ends with its distance to grazing still finite: not a grazing (a
+            # fold of the family, or another structure taking over)
+            raise GrazingLost(
+                f"the orbit family ends at ({self.key1}, {self.key2}) = "
+                f"{self.lam(qc + s_a * n)} with its distance to grazing still {a_a:.3g} m "
+                "(a fold of the family or another bifurcation ends the grazing curve)"
+            )
+        return qc + ext * n, a_a, o_a
 
     def _forward(
         self, qc: np.ndarray, n: np.ndarray, pts: list[Any], step: float, reach: float
@@ -716,7 +731,14 @@ def _trace_grazing(
         n_line = np.array([t[1], -t[0]])
         if float(n_line @ n) < 0:
             n_line = -n_line
-        found = plane.locate(qp, n_line, min(first, 0.5 * h + 1e-3), 3 * h)
+        try:
+            found = plane.locate(qp, n_line, min(first, 0.5 * h + 1e-3), 3 * h)
+        except GrazingLost as exc:
+            if h > 4 * hmin:
+                h *= 0.5
+                continue
+            curve.stop = str(exc)
+            break
         if found is None or float(np.linalg.norm(found[0] - qs[-1])) > 3 * h:
             h *= 0.5
             if h < hmin:
@@ -741,7 +763,10 @@ def _trace_grazing(
                 edge = hi1 if a > hi1 else lo1
                 qe[0] = edge / plane.s1
                 line = np.array([0.0, 1.0 if n_line[1] >= 0 else -1.0])
-            fe = plane.locate(qe, line, min(first, 0.5 * h + 1e-3), 3 * h)
+            try:
+                fe = plane.locate(qe, line, min(first, 0.5 * h + 1e-3), 3 * h)
+            except GrazingLost:
+                fe = None
             if fe is not None:
                 ae, be = plane.lam(fe[0])
                 if lo1 - 1e-12 <= ae <= hi1 + 1e-12 and lo2 - 1e-12 <= be <= hi2 + 1e-12:
