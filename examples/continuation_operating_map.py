@@ -149,13 +149,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     system = res4["system"]
     curves = []
     to_w = 6 * math.pi if small else 10 * math.pi
-    steps = 2 if small else 8
+    steps = 1 if small else 8
+    targets = (to_w,) if small else (to_w, 3 * math.pi)
     sources = [(res4["resting"], "grazing")]
     if res4["bouncing"] is not None:
         sources += [(res4["bouncing"], "fold"), (res4["bouncing"], "period_doubling")]
     for br, kind in sources:
         for sp in [s for s in br.special if s.type == kind][:1]:
-            for target in (to_w, 3 * math.pi):
+            for target in targets:
                 curves.append(
                     trace_boundary(
                         system,
@@ -204,7 +205,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     )
     curves_c = []
     for sp in [s for s in br_c.special if s.type == "grazing"][:1]:
-        for target in (to_w, 3 * math.pi):
+        for target in targets:
             curves_c.append(
                 trace_boundary(
                     sys_c,

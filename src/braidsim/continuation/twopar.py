@@ -669,6 +669,8 @@ class _GrazingPlane:
             ext = _extrapolated(pts)
             if ext is None or ext <= s_a:
                 ext = s_a + 0.5 * w
+            if ext > s_b and w < 0.1 * (ext - s_a):
+                break  # the family ends short of the zero: it is extrapolated (locate)
             ext = min(ext, s_b)
             nudge = max(0.25 * GRAZING_XTOL, 1e-3 * w) if theta >= 1.0 else 0.0
             trial = s_a + theta * (ext - s_a) + nudge
