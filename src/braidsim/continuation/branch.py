@@ -189,6 +189,23 @@ def signature(o: Orbit) -> tuple[Any, ...]:
     return (walls, tuple(c.modes for c in o.cuts), tuple(c.v0_state for c in o.cuts))
 
 
+def grazing_zero(points: list[tuple[float, float]]) -> float | None:
+    """Where the distance to grazing a(s) of a family's orbits extrapolates to zero, from
+    (s, a) pairs: the line through the orbit nearest the grazing (smallest a) and the
+    nearest one with at least twice its distance, so that the secant spans the
+    extrapolation (two orbits a bracket's width apart differ by little more than the
+    noise of a). None without two usable points."""
+    pts = sorted((p for p in points if math.isfinite(p[1]) and p[1] > 0.0), key=lambda p: p[1])
+    if len(pts) < 2:
+        return None
+    s2, a2 = pts[0]
+    far = [p for p in pts[1:] if p[1] >= 2.0 * a2 and p[0] != s2]
+    s1, a1 = min(far, key=lambda p: p[1]) if far else pts[-1]
+    if a1 == a2 or s1 == s2:
+        return None
+    return float(s2 - a2 * (s2 - s1) / (a2 - a1))
+
+
 def _null_vector(DR: np.ndarray) -> np.ndarray:
     _, _, vt = np.linalg.svd(DR)
     v = vt[-1]
@@ -638,14 +655,9 @@ class Continuer:
         # the distance to grazing is linear in the parameter near a regular grazing: the
         # secant of the last two orbits' approach distances finds its zero when the corrector
         # gave up before the bracket closed (a stiff contact near lift-off)
-        if len(hist) >= 2:
-            o1, o2 = hist[-2], hist[-1]
-            a1, a2 = o1.profile.approach, o2.profile.approach
-            l1, l2 = o1.values[self.key], o2.values[self.key]
-            if math.isfinite(a1) and math.isfinite(a2) and a1 != a2 and l1 != l2:
-                lg = l2 - a2 * (l2 - l1) / (a2 - a1)
-                if min(la, lb) <= lg <= max(la, lb):
-                    self.grazing_value = float(lg)
+        lg = grazing_zero([(o.values[self.key], o.profile.approach) for o in hist])
+        if lg is not None and min(la, lb) <= lg <= max(la, lb):
+            self.grazing_value = float(lg)
         return best_a, best_b
 
     def detect(

@@ -65,7 +65,7 @@ from typing import Any
 
 import numpy as np
 
-from braidsim.continuation.branch import Branch, SpecialPoint, signature
+from braidsim.continuation.branch import Branch, SpecialPoint, grazing_zero, signature
 from braidsim.continuation.orbit import (
     ContinuationError,
     Orbit,
@@ -626,7 +626,7 @@ class _GrazingPlane:
                 return None
             s_b = nb
         s_a, a_a, o_a = pts[-1]
-        ext = _extrapolated(pts)
+        ext = grazing_zero([(p[0], p[1]) for p in pts])
         # (where the corrector gives up just before a stiff contact lifts off, the zero lies
         # a little beyond the last orbit: extrapolated, as on a branch)
         if ext is None or ext < s_a or a_a > 0.05 * max(p[1] for p in pts):
