@@ -86,18 +86,36 @@ def evaluate_map(
 ) -> FlowMap:
     """The flow map with its Jacobians: the one place where continuation asks for it.
 
-    ``method``: ``"exact"`` (the variational equations of :mod:`braidsim.sensitivity`, the
-    carrier of a scenario only), ``"fd"`` (central finite differences,
+    ``method``: ``"exact"`` (the variational equations of :mod:`braidsim.sensitivity`: the
+    carrier of a scenario, or a model record of the compiled core through
+    :func:`braidsim.sensitivity.record_flow_map`), ``"fd"`` (central finite differences,
     :func:`braidsim.continuation.fdmap.fd_flow_map`) or ``"auto"`` (exact where available).
     """
     if method not in METHODS:
         raise InputError(f"method: {method!r} is not allowed; allowed {', '.join(METHODS)}")
-    use_exact = method == "exact" or (
-        method == "auto" and isinstance(system, ScenarioSystem) and exact_available()
-    )
+    use_exact = method == "exact" or (method == "auto" and exact_available())
+    if use_exact and isinstance(system, ModelSystem):
+        from braidsim.sensitivity import check_differentiable, record_flow_map
+
+        prep = system.prepare(values)
+        if method == "auto":
+            try:
+                check_differentiable(prep.record)
+            except InputError:  # a record without tangents: central differences
+                return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
+        return record_flow_map(  # type: ignore[return-value]  # the same fields
+            prep.record,
+            prep.options,
+            t0,
+            t1,
+            np.asarray(y0, dtype=float),
+            (int(modes[0]), int(modes[1])),
+            tuple(float(v) for v in v0s),
+            tuple(keys),
+        )
     if use_exact:
         if not isinstance(system, ScenarioSystem):
-            raise InputError("method: 'exact' needs the carrier of a scenario; allowed 'fd'")
+            raise InputError("method: 'exact' needs a scenario or a model record; allowed 'fd'")
         from braidsim.sensitivity import flow_map
 
         fm = flow_map(
