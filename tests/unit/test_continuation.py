@@ -268,3 +268,15 @@ def test_period_doubling_located_on_a_coarse_branch(system, bouncing) -> None:
     for sp in (pc, pf):
         assert sp.orbit is not None
         assert np.min(np.abs(sp.orbit.multipliers + 1.0)) < 1e-6
+
+
+def test_special_point_markers_are_merged_when_they_overlap() -> None:
+    from braidsim.continuation.plots import MERGE_FRACTION, merge_marks
+
+    d = 0.5 * MERGE_FRACTION
+    marks = [(0.0, 0.0, "grazing"), (d, d, "grazing"), (d, 0.0, "fold"), (0.5, 0.0, "grazing")]
+    assert merge_marks(marks, (1.0, 1.0)) == [
+        (0.0, 0.0, "grazing", 2),
+        (d, 0.0, "fold", 1),
+        (0.5, 0.0, "grazing", 1),
+    ]
