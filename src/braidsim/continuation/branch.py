@@ -37,6 +37,7 @@ multiplier -1), and continued away from lambda*.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -206,6 +207,11 @@ def grazing_zero(points: list[tuple[float, float]]) -> float | None:
     return float(s2 - a2 * (s2 - s1) / (a2 - a1))
 
 
+def _heading(tau: np.ndarray, direction: float) -> float:
+    """The direction the parameter moves along ``tau`` (``direction`` where it stands)."""
+    return float(np.sign(tau[-1])) if abs(tau[-1]) > 1e-12 else direction
+
+
 def _null_vector(DR: np.ndarray) -> np.ndarray:
     _, _, vt = np.linalg.svd(DR)
     v = vt[-1]
@@ -268,6 +274,15 @@ class Continuer:
             tau = -tau
         return tau
 
+    def setup(
+        self, o: Orbit, prev: np.ndarray | None, direction: float
+    ) -> tuple[Shooter, np.ndarray, np.ndarray]:
+        """The shooter of ``o``'s structure, its unknowns and unit tangent (oriented as
+        ``prev``, or else with the parameter moving in ``direction``)."""
+        sh = self.shooter(o)
+        U = sh.pack(o.z, o.values[self.key])
+        return sh, U, self.tangent(sh, U, prev, direction)
+
     def correct(self, sh: Shooter, Up: np.ndarray, normal: np.ndarray) -> Orbit:
         """Newton on r(U) = 0, normal . (U - Up) = 0."""
         from braidsim.continuation.orbit import newton
@@ -297,9 +312,7 @@ class Continuer:
             if self.on_point:
                 self.on_point(start)
         o = br.points[-1]
-        sh = self.shooter(o)
-        U = sh.pack(o.z, o.values[self.key])
-        tau = self.tangent(sh, U, br.tangents[-1] if br.tangents else None, direction)
+        sh, U, tau = self.setup(o, br.tangents[-1] if br.tangents else None, direction)
         if not br.tangents:
             br.tangents.append(tau)
         h = br.steps[-1] if br.steps else self.h0
@@ -319,11 +332,7 @@ class Continuer:
                                 f"step below {self.hmin:g} at {self.key} = {lam_o:.6g} ({exc})"
                             )
                             break
-                        sh = self.shooter(o)
-                        U = sh.pack(o.z, o.values[self.key])
-                        tau = self.tangent(
-                            sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
-                        )
+                        sh, U, tau = self.setup(o, None, _heading(tau, direction))
                         h = self.h0
                         reseated = True
                         continue
@@ -336,9 +345,7 @@ class Continuer:
                     if jumped is None:
                         break
                     o = jumped
-                    sh = self.shooter(o)
-                    U = sh.pack(o.z, o.values[self.key])
-                    tau = self.tangent(sh, U, None, float(np.sign(tau[-1]) or direction))
+                    sh, U, tau = self.setup(o, None, _heading(tau, direction))
                     h = self.h0
                     reseated = False
                     continue
@@ -354,10 +361,8 @@ class Continuer:
                     br.stop = f"could not land on the end value {edge:g}"
                     break
                 done = True
-            sh_new = self.shooter(nxt)
-            U_new = sh_new.pack(nxt.z, nxt.values[self.key])
             try:
-                tau_new = self.tangent(sh_new, U_new, tau, direction)
+                sh_new, U_new, tau_new = self.setup(nxt, tau, direction)
             except (ContinuationError, SimulationError) as exc:
                 br.stop = f"tangent failed at {self.key} = {lam:.6g} ({exc})"
                 break
@@ -372,11 +377,7 @@ class Continuer:
             nxt2 = self.restructure(nxt)
             if nxt2 is not nxt:
                 nxt = nxt2
-                sh_new = self.shooter(nxt)
-                U_new = sh_new.pack(nxt.z, nxt.values[self.key])
-                tau_new = self.tangent(
-                    sh_new, U_new, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
-                )
+                sh_new, U_new, tau_new = self.setup(nxt, None, _heading(tau, direction))
             br.points.append(nxt)
             br.tangents.append(tau_new)
             if self.on_point:
@@ -405,9 +406,7 @@ class Continuer:
                 try:
                     o = reseat(o, self.system, self.method)
                     br.points[-1] = o
-                    sh = self.shooter(o)
-                    U = sh.pack(o.z, o.values[self.key])
-                    tau = self.tangent(sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction)
+                    sh, U, tau = self.setup(o, None, _heading(tau, direction))
                     br.tangents[-1] = tau
                 except (ContinuationError, SimulationError):
                     pass
@@ -704,9 +703,7 @@ class Continuer:
         if ta[-1] * tb[-1] < 0:
 
             def f_fold(o: Orbit) -> float:
-                s = self.shooter(o)
-                U = s.pack(o.z, o.values[self.key])
-                return float(self.tangent(s, U, ta, 1.0)[-1])
+                return float(self.setup(o, ta, 1.0)[2][-1])
 
             of, lam, w = self._locate_fold(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
             br.special.append(
@@ -936,19 +933,8 @@ def switch_period_doubling(
             d = 1.0
         if d < 1e-4:
             continue
-        sub = Continuer(
-            system,
-            key,
-            (cont.lo, cont.hi),
-            method=cont.method,
-            tol=cont.tol,
-            step=cont.h0,
-            min_step=cont.hmin,
-            max_step=cont.hmax,
-            max_points=cont.max_points,
-            pscale=cont.pscale,
-            on_point=cont.on_point,
-        )
+        sub = copy.copy(cont)  # the same settings, a run of its own
+        sub.stop_on = None
         br = sub.run(o2, 1.0 if dl > 0 else -1.0)
         if switch and max_depth > 0:
             for sp2 in list(br.special):
