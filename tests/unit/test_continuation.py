@@ -280,3 +280,17 @@ def test_special_point_markers_are_merged_when_they_overlap() -> None:
         (d, 0.0, "fold", 1),
         (0.5, 0.0, "grazing", 1),
     ]
+
+
+def test_example_specs_parse() -> None:
+    """The shipped specs: the (h_a, omega) lift-off and the (clearance, omega) map."""
+    from pathlib import Path
+
+    from braidsim.continuation.study import load_spec
+
+    ex = Path(__file__).resolve().parents[2] / "examples"
+    a = load_spec(ex / "continuation_paper.toml")
+    assert (a.parameter, a.map_parameter) == (HA, "horn_gear.angular_velocity")
+    b = load_spec(ex / "continuation_clearance.toml")
+    assert (b.parameter, b.map_parameter) == ("track.clearance", "horn_gear.angular_velocity")
+    assert b.scenario[HA] == pytest.approx(0.1e-3) and b.regime_points == (6, 4)
