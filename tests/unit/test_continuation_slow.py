@@ -86,3 +86,31 @@ def test_lift_off_approaches_the_rigid_contact_bound() -> None:
     assert all(e < 0 for e in errors)  # a compliant contact lifts off first
     assert all(abs(b) < abs(a) for a, b in itertools.pairwise(errors))
     assert abs(errors[-1]) < 0.01
+
+
+def test_period_doubling_curve_of_the_carrier_against_branches() -> None:
+    """The 4 pi rad/s period doubling followed in omega on the augmented system ends on
+    omega = 5 pi rad/s where a branch computed at 5 pi rad/s has its doubling, and the
+    brute-force diagram at 5 pi changes from period 1 to 2 across it."""
+    import math
+
+    om = "horn_gear.angular_velocity"
+    sc = braidsim.load_scenario("paper-3.3")
+    system = ScenarioSystem(sc)
+    seed = seed_orbit(system, {HA: 0.1e-3}, 1, method="exact")
+    br = continue_orbit(system, seed, HA, 0.13e-3, method="exact", switch=False)
+    (pd,) = [s for s in br.special if s.type == "period_doubling"]
+    from braidsim.continuation.twopar import trace_boundary
+
+    c = trace_boundary(
+        system, br, pd, om, 5 * math.pi, steps=4, method="exact", range1=(0.05e-3, 0.3e-3)
+    )
+    assert c.p2[-1] == pytest.approx(5 * math.pi)
+    sc5 = braidsim.load_scenario("paper-3.3", overrides={om: 5 * math.pi})
+    sys5 = ScenarioSystem(sc5)
+    s5 = seed_orbit(sys5, {HA: 0.12e-3}, 1, method="exact")
+    b5 = continue_orbit(sys5, s5, HA, 0.25e-3, method="exact", switch=False)
+    (pd5,) = [s for s in b5.special if s.type == "period_doubling"]
+    assert c.p1[-1] == pytest.approx(pd5.value, rel=1e-6)
+    diag = bifurcation(sc5, HA, [0.98 * pd5.value, 1.03 * pd5.value], transient_cycles=600)
+    assert list(diag.periods) == [1, 2]

@@ -481,6 +481,8 @@ def _trace_smooth(
                 moved = _moved(system, on)
                 aug = Augmented(system, moved, sp.type, key1, key2, scales, method)
                 V = aug.pack(moved)
+                e2 = np.zeros(V.size)  # (the state's size may change with the cut)
+                e2[-1] = 1.0
                 V, g, _, DF, Js = aug.correct(V, e2, tol, gtol)
                 tau_new = aug.tangent(DF, None, float(np.sign(tau[-1]) or direction))
                 # keep the orientation: compare the parameter components (the state
