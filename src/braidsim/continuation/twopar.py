@@ -360,7 +360,11 @@ class Augmented:
             g = abs(float(F[-1]))
             if not math.isfinite(r + g) or max(r, g) > 10 * max(f0, tol):
                 raise ContinuationError(f"Newton diverged on the augmented system ({r:.3g})")
-            if r < tol and g < gtol and float(np.max(np.abs(dV))) < 1e3 * tol:
+            step = float(np.max(np.abs(dV)))
+            # converged: the residuals at tolerance and the test function too, or the steps
+            # down to the test function's noise (that of the monodromy: about 3e-8 with the
+            # exact map at rtol 1e-10, 1e-6 with central differences)
+            if r < tol and ((g < gtol and step < 1e3 * tol) or step < 1e2 * tol):
                 return V, float(F[-1]), it, DF, Js
         raise ContinuationError(
             f"Newton did not converge on the augmented system in {max_iter} iterations"
@@ -630,8 +634,9 @@ class _GrazingPlane:
         s_a, a_a, o_a = pts[-1]
         ext = grazing_zero([(p[0], p[1]) for p in pts])
         # (where the corrector gives up just before a stiff contact lifts off, the zero lies
-        # a little beyond the last orbit: extrapolated, as on a branch)
-        if ext is None or ext < s_a or a_a > 0.05 * max(p[1] for p in pts):
+        # a little beyond the last orbit: extrapolated, as on a branch; a zero further than
+        # 2 % of the search's reach is not the family's end but an extrapolation past it)
+        if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
             # the family ends with its distance to grazing still finite: not a grazing (a
             # fold of the family, or another structure taking over)
             raise GrazingLost(
