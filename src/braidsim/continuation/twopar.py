@@ -104,6 +104,9 @@ class BoundaryCurve:
         The curve [SI], in arclength order.
     stop : str
         Why it ended.
+    orbits : list of Orbit or None
+        The orbit at each point (fold, period doubling, Neimark-Sacker; for grazing the
+        nearest orbit of the approaching structure, None at the start).
     residuals : list of float
         The test function at each point (0 up to the corrector's tolerance; for grazing the
         distance to grazing of the nearest orbit of the approaching structure [m]).
@@ -118,6 +121,7 @@ class BoundaryCurve:
     stop: str = ""
     detail: str = ""
     residuals: list[float] = field(default_factory=list)
+    orbits: list[Orbit | None] = field(default_factory=list, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -131,12 +135,18 @@ class BoundaryCurve:
         }
 
     def add(
-        self, a: float, b: float, res: float, on_point: Callable[[float, float], None] | None
+        self,
+        a: float,
+        b: float,
+        res: float,
+        on_point: Callable[[float, float], None] | None,
+        orbit: Orbit | None = None,
     ) -> None:
         """Append a point (and report it)."""
         self.p1.append(float(a))
         self.p2.append(float(b))
         self.residuals.append(float(res))
+        self.orbits.append(orbit)
         if on_point:
             on_point(float(a), float(b))
 
@@ -425,7 +435,7 @@ def _trace_smooth(
         return curve
     o = aug.orbit(V, Js)
     sig = signature(o)
-    curve.add(o.values[key1], o.values[key2], g, on_point)
+    curve.add(o.values[key1], o.values[key2], g, on_point, o)
     tau = aug.tangent(DF, None, direction)
     h = 0.5 * hmax
     while len(curve.p1) < npts:
@@ -462,13 +472,13 @@ def _trace_smooth(
             try:
                 Ve, g, _, _, Js = aug.correct(Ve, e, tol, gtol)
                 oe = aug.orbit(Ve, Js)
-                curve.add(oe.values[key1], oe.values[key2], g, on_point)
+                curve.add(oe.values[key1], oe.values[key2], g, on_point, oe)
             except _FAILURES:
                 pass
             name = key2 if out2 else key1
             curve.stop = f"left the range of {name} at {edge:.6g}"
             break
-        curve.add(a, b, g, on_point)
+        curve.add(a, b, g, on_point, on)
         tau = aug.tangent(DFn, tau, direction)
         V = Vn
         if its <= 3:
@@ -777,10 +787,10 @@ def _trace_grazing(
             if fe is not None:
                 ae, be = plane.lam(fe[0])
                 if lo1 - 1e-12 <= ae <= hi1 + 1e-12 and lo2 - 1e-12 <= be <= hi2 + 1e-12:
-                    curve.add(ae, be, fe[1], on_point)
+                    curve.add(ae, be, fe[1], on_point, fe[2])
             curve.stop = f"left the range of {key2 if out2 else key1} at {edge:.6g}"
             break
-        curve.add(a, b, dist, on_point)
+        curve.add(a, b, dist, on_point, found[2])
         chord = qn - qs[-1]
         t = chord / float(np.linalg.norm(chord))
         n = n_line
