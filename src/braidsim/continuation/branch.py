@@ -561,17 +561,18 @@ class Continuer:
         fa: float,
         fb: float,
         f: Callable[[Orbit], float | None],
+        monotone: bool = True,
     ) -> tuple[Orbit | None, float, float]:
         """Locate the zero of ``f`` between two branch points by bracketing along the
         branch. Where the branch is a graph over the parameter (no fold between them) the
         unknown is the parameter itself and each trial orbit is found by Newton's method
-        at that fixed value (:meth:`at_value`) from the nearer end; otherwise (a fold: the
-        parameter is not monotone) the unknown is the position on the chord and the trial
+        at that fixed value (:meth:`at_value`) from the nearer end; otherwise (``monotone``
+        False: a fold between them) the unknown is the position on the chord and the trial
         is corrected onto the branch on the hyperplane normal to the chord. Returns
         (orbit, value [SI], bracket width [SI])."""
         la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
         xtol_abs = LOCATE_RTOL * self.pscale
-        if la != lb:
+        if monotone and la != lb:
 
             def trial(t: float) -> tuple[Orbit, float | None]:
                 lam = la + t * (lb - la)
@@ -700,6 +701,8 @@ class Continuer:
         """Folds, period doublings and Neimark-Sacker points between two orbits of one
         structure."""
         k = oa.period
+        # the parameter is monotone between the points unless a fold lies between them
+        monotone = bool(ta[-1] * tb[-1] > 0)
         if ta[-1] * tb[-1] < 0:
 
             def f_fold(o: Orbit) -> float:
@@ -711,7 +714,7 @@ class Continuer:
             )
         pa, pb = _test_pd(oa), _test_pd(ob)
         if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
-            op, lam, w = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
+            op, lam, w = self._locate(sh, Ua, Ub, pa, pb, _test_pd, monotone)
             br.special.append(
                 SpecialPoint(
                     "period_doubling", lam, k, idx, op, "a multiplier crosses -1", tolerance=w
@@ -719,7 +722,7 @@ class Continuer:
             )
         na, nb = _test_ns(oa), _test_ns(ob)
         if na is not None and nb is not None and na * nb < 0:
-            on, lam, w = self._locate(sh, Ua, Ub, na, nb, _test_ns)
+            on, lam, w = self._locate(sh, Ua, Ub, na, nb, _test_ns, monotone)
             br.special.append(
                 SpecialPoint(
                     "neimark_sacker",
