@@ -10,7 +10,11 @@ This example follows the carrier's periodic orbits instead of sampling settled r
    doubling, and the period-2 branch switched to there (stable solid, unstable dashed);
 2. the operating map over (omega, h_a): the lift-off grazing curve, the fold curve and the
    period-doubling curve, over the brute-force regime map of the same range, with the
-   rigid-contact bound h_a omega_h^2 = a_p, a_p = (T1 cos phi + m r_c omega^2) / m.
+   rigid-contact bound h_a omega_h^2 = a_p, a_p = (T1 cos phi + m r_c omega^2) / m;
+3. the (clearance, speed) map at h_a = 0.1 mm: the orbit with one impact per cycle on the
+   inner wall, followed towards smaller track clearances, grazes the outer wall; that
+   grazing followed in omega bounds the clearances at which the carrier strikes both
+   walls, over the brute-force regime map of the same range.
 
 Below the fold curve the carrier can only rest; between the fold and lift-off curves resting
 and bouncing coexist (which one a run ends in depends on its start); above the lift-off
@@ -21,8 +25,8 @@ Usage::
 
     python examples/continuation_operating_map.py [--out continuation_example] [--small]
 
-``--small`` runs a reduced version (fewer points, a 3 x 3 regime map) in about half a
-minute; the full one takes a few minutes on one core.
+``--small`` runs a reduced version (fewer points, 2 x 2 regime maps, the maps up to
+6 pi rad/s) for CI; the full one takes several minutes.
 """
 
 from __future__ import annotations
@@ -45,7 +49,28 @@ from braidsim.plotting import new_figure, save
 
 HA = "track.vibration_amplitude"
 OMEGA = "horn_gear.angular_velocity"
+CLEARANCE = "track.clearance"
 MM = 1e-3
+
+
+def regime_map(
+    scenario: Any, key1: str, v1: np.ndarray, v2: np.ndarray, small: bool
+) -> tuple[np.ndarray, np.ndarray, list[list[str]]]:
+    """The brute-force regimes of settled runs on the grid ``v1`` (of ``key1``) x ``v2``
+    (horn-gear speeds)."""
+    from braidsim.analysis.runs import run_steady_states
+
+    sets = [{key1: float(a), OMEGA: float(b)} for a in v1 for b in v2]
+    states = run_steady_states(
+        scenario,
+        sets,
+        transient_cycles=60 if small else 300,
+        cycles=12 if small else 24,
+        workers=1 if small else 0,
+    )
+    n2 = v2.size
+    labels = [[states[i * n2 + j].regime.label for j in range(n2)] for i in range(v1.size)]
+    return v1, v2, labels
 
 
 def parser() -> argparse.ArgumentParser:
@@ -124,13 +149,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     system = res4["system"]
     curves = []
     to_w = 6 * math.pi if small else 10 * math.pi
-    steps = 1 if small else 12
+    steps = 1 if small else 8
+    targets = (to_w,) if small else (to_w, 3 * math.pi)
     sources = [(res4["resting"], "grazing")]
     if res4["bouncing"] is not None:
         sources += [(res4["bouncing"], "fold"), (res4["bouncing"], "period_doubling")]
     for br, kind in sources:
         for sp in [s for s in br.special if s.type == kind][:1]:
-            for target in (to_w,) if small else (to_w, 3 * math.pi):
+            for target in targets:
                 curves.append(
                     trace_boundary(
                         system,
@@ -138,34 +164,75 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         sp,
                         OMEGA,
                         target,
-                        steps=max(1, steps // 2) if target < w4 else steps,
+                        steps=steps,
                         method=args.method,
                         range1=(0.02 * MM, 0.4 * MM),
                     )
                 )
     n1, n2 = (2, 2) if small else (14, 12)
-    v1 = np.linspace(0.03 * MM, 0.3 * MM, n1)
-    v2 = np.linspace(3 * math.pi, to_w, n2)
-    from braidsim.analysis.runs import run_steady_states
-
-    sets = [{HA: float(a), OMEGA: float(b)} for a in v1 for b in v2]
-    states = run_steady_states(
+    regimes = regime_map(
         system.scenario,
-        sets,
-        transient_cycles=60 if small else 300,
-        cycles=12 if small else 24,
-        workers=1 if small else 0,
+        HA,
+        np.linspace(0.03 * MM, 0.3 * MM, n1),
+        np.linspace(3 * math.pi, to_w, n2),
+        small,
     )
-    labels = [[states[i * n2 + j].regime.label for j in range(n2)] for i in range(n1)]
     ww = np.linspace(3 * math.pi, to_w, 60)
     bound = [contact_loss_bound(system.scenario.with_overrides({OMEGA: float(x)})) for x in ww]
     fig = plot_operating_map(
         curves,
-        regimes=(v1, v2, labels),
+        regimes=regimes,
         marks=[(0.12 * MM, w4, "paper-3.3 (Fig. 11)"), (0.12 * MM, w8, "paper-3.4b (Fig. 19)")],
         bound=(ww, np.array([b["critical_amplitude"] for b in bound])),
     )
     save(fig, out / "continuation_operating_map.png")
+
+    # the (clearance, speed) map at h_a = 0.1 mm: the orbit with one impact per cycle on
+    # the inner wall, continued towards smaller clearances, grazes the outer wall
+    sc_c = braidsim.load_scenario("paper-3.3", overrides={OMEGA: w4, HA: 0.1 * MM})
+    sys_c = ScenarioSystem(sc_c)
+    o = seed_orbit(sys_c, {CLEARANCE: 3 * MM}, 1, method=args.method)
+    br_c = continue_orbit(
+        sys_c,
+        o,
+        CLEARANCE,
+        0.3 * MM,
+        method=args.method,
+        switch=False,
+        max_points=40,
+        step=0.05,
+        max_step=0.25,
+    )
+    curves_c = []
+    for sp in [s for s in br_c.special if s.type == "grazing"][:1]:
+        for target in targets:
+            curves_c.append(
+                trace_boundary(
+                    sys_c,
+                    br_c,
+                    sp,
+                    OMEGA,
+                    target,
+                    steps=steps,
+                    method=args.method,
+                    range1=(0.2 * MM, 3 * MM),
+                )
+            )
+    regimes_c = regime_map(
+        sc_c,
+        CLEARANCE,
+        np.linspace(0.2 * MM, 1.2 * MM, n1),
+        np.linspace(3 * math.pi, to_w, n2),
+        small,
+    )
+    fig = plot_operating_map(
+        curves_c,
+        regimes=regimes_c,
+        title="(clearance, speed) at h_a = 0.1 mm: outer-wall grazing over the regimes",
+    )
+    save(fig, out / "continuation_clearance_map.png")
+    findings["clearance_curves"] = [c.to_dict() for c in curves_c]
+    findings["clearance_special_points"] = [s.to_dict() for s in br_c.special]
     findings["curves"] = [c.to_dict() for c in curves]
     (out / "findings.json").write_text(json.dumps(findings, indent=1), encoding="utf-8")
     return findings

@@ -599,3 +599,130 @@ def stroboscopic_map(
         raise InputError(f"periods: {periods!r}; allowed an integer >= 1")
     T = forcing_period(sc)
     return flow_map(sc, t0, t0 + int(periods) * T, y0=y0, modes=modes, v0s=v0s, keys=keys)
+
+
+def _with_field(record: Any, path: str, value: float) -> Any:
+    """``record`` with the (dotted) field ``path`` replaced by ``value``."""
+    head, _, rest = path.partition(".")
+    if not rest:
+        return record._replace(**{head: value})
+    return record._replace(**{head: _with_field(getattr(record, head), rest, value)})
+
+
+def _field(record: Any, path: str) -> float:
+    obj = record
+    for part in path.split("."):
+        obj = getattr(obj, part)
+    return float(obj)
+
+
+def record_flow_map(
+    record: Any,
+    options: L.SolverOptions,
+    t0: float,
+    t1: float,
+    y0: Sequence[float] | np.ndarray,
+    modes: tuple[int, int] = (0, 0),
+    v0s: Sequence[float] = (math.nan, math.nan),
+    keys: Sequence[str] = (),
+) -> FlowMap:
+    """:func:`flow_map` for a model record of the compiled core itself (for example
+    :class:`braidsim.core.ImpactOscillator` with a
+    :class:`braidsim.core.KelvinVoigtContact` law) instead of a scenario: the same
+    Jacobians, by the same variational equations, with respect to the state (x, vx[, y,
+    vy]), the latched speeds and the record's numeric fields ``keys`` (dotted for a nested
+    record: ``"force_frequency"``, ``"law.stiffness"``). The tangent record of a field is
+    the record's zero tangent with that field 1 (the record enters the equations as it is).
+    No transfers; ``min_gaps`` is NaN (the gaps of a scenario's carrier only); the run
+    from t0 continues with a first step of min(1e-7 s, max_step).
+    """
+    from braidsim.core import run as core_run
+    from braidsim.core.driver import state_size
+    from braidsim.result import impacts_frame
+
+    t0, t1 = float(t0), float(t1)
+    if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
+        raise InputError(f"flow_map: [t0, t1] = [{t0}, {t1}] is not a time interval")
+    check_differentiable(record)
+    n = state_size(record, False)
+    ya = np.asarray(y0, dtype=float)
+    if ya.shape != (n,) or not np.all(np.isfinite(ya)):
+        raise InputError(f"flow_map: y0 needs {n} finite entries, got {ya.shape}")
+    modes_t = (int(modes[0]), int(modes[1]))
+    v0a = np.array(v0s, dtype=float).reshape(2)
+    for p in range(2):
+        if modes_t[p] not in (-1, 0, 1):
+            raise InputError(f"flow_map: modes[{p}] = {modes_t[p]}; allowed -1, 0, +1")
+        if modes_t[p] != 0 and not (v0a[p] > 0):
+            raise InputError(f"flow_map: v0s[{p}] must be > 0 m/s for a pair in contact")
+    zero = zero_tangent(record)
+    records = [zero] * (n + 2)
+    scale = np.ones(n + 2 + len(keys))
+    scale[n] = v0a[0] if modes_t[0] != 0 else 1.0
+    scale[n + 1] = v0a[1] if modes_t[1] != 0 else 1.0
+    for i, key in enumerate(keys):
+        try:
+            value = _field(record, key)
+            records.append(_with_field(zero, key, 1.0))
+        except (AttributeError, TypeError, ValueError):
+            raise InputError(
+                f"flow_map: {key!r} is not a numeric field of {type(record).__name__}"
+            ) from None
+        scale[n + 2 + i] = abs(value) if value != 0.0 and math.isfinite(value) else 1.0
+    k = n + 2 + len(keys)
+    S0 = np.zeros((k, n))
+    S0[:n, :n] = np.eye(n)
+    DV0 = np.zeros((k, 2))
+    DV0[n, 0] = 1.0 if modes_t[0] != 0 else 0.0
+    DV0[n + 1, 1] = 1.0 if modes_t[1] != 0 else 0.0
+    tangents = Tangents(records, S0, DV0, np.zeros((k, 0)), scale, series=False)
+    restart = L.new_restart()
+    r = restart[0]
+    r["t"] = t0
+    r["started"] = L.CONTINUED
+    r["h"] = min(1e-7, options.max_step, t1 - t0)
+    r["mode_0"], r["mode_1"] = modes_t
+    r["v0_0"] = v0a[0] if modes_t[0] else 1.0
+    r["v0_1"] = v0a[1] if modes_t[1] else 1.0
+    opts = options._replace(t_end=t1, record_events=True, energy=False)
+    raw = core_run(
+        record, opts, ya.copy(), series=False, xsq=False, restart=restart, tangents=tangents
+    )
+    if raw.status == L.ST_GRAZING:
+        raise sensitivity_error(raw.t)
+    if raw.status != L.ST_OK:
+        raise SimulationError(
+            f"the integrator stopped with status {raw.status} at t = {raw.t:.9g} s (a flow "
+            f"map of {type(record).__name__} from t = {t0:.9g} s)",
+            raw.t,
+        )
+    sens = raw.sensitivity
+    assert sens is not None
+    rs = raw.restart[0]
+    modes1 = (int(rs["mode_0"]), int(rs["mode_1"]))
+    v0s1 = np.array([rs["v0_0"] if modes1[0] else math.nan, rs["v0_1"] if modes1[1] else math.nan])
+    D = sens.DV0.copy()
+    for p in range(2):
+        if modes1[p] == 0:
+            D[:, p] = 0.0
+    S = sens.S
+    return FlowMap(
+        t0=t0,
+        t1=t1,
+        y0=ya.copy(),
+        modes0=modes_t,
+        v0s0=np.where(np.array(modes_t) != 0, v0a, math.nan),
+        y1=raw.y[:n].copy(),
+        modes1=modes1,
+        v0s1=v0s1,
+        jac_y=S[:n].T.copy(),
+        jac_v0=S[n : n + 2].T.copy(),
+        dv0_dy=D[:n].T.copy(),
+        dv0_dv0=D[n : n + 2].T.copy(),
+        keys=tuple(keys),
+        jac_p=S[n + 2 :].T.copy(),
+        dv0_dp=D[n + 2 :].T.copy(),
+        impacts=impacts_frame(raw.episodes),
+        impact_sens=sens.impacts,
+        min_gaps=np.full((2, 2), math.nan),
+    )

@@ -247,3 +247,50 @@ def test_multiple_shooting_branch_matches_single_shooting(system, bouncing) -> N
         mu, mu_ref = np.sort_complex(o.multipliers), np.sort_complex(ref.multipliers)
         assert np.allclose(mu, mu_ref, atol=1e-4)
         assert abs(o.profile.strobe_u[0] - ref.profile.strobe_u[0]) < 1e-10
+
+
+def test_period_doubling_located_on_a_coarse_branch(system, bouncing) -> None:
+    """A period doubling is located by a root solve of det(M + I) in the parameter, each
+    trial orbit corrected by Newton's method: a branch with coarse steps (up to 5 um of h_a
+    between points) places it where a fine one (0.1 um) does, and a multiplier is -1
+    there (the brute-force diagram brackets it: ``test_continuation_slow.py``)."""
+    coarse = continue_orbit(
+        system, bouncing, HA, 0.3e-3, method="fd", switch=False, step=0.01, max_step=0.03
+    )
+    fine = continue_orbit(
+        system, bouncing, HA, 0.13e-3, method="fd", switch=False, step=0.002, max_step=0.004
+    )
+    assert np.diff(coarse.values).max() > 2e-6 and np.diff(fine.values).max() < 2e-7
+    (pc,) = [s for s in coarse.special if s.type == "period_doubling"]
+    (pf,) = [s for s in fine.special if s.type == "period_doubling"]
+    assert pc.tolerance < 1e-12 and pf.tolerance < 1e-12
+    assert abs(pc.value - pf.value) < 1e-12
+    for sp in (pc, pf):
+        assert sp.orbit is not None
+        assert np.min(np.abs(sp.orbit.multipliers + 1.0)) < 1e-6
+
+
+def test_special_point_markers_are_merged_when_they_overlap() -> None:
+    from braidsim.continuation.plots import MERGE_FRACTION, merge_marks
+
+    d = 0.5 * MERGE_FRACTION
+    marks = [(0.0, 0.0, "grazing"), (d, d, "grazing"), (d, 0.0, "fold"), (0.5, 0.0, "grazing")]
+    assert merge_marks(marks, (1.0, 1.0)) == [
+        (0.0, 0.0, "grazing", 2),
+        (d, 0.0, "fold", 1),
+        (0.5, 0.0, "grazing", 1),
+    ]
+
+
+def test_example_specs_parse() -> None:
+    """The shipped specs: the (h_a, omega) lift-off and the (clearance, omega) map."""
+    from pathlib import Path
+
+    from braidsim.continuation.study import load_spec
+
+    ex = Path(__file__).resolve().parents[2] / "examples"
+    a = load_spec(ex / "continuation_paper.toml")
+    assert (a.parameter, a.map_parameter) == (HA, "horn_gear.angular_velocity")
+    b = load_spec(ex / "continuation_clearance.toml")
+    assert (b.parameter, b.map_parameter) == ("track.clearance", "horn_gear.angular_velocity")
+    assert b.scenario[HA] == pytest.approx(0.1e-3) and b.regime_points == (6, 4)

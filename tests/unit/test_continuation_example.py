@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 from pathlib import Path
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "continuation_operating_map.py"
@@ -27,4 +28,11 @@ def test_example_small(tmp_path: Path) -> None:
     for tag, lift in (("4pi", lift4), ("8pi", lift8)):
         bound = findings[tag]["bound_h_a_with_friction"]
         assert abs(lift / bound - 1) < 0.03
-    assert any(c["type"] == "grazing" and len(c["points"]) >= 2 for c in findings["curves"])
+    # the lift-off, fold and period-doubling curves over (h_a, omega), each past 5 pi rad/s
+    for kind in ("grazing", "fold", "period_doubling"):
+        (c,) = [c for c in findings["curves"] if c["type"] == kind]
+        assert len(c["points"]) >= 2 and max(p[1] for p in c["points"]) > 5 * math.pi
+    # the outer-wall grazing over (clearance, omega)
+    (c,) = findings["clearance_curves"]
+    assert c["type"] == "grazing" and len(c["points"]) >= 2
+    assert (tmp_path / "continuation_clearance_map.png").stat().st_size > 10_000

@@ -9,71 +9,81 @@ braidsim's side runs the compiled :class:`~braidsim.core.ImpactOscillator` with 
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
-from braidsim.continuation import ModelSystem, seed_orbit
+from braidsim.continuation import seed_orbit
 from braidsim.continuation.branch import continue_orbit, orbit_at
 from braidsim.continuation.orbit import recut
-from braidsim.core import ImpactOscillator, KelvinVoigtContact
-
-pwl = pytest.importorskip("reference.pwl_oscillator")
-
-
-def oscillator(p) -> ModelSystem:
-    law = KelvinVoigtContact(p.contact_stiffness, p.contact_damping, allow_tension=True)
-    rec = ImpactOscillator(
-        p.mass,
-        p.stiffness,
-        p.damping,
-        p.force_amplitude,
-        p.force_frequency,
-        p.force_phase,
-        math.inf,
-        p.gap,
-        law,
-    )
-    return ModelSystem(rec, length_scale=p.gap, name="pwl")
+from reference import pwl_oscillator as pwl
+from reference.pwl_braidsim import oscillator_system
 
 
+@pytest.mark.parametrize(("method", "atol"), [("fd", 1e-5), ("exact", 1e-9)])
 @pytest.mark.parametrize("name", ["stable_p1", "stable_p1_stiff"])
-def test_periodic_orbit_and_multipliers(name: str) -> None:
+def test_periodic_orbit_and_multipliers(name: str, method: str, atol: float) -> None:
+    """The orbit and its multipliers, with the finite-difference map and with the exact
+    variational map of the record (``braidsim.sensitivity.record_flow_map``)."""
     ref = pwl.periodic_orbit(pwl.PARAMETER_SETS[name], 1, pwl.ORBIT_GUESSES[(name, 1)])
-    system = oscillator(ref.params)
-    o = seed_orbit(system, {}, 1, transient_cycles=200, method="fd")
-    o0 = recut(o, system, 0.0, method="fd")  # the reference's section, t = 0
+    system = oscillator_system(ref.params)
+    o = seed_orbit(system, {}, 1, transient_cycles=200, method=method)
+    o0 = recut(o, system, 0.0, method=method)  # the reference's section, t = 0
     assert o0.cuts[0].modes == (0, 0)
     scale = np.array([ref.params.gap, ref.params.gap * ref.params.force_frequency])
     assert np.all(np.abs(o0.z[0] - ref.z_section) < 1e-7 * scale)
     assert o0.profile.impacts == ref.impacts == 1
     mu_ref = np.sort_complex(pwl.floquet_multipliers(ref))
-    assert np.allclose(np.sort_complex(o0.multipliers), mu_ref, atol=1e-5)
+    assert np.allclose(np.sort_complex(o0.multipliers), mu_ref, atol=atol)
+    if method == "exact":
+        np.testing.assert_allclose(o0.monodromy, pwl.monodromy(ref), rtol=0, atol=1e-9)
 
 
-def test_period_doubling_in_the_forcing_frequency() -> None:
+def test_exact_record_map_matches_finite_differences() -> None:
+    """The exact flow map of the record against central differences of the same runs, over
+    a period with an impact: d/d state, d/d fields (a field of the nested law too)."""
+    from braidsim.continuation.fdmap import fd_flow_map
+    from braidsim.sensitivity import record_flow_map
+
+    ref = pwl.periodic_orbit(
+        pwl.PARAMETER_SETS["stable_p1"], 1, pwl.ORBIT_GUESSES[("stable_p1", 1)]
+    )
+    system = oscillator_system(ref.params)
+    keys = ("force_amplitude", "damping", "law.stiffness", "law.damping")
+    prep = system.prepare({})
+    T = ref.params.period
+    ex = record_flow_map(prep.record, prep.options, 0.0, T, ref.z_section, keys=keys)
+    fd = fd_flow_map(system, {}, 0.0, T, ref.z_section, keys=keys)
+    assert len(ex.impacts) == 1
+    np.testing.assert_allclose(ex.y1, fd.y1, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ex.jac_y, fd.jac_y, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(ex.jac_p, fd.jac_p, rtol=1e-5, atol=1e-7)
+
+
+@pytest.mark.parametrize(("method", "rel"), [("fd", 1e-5), ("exact", 1e-8)])
+def test_period_doubling_in_the_forcing_frequency(method: str, rel: float) -> None:
     """The period-1 orbit continued in Omega from 2.2 rad/s doubles its period where the
     reference's det(M + I) vanishes, and the switched branch at Omega = 2.4 rad/s is the
     reference's period-2 orbit."""
     base = pwl.PARAMETER_SETS["period_doubled"]
     p = base._replace(force_frequency=2.2)
-    system = oscillator(p)
-    o = seed_orbit(system, {}, 1, transient_cycles=200, method="fd")
-    br = continue_orbit(system, o, "force_frequency", 2.45, method="fd", max_depth=1, max_points=60)
+    system = oscillator_system(p)
+    o = seed_orbit(system, {}, 1, transient_cycles=200, method=method)
+    br = continue_orbit(
+        system, o, "force_frequency", 2.45, method=method, max_depth=1, max_points=60
+    )
     (pd,) = [s for s in br.special if s.type == "period_doubling"]
     w_pd, _ = pwl.critical_parameter(base, "force_frequency", 2.2, 2.4, guess=None)
-    assert pd.value == pytest.approx(w_pd, rel=1e-5)
+    assert pd.value == pytest.approx(w_pd, rel=rel)
     # the unstable period-1 orbit at 2.4 rad/s
     ref1 = pwl.periodic_orbit(base, 1, pwl.ORBIT_GUESSES[("period_doubled", 1)])
-    o1 = recut(orbit_at(system, br, 2.4, method="fd"), system, 0.0, method="fd")
+    o1 = recut(orbit_at(system, br, 2.4, method=method), system, 0.0, method=method)
     assert np.allclose(
         np.sort_complex(o1.multipliers), np.sort_complex(pwl.floquet_multipliers(ref1)), atol=1e-4
     )
     # the stable period-2 orbit at 2.4 rad/s
     ref2 = pwl.periodic_orbit(base, 2, pwl.ORBIT_GUESSES[("period_doubled", 2)])
     (child,) = br.children
-    o2 = recut(orbit_at(system, child, 2.4, method="fd"), system, 0.0, method="fd")
+    o2 = recut(orbit_at(system, child, 2.4, method=method), system, 0.0, method=method)
     scale = np.array([base.gap, base.gap * base.force_frequency])
     # the period-2 orbit seen from t = 0 or from t = T: the same orbit, either half first
     z_alt = o2.z[0]

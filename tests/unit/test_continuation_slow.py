@@ -86,3 +86,59 @@ def test_lift_off_approaches_the_rigid_contact_bound() -> None:
     assert all(e < 0 for e in errors)  # a compliant contact lifts off first
     assert all(abs(b) < abs(a) for a, b in itertools.pairwise(errors))
     assert abs(errors[-1]) < 0.01
+
+
+def test_period_doubling_curve_of_the_carrier_against_branches() -> None:
+    """The 4 pi rad/s period doubling followed in omega on the augmented system ends on
+    omega = 5 pi rad/s where a branch in h_a at 5 pi rad/s through the curve's orbit has its
+    doubling (the one-parameter root solve), and plain runs of the simulator started on
+    the orbit settle on period 1 at 2 % below it and on period 2 at 3 % above it."""
+    import math
+
+    om = "horn_gear.angular_velocity"
+    sc = braidsim.load_scenario("paper-3.3")
+    system = ScenarioSystem(sc)
+    seed = seed_orbit(system, {HA: 0.1e-3}, 1, method="exact")
+    br = continue_orbit(system, seed, HA, 0.13e-3, method="exact", switch=False)
+    (pd,) = [s for s in br.special if s.type == "period_doubling"]
+    from braidsim.continuation.twopar import trace_boundary
+
+    c = trace_boundary(
+        system, br, pd, om, 5 * math.pi, steps=4, method="exact", range1=(0.05e-3, 0.3e-3)
+    )
+    assert c.p2[-1] == pytest.approx(5 * math.pi)
+    h_pd = c.p1[-1]
+    end = c.orbits[-1]
+    assert end is not None and end.profile.impacts == 1
+    from braidsim.continuation.fdmap import advance
+    from braidsim.continuation.orbit import solve_fixed
+
+    # a branch in h_a at 5 pi rad/s through the end point locates the same doubling
+    below = solve_fixed(
+        system, {**end.values, HA: 0.97 * h_pd}, 1, end.phase, end.cuts, end.z, "exact"
+    )
+    b5 = continue_orbit(
+        system, below, HA, 1.03 * h_pd, method="exact", switch=False, step=0.05, max_step=0.2
+    )
+    (pd5,) = [s for s in b5.special if s.type == "period_doubling"]
+    assert h_pd == pytest.approx(pd5.value, rel=1e-6)
+    # brute force: runs from the orbit settle on period 1 below it and period 2 above it
+    for f, period in ((0.98, 1), (1.03, 2)):
+        vals = {**end.values, HA: f * h_pd}
+        prep = system.prepare(vals)
+        T = prep.period
+        t0 = end.phase / prep.omega
+        c0 = end.cuts[0]
+        run = advance(prep, t0, t0 + 1500 * T, end.z[0][:2], c0.modes, c0.v0s(end.z[0][2:]))
+        st = t0 + 1500 * T + T * np.arange(9)
+        seg = advance(prep, st[0], st[-1], run.y1, run.modes1, run.v0s1, st)
+        assert seg.series is not None
+        rows = seg.series[np.isin(seg.series[:, 0], st)]
+        _, first = np.unique(rows[:, 0], return_index=True)  # (an event row may repeat one)
+        x = rows[first, 1]
+        assert x.size == 9
+        spread = np.ptp(x[::2]), np.ptp(x[1::2]), abs(x[0] - x[1])
+        if period == 1:
+            assert abs(x[0] - x[1]) < 1e-9
+        else:
+            assert spread[0] < 1e-9 and spread[1] < 1e-9 and spread[2] > 1e-7

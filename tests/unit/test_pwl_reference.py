@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from braidsim.core import ImpactOscillator, KelvinVoigtContact, run
 from braidsim.core import layout as L
+from braidsim.core import run
+from reference.pwl_braidsim import braidsim_oscillator
 from reference.pwl_oscillator import (
     CONTACT,
     FREE,
@@ -257,21 +258,6 @@ def test_a_matching_solution_that_crosses_the_wall_is_refused() -> None:
 # ---- braidsim against the reference -----------------------------------------------------------
 
 
-def _braidsim(p: PWLParams) -> ImpactOscillator:
-    law = KelvinVoigtContact(p.contact_stiffness, p.contact_damping, allow_tension=True)
-    return ImpactOscillator(
-        p.mass,
-        p.stiffness,
-        p.damping,
-        p.force_amplitude,
-        p.force_frequency,
-        p.force_phase,
-        math.inf,
-        p.gap,
-        law,
-    )
-
-
 def _options(t_end: float, rtol: float) -> L.SolverOptions:
     return L.SolverOptions(
         rtol=rtol,
@@ -294,7 +280,7 @@ def test_braidsim_stays_on_the_orbit_with_the_same_impacts(name: str, k: int) ->
     n_per = 6
     sample_t = orbit.period * np.arange(1, n_per + 1)
     raw = run(
-        _braidsim(p),
+        braidsim_oscillator(p),
         _options(n_per * orbit.period, 1e-10),
         np.array(orbit.z_section),
         sample_times=sample_t,
@@ -325,7 +311,7 @@ def test_braidsims_stroboscopic_map_has_the_reference_monodromy(name: str, k: in
     shooting method built on braidsim differentiates)."""
     orbit = _orbit(name, k)
     p = orbit.params
-    model = _braidsim(p)
+    model = braidsim_oscillator(p)
     opts = _options(orbit.period, 1e-12)
     z = np.array(orbit.z_section)
     J = np.empty((2, 2))

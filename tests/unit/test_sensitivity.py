@@ -364,6 +364,7 @@ def test_tangents_give_the_closed_form_monodromy(name: str, k: int) -> None:
     oscillator (a linear spring-dashpot wall: the field jumps at onset and exit) over its
     period are the orbit's monodromy, as the closed form gives it (phase exponentials and
     saltation matrices, ``tests/reference``); its multipliers too."""
+    from reference.pwl_braidsim import braidsim_oscillator
     from reference.pwl_oscillator import (
         ORBIT_GUESSES,
         PARAMETER_SETS,
@@ -373,19 +374,7 @@ def test_tangents_give_the_closed_form_monodromy(name: str, k: int) -> None:
     )
 
     orbit = periodic_orbit(PARAMETER_SETS[name], k, ORBIT_GUESSES[(name, k)])
-    p = orbit.params
-    law = KelvinVoigtContact(p.contact_stiffness, p.contact_damping, allow_tension=True)
-    model = ImpactOscillator(
-        p.mass,
-        p.stiffness,
-        p.damping,
-        p.force_amplitude,
-        p.force_frequency,
-        p.force_phase,
-        math.inf,
-        p.gap,
-        law,
-    )
+    model = braidsim_oscillator(orbit.params)
     z = zero_tangent(model)
     opts = L.SolverOptions(1e-12, 1e-15, 1e-14, 0.05, 10**6, orbit.period, energy=False)
     tg = Tangents([z, z], np.eye(2), np.zeros((2, 2)), np.zeros((2, 0)), np.ones(2), False)

@@ -37,6 +37,7 @@ multiplier -1), and continued away from lambda*.
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -59,6 +60,14 @@ from braidsim.continuation.orbit import (
 from braidsim.errors import InputError, SimulationError
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "grazing")
+LOCATE_RTOL = 1e-9
+"""Bracket width, relative to the continuation's parameter scale |to - from|, to which
+fold, period-doubling and Neimark-Sacker points are located."""
+
+
+def lam_of(o: Orbit, key: str) -> float:
+    """The orbit's value of the continuation parameter [SI]."""
+    return float(o.values[key])
 
 
 @dataclass
@@ -79,6 +88,11 @@ class SpecialPoint:
         The orbit there (for grazing: the last orbit of the earlier structure).
     detail : str
         What changed (multiplier, walls).
+    other : Orbit or None
+        For grazing: the first orbit of the other structure.
+    tolerance : float
+        Width of the parameter bracket the point was located in [SI] (NaN: not located
+        by a bracketing solve).
     """
 
     type: str
@@ -88,6 +102,7 @@ class SpecialPoint:
     orbit: Orbit | None = None
     detail: str = ""
     other: Orbit | None = field(default=None, repr=False)
+    tolerance: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -96,6 +111,7 @@ class SpecialPoint:
             "value": self.value,
             "period": self.period,
             "detail": self.detail,
+            "tolerance": self.tolerance,
         }
 
 
@@ -174,6 +190,28 @@ def signature(o: Orbit) -> tuple[Any, ...]:
     return (walls, tuple(c.modes for c in o.cuts), tuple(c.v0_state for c in o.cuts))
 
 
+def grazing_zero(points: list[tuple[float, float]]) -> float | None:
+    """Where the distance to grazing a(s) of a family's orbits extrapolates to zero, from
+    (s, a) pairs: the line through the orbit nearest the grazing (smallest a) and the
+    nearest one with at least twice its distance, so that the secant spans the
+    extrapolation (two orbits a bracket's width apart differ by little more than the
+    noise of a). None without two usable points."""
+    pts = sorted((p for p in points if math.isfinite(p[1]) and p[1] > 0.0), key=lambda p: p[1])
+    if len(pts) < 2:
+        return None
+    s2, a2 = pts[0]
+    far = [p for p in pts[1:] if p[1] >= 2.0 * a2 and p[0] != s2]
+    s1, a1 = min(far, key=lambda p: p[1]) if far else pts[-1]
+    if a1 == a2 or s1 == s2:
+        return None
+    return float(s2 - a2 * (s2 - s1) / (a2 - a1))
+
+
+def _heading(tau: np.ndarray, direction: float) -> float:
+    """The direction the parameter moves along ``tau`` (``direction`` where it stands)."""
+    return float(np.sign(tau[-1])) if abs(tau[-1]) > 1e-12 else direction
+
+
 def _null_vector(DR: np.ndarray) -> np.ndarray:
     _, _, vt = np.linalg.svd(DR)
     v = vt[-1]
@@ -236,6 +274,15 @@ class Continuer:
             tau = -tau
         return tau
 
+    def setup(
+        self, o: Orbit, prev: np.ndarray | None, direction: float
+    ) -> tuple[Shooter, np.ndarray, np.ndarray]:
+        """The shooter of ``o``'s structure, its unknowns and unit tangent (oriented as
+        ``prev``, or else with the parameter moving in ``direction``)."""
+        sh = self.shooter(o)
+        U = sh.pack(o.z, o.values[self.key])
+        return sh, U, self.tangent(sh, U, prev, direction)
+
     def correct(self, sh: Shooter, Up: np.ndarray, normal: np.ndarray) -> Orbit:
         """Newton on r(U) = 0, normal . (U - Up) = 0."""
         from braidsim.continuation.orbit import newton
@@ -265,9 +312,7 @@ class Continuer:
             if self.on_point:
                 self.on_point(start)
         o = br.points[-1]
-        sh = self.shooter(o)
-        U = sh.pack(o.z, o.values[self.key])
-        tau = self.tangent(sh, U, br.tangents[-1] if br.tangents else None, direction)
+        sh, U, tau = self.setup(o, br.tangents[-1] if br.tangents else None, direction)
         if not br.tangents:
             br.tangents.append(tau)
         h = br.steps[-1] if br.steps else self.h0
@@ -287,11 +332,7 @@ class Continuer:
                                 f"step below {self.hmin:g} at {self.key} = {lam_o:.6g} ({exc})"
                             )
                             break
-                        sh = self.shooter(o)
-                        U = sh.pack(o.z, o.values[self.key])
-                        tau = self.tangent(
-                            sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
-                        )
+                        sh, U, tau = self.setup(o, None, _heading(tau, direction))
                         h = self.h0
                         reseated = True
                         continue
@@ -304,9 +345,7 @@ class Continuer:
                     if jumped is None:
                         break
                     o = jumped
-                    sh = self.shooter(o)
-                    U = sh.pack(o.z, o.values[self.key])
-                    tau = self.tangent(sh, U, None, float(np.sign(tau[-1]) or direction))
+                    sh, U, tau = self.setup(o, None, _heading(tau, direction))
                     h = self.h0
                     reseated = False
                     continue
@@ -322,15 +361,14 @@ class Continuer:
                     br.stop = f"could not land on the end value {edge:g}"
                     break
                 done = True
-            sh_new = self.shooter(nxt)
-            U_new = sh_new.pack(nxt.z, nxt.values[self.key])
             try:
-                tau_new = self.tangent(sh_new, U_new, tau, direction)
+                sh_new, U_new, tau_new = self.setup(nxt, tau, direction)
             except (ContinuationError, SimulationError) as exc:
                 br.stop = f"tangent failed at {self.key} = {lam:.6g} ({exc})"
                 break
             n_special = len(br.special)
-            self.detect(br, o, nxt, sh, U, U_new, tau, tau_new)
+            # both ends in the units of ``sh`` (the scales follow the shooter's base values)
+            self.detect(br, o, nxt, sh, U, sh.pack(nxt.z, lam_of(nxt, self.key)), tau, tau_new)
             if self.stop_on and any(sp.type == self.stop_on for sp in br.special[n_special:]):
                 br.points.append(nxt)
                 br.stop = f"found a {self.stop_on} point"
@@ -339,11 +377,7 @@ class Continuer:
             nxt2 = self.restructure(nxt)
             if nxt2 is not nxt:
                 nxt = nxt2
-                sh_new = self.shooter(nxt)
-                U_new = sh_new.pack(nxt.z, nxt.values[self.key])
-                tau_new = self.tangent(
-                    sh_new, U_new, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction
-                )
+                sh_new, U_new, tau_new = self.setup(nxt, None, _heading(tau, direction))
             br.points.append(nxt)
             br.tangents.append(tau_new)
             if self.on_point:
@@ -372,9 +406,7 @@ class Continuer:
                 try:
                     o = reseat(o, self.system, self.method)
                     br.points[-1] = o
-                    sh = self.shooter(o)
-                    U = sh.pack(o.z, o.values[self.key])
-                    tau = self.tangent(sh, U, None, tau[-1] if abs(tau[-1]) > 1e-12 else direction)
+                    sh, U, tau = self.setup(o, None, _heading(tau, direction))
                     br.tangents[-1] = tau
                 except (ContinuationError, SimulationError):
                     pass
@@ -476,31 +508,36 @@ class Continuer:
         d = Ub - Ua
         return self.correct(sh, Ua + t * d, d / np.linalg.norm(d))
 
-    def _locate(
+    def _illinois(
         self,
-        sh: Shooter,
-        Ua: np.ndarray,
-        Ub: np.ndarray,
         fa: float,
         fb: float,
-        f: Callable[[Orbit], float | None],
-    ) -> Orbit | None:
+        trial: Callable[[float], tuple[Orbit, float | None]],
+        xtol: float,
+    ) -> tuple[Orbit | None, float, float]:
+        """The Illinois variant of regula falsi on [0, 1] (Dowell, M. and Jarratt, P.
+        (1971), BIT 11, 168-174, doi:10.1007/BF01934364): ``trial(t)`` gives the orbit at
+        t and its test function. Returns (the trial orbit with the smallest |f|, the zero
+        of the final bracket's secant, the bracket's width); stops when the width is below
+        ``xtol`` or f vanishes."""
         a, b = 0.0, 1.0
-        best = None
+        best: Orbit | None = None
+        fbest = math.inf
         side = 0
-        for _ in range(20):
+        for _ in range(60):
             t = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
-            t = min(max(t, a + 0.02 * (b - a)), b - 0.02 * (b - a))
+            # keep the trial inside the bracket (and away from its ends, so that it shrinks)
+            t = min(max(t, a + 0.01 * (b - a)), b - 0.01 * (b - a))
             try:
-                o = self._secant_point(sh, Ua, Ub, t)
+                o, ft = trial(t)
             except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                return best
-            ft = f(o)
-            if ft is None:
-                return best
-            best = o
-            if abs(ft) < 1e-10 or (b - a) < 1e-6:
                 break
+            if ft is None:
+                break
+            if abs(ft) < fbest:
+                best, fbest = o, abs(ft)
+            if ft == 0.0:
+                return best, t, 0.0
             if (ft > 0) == (fa > 0):
                 a, fa = t, ft
                 if side == -1:
@@ -511,7 +548,74 @@ class Continuer:
                 if side == 1:
                     fa *= 0.5
                 side = 1
-        return best
+            if b - a < xtol:
+                break
+        t_star = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        return best, float(t_star), float(b - a)
+
+    def _locate(
+        self,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        fa: float,
+        fb: float,
+        f: Callable[[Orbit], float | None],
+        monotone: bool = True,
+    ) -> tuple[Orbit | None, float, float]:
+        """Locate the zero of ``f`` between two branch points by bracketing along the
+        branch. Where the branch is a graph over the parameter (no fold between them) the
+        unknown is the parameter itself and each trial orbit is found by Newton's method
+        at that fixed value (:meth:`at_value`) from the nearer end; otherwise (``monotone``
+        False: a fold between them) the unknown is the position on the chord and the trial
+        is corrected onto the branch on the hyperplane normal to the chord. Returns
+        (orbit, value [SI], bracket width [SI])."""
+        la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
+        xtol_abs = LOCATE_RTOL * self.pscale
+        if monotone and la != lb:
+
+            def trial(t: float) -> tuple[Orbit, float | None]:
+                lam = la + t * (lb - la)
+                U0 = Ua if t < 0.5 else Ub
+                o = self.at_value(sh, U0, lam)
+                return o, f(o)
+
+            o, t_star, w = self._illinois(fa, fb, trial, xtol_abs / abs(lb - la))
+            if o is not None and w * abs(lb - la) <= 100 * xtol_abs:
+                return o, la + t_star * (lb - la), w * abs(lb - la)
+
+        def on_chord(t: float) -> tuple[Orbit, float | None]:
+            o = self._secant_point(sh, Ua, Ub, t)
+            return o, f(o)
+
+        o, t_star, w = self._illinois(fa, fb, on_chord, 1e-9)
+        if o is None:
+            return None, 0.5 * (la + lb), abs(lb - la)
+        return o, lam_of(o, self.key), w * abs(lb - la)
+
+    def _locate_fold(
+        self,
+        sh: Shooter,
+        Ua: np.ndarray,
+        Ub: np.ndarray,
+        fa: float,
+        fb: float,
+        f: Callable[[Orbit], float | None],
+    ) -> tuple[Orbit | None, float, float]:
+        """A fold between two points: the zero of the tangent's parameter component, by
+        regula falsi along the chord (the parameter itself is stationary there). Returns
+        (orbit, value [SI], width of the final bracket in the parameter [SI], an upper
+        bound: the value's own error is of second order in it)."""
+        la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
+
+        def on_chord(t: float) -> tuple[Orbit, float | None]:
+            o = self._secant_point(sh, Ua, Ub, t)
+            return o, f(o)
+
+        o, _, w = self._illinois(fa, fb, on_chord, 1e-9)
+        if o is None:
+            return None, 0.5 * (la + lb), abs(lb - la)
+        return o, lam_of(o, self.key), w * max(abs(lb - la), 1e-300)
 
     def _locate_grazing(self, oa: Orbit, ob: Orbit) -> tuple[Orbit | None, Orbit | None]:
         """Bisect in the parameter between two orbits of different contact structure. Each
@@ -551,14 +655,9 @@ class Continuer:
         # the distance to grazing is linear in the parameter near a regular grazing: the
         # secant of the last two orbits' approach distances finds its zero when the corrector
         # gave up before the bracket closed (a stiff contact near lift-off)
-        if len(hist) >= 2:
-            o1, o2 = hist[-2], hist[-1]
-            a1, a2 = o1.profile.approach, o2.profile.approach
-            l1, l2 = o1.values[self.key], o2.values[self.key]
-            if math.isfinite(a1) and math.isfinite(a2) and a1 != a2 and l1 != l2:
-                lg = l2 - a2 * (l2 - l1) / (a2 - a1)
-                if min(la, lb) <= lg <= max(la, lb):
-                    self.grazing_value = float(lg)
+        lg = grazing_zero([(o.values[self.key], o.profile.approach) for o in hist])
+        if lg is not None and min(la, lb) <= lg <= max(la, lb):
+            self.grazing_value = float(lg)
         return best_a, best_b
 
     def detect(
@@ -602,49 +701,37 @@ class Continuer:
         """Folds, period doublings and Neimark-Sacker points between two orbits of one
         structure."""
         k = oa.period
+        # the parameter is monotone between the points unless a fold lies between them
+        monotone = bool(ta[-1] * tb[-1] > 0)
         if ta[-1] * tb[-1] < 0:
 
             def f_fold(o: Orbit) -> float:
-                s = self.shooter(o)
-                U = s.pack(o.z, o.values[self.key])
-                return float(self.tangent(s, U, ta, 1.0)[-1])
+                return float(self.setup(o, ta, 1.0)[2][-1])
 
-            of = self._locate(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
-            lam = (
-                of.values[self.key]
-                if of is not None
-                else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            )
+            of, lam, w = self._locate_fold(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
             br.special.append(
-                SpecialPoint("fold", float(lam), k, idx, of, "a multiplier crosses +1")
+                SpecialPoint("fold", lam, k, idx, of, "a multiplier crosses +1", tolerance=w)
             )
         pa, pb = _test_pd(oa), _test_pd(ob)
         if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
-            op = self._locate(sh, Ua, Ub, pa, pb, _test_pd)
-            lam = (
-                op.values[self.key]
-                if op is not None
-                else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            )
+            op, lam, w = self._locate(sh, Ua, Ub, pa, pb, _test_pd, monotone)
             br.special.append(
-                SpecialPoint("period_doubling", float(lam), k, idx, op, "a multiplier crosses -1")
+                SpecialPoint(
+                    "period_doubling", lam, k, idx, op, "a multiplier crosses -1", tolerance=w
+                )
             )
         na, nb = _test_ns(oa), _test_ns(ob)
         if na is not None and nb is not None and na * nb < 0:
-            on = self._locate(sh, Ua, Ub, na, nb, _test_ns)
-            lam = (
-                on.values[self.key]
-                if on is not None
-                else 0.5 * (oa.values[self.key] + ob.values[self.key])
-            )
+            on, lam, w = self._locate(sh, Ua, Ub, na, nb, _test_ns, monotone)
             br.special.append(
                 SpecialPoint(
                     "neimark_sacker",
-                    float(lam),
+                    lam,
                     k,
                     idx,
                     on,
                     "a complex pair crosses the unit circle",
+                    tolerance=w,
                 )
             )
 
@@ -849,19 +936,8 @@ def switch_period_doubling(
             d = 1.0
         if d < 1e-4:
             continue
-        sub = Continuer(
-            system,
-            key,
-            (cont.lo, cont.hi),
-            method=cont.method,
-            tol=cont.tol,
-            step=cont.h0,
-            min_step=cont.hmin,
-            max_step=cont.hmax,
-            max_points=cont.max_points,
-            pscale=cont.pscale,
-            on_point=cont.on_point,
-        )
+        sub = copy.copy(cont)  # the same settings, a run of its own
+        sub.stop_on = None
         br = sub.run(o2, 1.0 if dl > 0 else -1.0)
         if switch and max_depth > 0:
             for sp2 in list(br.special):

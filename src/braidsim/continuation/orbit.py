@@ -86,18 +86,36 @@ def evaluate_map(
 ) -> FlowMap:
     """The flow map with its Jacobians: the one place where continuation asks for it.
 
-    ``method``: ``"exact"`` (the variational equations of :mod:`braidsim.sensitivity`, the
-    carrier of a scenario only), ``"fd"`` (central finite differences,
+    ``method``: ``"exact"`` (the variational equations of :mod:`braidsim.sensitivity`: the
+    carrier of a scenario, or a model record of the compiled core through
+    :func:`braidsim.sensitivity.record_flow_map`), ``"fd"`` (central finite differences,
     :func:`braidsim.continuation.fdmap.fd_flow_map`) or ``"auto"`` (exact where available).
     """
     if method not in METHODS:
         raise InputError(f"method: {method!r} is not allowed; allowed {', '.join(METHODS)}")
-    use_exact = method == "exact" or (
-        method == "auto" and isinstance(system, ScenarioSystem) and exact_available()
-    )
+    use_exact = method == "exact" or (method == "auto" and exact_available())
+    if use_exact and isinstance(system, ModelSystem):
+        from braidsim.sensitivity import check_differentiable, record_flow_map
+
+        prep = system.prepare(values)
+        if method == "auto":
+            try:
+                check_differentiable(prep.record)
+            except InputError:  # a record without tangents: central differences
+                return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
+        return record_flow_map(  # type: ignore[return-value]  # the same fields
+            prep.record,
+            prep.options,
+            t0,
+            t1,
+            np.asarray(y0, dtype=float),
+            (int(modes[0]), int(modes[1])),
+            tuple(float(v) for v in v0s),
+            tuple(keys),
+        )
     if use_exact:
         if not isinstance(system, ScenarioSystem):
-            raise InputError("method: 'exact' needs the carrier of a scenario; allowed 'fd'")
+            raise InputError("method: 'exact' needs a scenario or a model record; allowed 'fd'")
         from braidsim.sensitivity import flow_map
 
         fm = flow_map(
@@ -451,7 +469,9 @@ class Shooter:
     """The shooting equations of one orbit structure (period, cuts) of a system.
 
     Unknowns U = (z_0 / S_0, ..., z_{m-1} / S_{m-1}, lambda / P) scaled by the state scales
-    S_j and the parameter scale P. ``key`` None solves at fixed parameters.
+    S_j and the parameter scale P. ``key`` None solves at fixed parameters. With ``key2``
+    a second parameter is free as well, U = (..., lambda / P, lambda_2 / P_2) (two-parameter
+    continuation of a bifurcation).
     """
 
     system: Any
@@ -463,6 +483,24 @@ class Shooter:
     method: str = "auto"
     pscale: float = 1.0
     evaluations: int = 0
+    key2: str | None = None
+    pscale2: float = 1.0
+
+    @property
+    def free(self) -> list[tuple[str, float]]:
+        """The free parameters and their scales, in the order of U's last entries."""
+        out = [] if self.key is None else [(self.key, self.pscale)]
+        if self.key2 is not None:
+            out.append((self.key2, self.pscale2))
+        return out
+
+    def values_of(self, U: np.ndarray) -> dict[str, float]:
+        """Parameter values [SI] at the unknowns U."""
+        v = dict(self.values)
+        nf = len(self.free)
+        for i, (k, sc) in enumerate(self.free):
+            v[k] = float(U[U.size - nf + i]) * sc
+        return v
 
     def times(self, values: Mapping[str, float]) -> np.ndarray:
         """The cut times t_0..t_m [s] at ``values``."""
@@ -493,17 +531,23 @@ class Shooter:
             v[self.key] = float(lam)
         return v
 
-    def pack(self, z: Sequence[np.ndarray], lam: float | None) -> np.ndarray:
-        """Scaled unknowns from SI states (and the parameter)."""
+    def pack(
+        self, z: Sequence[np.ndarray], lam: float | None, lam2: float | None = None
+    ) -> np.ndarray:
+        """Scaled unknowns from SI states (and the free parameters)."""
         vals = self.values_at(lam)
         parts = [np.asarray(z[j]) / self.scale(j, vals) for j in range(len(self.cuts))]
         if self.key is not None:
             parts.append(np.array([float(lam) / self.pscale]))  # type: ignore[arg-type]
+        if self.key2 is not None:
+            p2 = float(self.values[self.key2]) if lam2 is None else float(lam2)
+            parts.append(np.array([p2 / self.pscale2]))
         return np.concatenate(parts)
 
     def unpack(self, U: np.ndarray) -> tuple[list[np.ndarray], float | None]:
         """SI states and parameter from scaled unknowns."""
-        lam = float(U[-1]) * self.pscale if self.key is not None else None
+        nf = len(self.free)
+        lam = float(U[U.size - nf]) * self.pscale if self.key is not None else None
         vals = self.values_at(lam)
         out = []
         i = 0
@@ -515,8 +559,8 @@ class Shooter:
     def residual(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
         """Scaled residuals r, their Jacobian (rows r, columns U) and the segment Jacobians
         J_j (SI) of the state maps."""
-        z, lam = self.unpack(U)
-        vals = self.values_at(lam)
+        z, _ = self.unpack(U)
+        vals = self.values_of(U)
         try:
             prep = self.system.prepare(vals)
         except InputError as exc:  # a Newton iterate outside the parameter's range
@@ -530,7 +574,8 @@ class Shooter:
         DR = np.zeros((N, U.size))
         Js = []
         n = 2 * prep.n_coords
-        keys = [self.key] if self.key is not None else []
+        free = self.free
+        keys = [k for k, _ in free]
         fkey = frequency_key(self.system)
         for j in range(m):
             cj, cn = self.cuts[j], self.cuts[(j + 1) % m]
@@ -563,9 +608,9 @@ class Shooter:
             R[offs[j] : offs[j + 1]] = (out - z[jn]) / Sn
             DR[offs[j] : offs[j + 1], offs[j] : offs[j + 1]] += J * Sj[None, :] / Sn[:, None]
             DR[offs[j] : offs[j + 1], offs[jn] : offs[jn + 1]] -= np.eye(sizes[jn])
-            if self.key is not None:
-                dp = np.concatenate([fm.jac_p[:, 0], np.asarray(fm.dv0_dp)[co, 0]])
-                if self.key == fkey:
+            for ip, (key, psc) in enumerate(free):
+                dp = np.concatenate([fm.jac_p[:, ip], np.asarray(fm.dv0_dp)[co, ip]])
+                if key == fkey:
                     # the cut times move with the forcing frequency: t_j = (theta_j) / Omega
                     f1 = np.zeros(n)
                     f0 = np.zeros(n)
@@ -585,7 +630,7 @@ class Shooter:
                     )
                     w = prep.omega
                     dp[:n] += f1 * (-tt[j + 1] / w) - fm.jac_y @ f0 * (-tt[j] / w)
-                DR[offs[j] : offs[j + 1], -1] = dp * self.pscale / Sn
+                DR[offs[j] : offs[j + 1], N + ip] = dp * psc / Sn
         # a change of the section structure along the way (a contact that stays open)
         return R, DR, Js
 
@@ -627,8 +672,8 @@ def newton(
 
 def finish(sh: Shooter, U: np.ndarray, res: float, its: int, Js: Sequence[np.ndarray]) -> Orbit:
     """The :class:`Orbit` of converged unknowns."""
-    z, lam = sh.unpack(U)
-    vals = sh.values_at(lam)
+    z, _ = sh.unpack(U)
+    vals = sh.values_of(U)
     M = monodromy_of(Js)
     mu = sort_multipliers(np.linalg.eigvals(M))
     tt = sh.times(vals)

@@ -33,6 +33,33 @@ CURVE_STYLE = {
 }
 
 
+MERGE_FRACTION = 0.025
+"""Special points of one type closer than this fraction of both axes' spans are drawn as one."""
+
+
+def merge_marks(
+    marks: Sequence[tuple[float, float, str]], spans: tuple[float, float]
+) -> list[tuple[float, float, str, int]]:
+    """Thin the special points' markers: of the points of one type within
+    ``MERGE_FRACTION`` of the spans of each other (greedily, in order), the first is kept
+    with the number it stands for."""
+    sx = max(abs(spans[0]), 1e-300)
+    sy = max(abs(spans[1]), 1e-300)
+    out: list[list[Any]] = []
+    for x, y, kind in marks:
+        for m in out:
+            if (
+                m[2] == kind
+                and abs(m[0] - x) < MERGE_FRACTION * sx
+                and abs(m[1] - y) < MERGE_FRACTION * sy
+            ):
+                m[3] += 1
+                break
+        else:
+            out.append([x, y, kind, 1])
+    return [(float(a), float(b), str(c), int(d)) for a, b, c, d in out]
+
+
 def _segments(stable: np.ndarray) -> list[tuple[int, int, bool]]:
     """Runs of equal stability as (start, stop inclusive of the next point, stable)."""
     out = []
@@ -68,6 +95,7 @@ def plot_branches(
         p, u, _ = brute.points()
         ax.plot(p * f, u * 1e3, ".", color="0.65", ms=2, label="brute force (settled runs)")
     seen: set[str] = set()
+    marks: list[tuple[float, float, str]] = []
     for b_i, br in enumerate(branches):
         if len(br.points) < 2:
             continue
@@ -92,18 +120,29 @@ def plot_branches(
                 )
         for sp in br.special:
             o = sp.orbit if sp.orbit is not None else br.points[min(sp.index, len(br.points) - 1)]
-            y = o.profile.strobe_u * 1e3
-            lab = sp.type.replace("_", " ")
-            ax.plot(
-                np.full(y.size, sp.value * f),
-                y,
-                MARKERS.get(sp.type, "x"),
-                ms=5,
-                mfc="none",
-                color="k",
-                label=None if lab in seen else lab,
+            for y in o.profile.strobe_u * 1e3:
+                marks.append((sp.value * f, float(y), sp.type))
+    # special points closer than MERGE_FRACTION of the axes are drawn once per type, the
+    # number merged beside them (branches born at a point, a grazing next to a doubling)
+    ax.autoscale_view()
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    for x, y, kind, n in merge_marks(marks, (x1 - x0, y1 - y0)):
+        lab = kind.replace("_", " ")
+        ax.plot(
+            [x],
+            [y],
+            MARKERS.get(kind, "x"),
+            ms=5,
+            mfc="none",
+            color="k",
+            label=None if lab in seen else lab,
+        )
+        seen.add(lab)
+        if n > 1:
+            ax.annotate(
+                f"{n}", (x, y), textcoords="offset points", xytext=(4, 3), fontsize=6, color="0.3"
             )
-            seen.add(lab)
     ax.set_xlabel(label)
     ax.set_ylabel("$x - h$ at forcing phase 0 / mm")
     ax.grid(True, lw=0.3, alpha=0.6)

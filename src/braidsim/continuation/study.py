@@ -26,9 +26,15 @@ Spec (SI numbers or unit strings)::
                                         # point of each type on each branch
     parameter = "horn_gear.angular_velocity"
     to = "10 pi rad/s"
-    steps = 10
+    steps = 10                          # largest step along a curve: 1/steps of the ranges
     types = ["grazing", "fold", "period_doubling"]
     regime_points = [12, 10]            # brute-force regime map beneath (0: none)
+    window = 0.04                       # grazing: first search step on the normal line
+
+The boundary curves are followed by pseudo-arclength continuation
+(:mod:`braidsim.continuation.twopar`): a (clearance, speed) map is a spec with
+``parameter = "track.clearance"`` and ``operating_map.parameter =
+"horn_gear.angular_velocity"`` (``examples/continuation_clearance.toml``).
 
 Transfers to the next horn gear break the time-periodicity unless they repeat with a whole
 number of vibration periods: the spec is refused otherwise (see

@@ -1,14 +1,54 @@
-"""Two-parameter continuation of fold, period-doubling and grazing points: boundary curves.
+"""Two-parameter continuation of fold, period-doubling, Neimark-Sacker and grazing points.
 
-A special point found on a branch in parameter lambda_1 is followed as a second parameter
-lambda_2 changes. At each step of lambda_2 (linear predictor for lambda_1 from the last two
-points of the curve) the point is located again by a short pseudo-arclength run in
-lambda_1 through a window around the prediction, started from the orbit next to the last
-point on the side it was approached from, with the detection and location of
-:mod:`braidsim.continuation.branch` (a fold by the sign change of the tangent's parameter
-component, a period doubling by det(M + I), a grazing by the change of contact structure).
-The curve ends where the point is no longer found in its window (it left the parameter
-range, or the special point disappeared: e.g. a fold curve ending in a cusp).
+A special point found on a branch in the parameter lambda_1 is followed as a second
+parameter lambda_2 changes: the curve it draws in the (lambda_1, lambda_2) plane bounds a
+region of one kind of motion. The curve is followed by pseudo-arclength continuation, so a
+boundary that turns back in lambda_2 (or in lambda_1) is followed round the turn.
+
+Fold, period doubling, Neimark-Sacker: the augmented system
+--------------------------------------------------------------
+The unknowns are the shooting states and both parameters, V = (Z, lambda_1, lambda_2)
+(scaled as in :class:`~braidsim.continuation.orbit.Shooter`), the equations the shooting
+residuals and one test function of the monodromy M(V):
+
+    r(V) = 0,   g(V) = 0,   g = det(M - I) (fold), det(M + I) (period doubling),
+                            |mu| - 1 of the complex pair nearest the unit circle (NS),
+
+N + 1 equations in N + 2 unknowns: a curve (the "minimally extended" systems of Kuznetsov,
+Y. A. (2004), Elements of Applied Bifurcation Theory, 3rd ed., Springer, ch. 10,
+doi:10.1007/978-1-4757-3978-7; for maps, det(M -+ I) are the standard fold and flip test
+functions). The Jacobian of r is that of the shooting equations (the exact or
+finite-difference flow map, with d r / d lambda_1,2); the gradient of g, a second
+derivative of the flow, is taken by central differences of g over each unknown (steps of
+1e-5 of the scaled unknowns with the exact map, 1e-3 with the finite-difference map, whose
+monodromy carries noise of about 1e-5). From a point V_i with unit tangent tau_i (the null
+vector of the Jacobian) the next solves
+
+    r(V) = 0,   g(V) = 0,   tau_i . (V - V_i - h tau_i) = 0
+
+by Newton's method (Keller, H. B. (1977), in Applications of Bifurcation Theory, Academic
+Press, 359-384). The step h is measured in the plane of the two parameters, each in units
+of its range: it grows by 1.5 after a corrector of at most 3 iterations and halves after a
+failure. The curve ends where it leaves either parameter's range (the last point placed on
+the edge), where the orbit's contact structure changes (the curve meets a grazing: beyond
+it the test function belongs to another orbit family), where the step falls below
+``min_step``, or after ``max_points``.
+
+Grazing: continuation in the parameter plane
+--------------------------------------------
+At a grazing the orbit family itself ends (a contact appears or disappears), so the
+shooting equations of one structure do not continue across it and Newton iterates beyond
+it meet another map. The grazing curve is therefore followed in the plane of the two
+parameters, q = (lambda_1 / P_1, lambda_2 / P_2), with the orbit of the approaching
+structure solved at each trial point (from the nearest one known): a secant predictor
+q_i + h t_i (t_i the unit chord of the last two points; the first step along lambda_2),
+and a corrector on the line through the prediction normal to t_i, on which the grazing is
+bracketed between an orbit of the approaching structure and a point where that structure
+no longer exists, then located by regula falsi on the orbit's distance to grazing
+(:attr:`~braidsim.continuation.orbit.Profile.approach`, a free-flight gap minimum or a
+contact's least depth), extrapolated linearly to zero from the last two orbits of the
+approaching structure, to a bracket of 1e-7 of the plane's unit. The corrector's line
+turns with the curve, so a grazing curve that turns back is followed too.
 
 The curves over (h_a, omega) or (eps_g, omega) bound the regions with one kind of motion:
 resting on the wall below the lift-off grazing curve, impacting above it, and so on; drawn
@@ -25,9 +65,27 @@ from typing import Any
 
 import numpy as np
 
-from braidsim.continuation.branch import Branch, Continuer, SpecialPoint, signature
-from braidsim.continuation.orbit import ContinuationError, Orbit, solve_fixed
-from braidsim.errors import SimulationError
+from braidsim.continuation.branch import Branch, SpecialPoint, grazing_zero, signature
+from braidsim.continuation.orbit import (
+    ContinuationError,
+    Orbit,
+    Shooter,
+    choose_phase,
+    cuts_from,
+    finish,
+    monodromy_of,
+    solve_fixed,
+    states_at,
+)
+from braidsim.errors import InputError, SimulationError
+
+SMOOTH_TYPES = ("fold", "period_doubling", "neimark_sacker")
+GRAZING_XTOL = 1e-7
+"""Bracket width (units of the parameters' ranges) to which a grazing is located."""
+SUBSTEP = 0.005
+"""Grazing: the longest step (units of the parameters' ranges) over which an orbit of the
+approaching structure is carried at fixed parameters."""
+_FAILURES = (ContinuationError, SimulationError, np.linalg.LinAlgError)
 
 
 @dataclass
@@ -37,15 +95,21 @@ class BoundaryCurve:
     Attributes
     ----------
     type : str
-        ``fold``, ``period_doubling`` or ``grazing``.
+        ``fold``, ``period_doubling``, ``neimark_sacker`` or ``grazing``.
     key1, key2 : str
         The branch's parameter and the second one.
     period : int
         Period of the orbit [forcing cycles].
     p1, p2 : list of float
-        The curve [SI].
+        The curve [SI], in arclength order.
     stop : str
         Why it ended.
+    orbits : list of Orbit or None
+        The orbit at each point (fold, period doubling, Neimark-Sacker; for grazing the
+        nearest orbit of the approaching structure, None at the start).
+    residuals : list of float
+        The test function at each point (0 up to the corrector's tolerance; for grazing the
+        distance to grazing of the nearest orbit of the approaching structure [m]).
     """
 
     type: str
@@ -56,6 +120,8 @@ class BoundaryCurve:
     p2: list[float] = field(default_factory=list)
     stop: str = ""
     detail: str = ""
+    residuals: list[float] = field(default_factory=list)
+    orbits: list[Orbit | None] = field(default_factory=list, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -68,11 +134,58 @@ class BoundaryCurve:
             "detail": self.detail,
         }
 
+    def add(
+        self,
+        a: float,
+        b: float,
+        res: float,
+        on_point: Callable[[float, float], None] | None,
+        orbit: Orbit | None = None,
+    ) -> None:
+        """Append a point (and report it)."""
+        self.p1.append(float(a))
+        self.p2.append(float(b))
+        self.residuals.append(float(res))
+        self.orbits.append(orbit)
+        if on_point:
+            on_point(float(a), float(b))
 
-def _with(o: Orbit, values: dict[str, float]) -> dict[str, float]:
-    v = dict(o.values)
-    v.update(values)
-    return v
+
+def bifurcation_function(kind: str, M: np.ndarray) -> float:
+    """The test function of ``kind`` on the monodromy M (module docstring)."""
+    n = M.shape[0]
+    if kind == "fold":
+        return float(np.linalg.det(M - np.eye(n)))
+    if kind == "period_doubling":
+        return float(np.linalg.det(M + np.eye(n)))
+    if kind == "neimark_sacker":
+        mu = np.linalg.eigvals(M)
+        cx = mu[np.abs(mu.imag) > 1e-9 * np.maximum(1.0, np.abs(mu))]
+        if cx.size == 0:
+            raise ContinuationError(
+                "the complex pair of the Neimark-Sacker point turned real (a strong resonance)"
+            )
+        return float(np.abs(cx[np.argmin(np.abs(np.abs(cx) - 1.0))]) - 1.0)
+    raise InputError(f"type: {kind!r}; allowed {', '.join(SMOOTH_TYPES)} or grazing")
+
+
+def _ranges(
+    system: Any, branch: Branch, key2: str, p2_0: float, to2: float, range1: Any
+) -> tuple[float, float, float, float]:
+    if range1 is None:
+        v = branch.values
+        a, b = float(v.min()), float(v.max())
+        # the branch's range and half as much again each side (not below 0 for a range >= 0)
+        lo1, hi1 = a - 0.5 * (b - a), b + 0.5 * (b - a)
+        if a >= 0.0:
+            lo1 = max(lo1, 0.0)
+    else:
+        lo1, hi1 = (float(x) for x in range1)
+    if not (hi1 > lo1):
+        raise InputError(f"range1: ({lo1:g}, {hi1:g}) is empty; allowed lo < hi")
+    if to2 == p2_0:
+        raise InputError(f"{key2}: the target {to2:g} equals the start; allowed another value")
+    return lo1, hi1, min(p2_0, to2), max(p2_0, to2)
 
 
 def trace_boundary(
@@ -87,112 +200,602 @@ def trace_boundary(
     method: str = "auto",
     tol: float = 1e-8,
     range1: tuple[float, float] | None = None,
+    range2: tuple[float, float] | None = None,
+    max_points: int | None = None,
+    min_step: float = 1e-4,
     on_point: Callable[[float, float], None] | None = None,
 ) -> BoundaryCurve:
-    """Follow the special point ``sp`` of ``branch`` as ``key2`` goes to ``to2`` [SI] in
-    ``steps`` equal steps (module docstring). ``window``: half-width of the search window in
-    the first parameter, as a fraction of ``range1`` (default the branch's range)."""
+    """Follow the special point ``sp`` of ``branch`` in the plane of its parameter and
+    ``key2``, starting towards ``key2 = to2`` [SI] (module docstring).
+
+    Parameters
+    ----------
+    steps : int
+        The largest step is 1 / ``steps`` of the parameters' ranges (measured in the plane).
+    window : float
+        Grazing: the first search step along the corrector's line, as a fraction of the
+        ranges.
+    range1 : (lo, hi), optional
+        Range of the branch's parameter (default the branch's range and half as much again
+        each side); ``range2`` of ``key2`` (default from the start to ``to2``). The curve
+        ends where it leaves either.
+    max_points : int, optional
+        Default 20 ``steps``.
+    """
     system.check_key(key2)
+    if int(steps) != steps or steps < 1:
+        raise InputError(f"steps: {steps!r}; allowed an integer >= 1")
     key1 = branch.key
-    anchor = branch.points[sp.index]
+    anchor = sp.orbit if sp.orbit is not None else branch.points[sp.index]
     p2_0 = float(anchor.values.get(key2, system.value(key2)))
     anchor = replace(anchor, values={**anchor.values, key2: p2_0})
-    if range1 is None:
-        v = branch.values
-        a, b = float(v.min()), float(v.max())
-        # the branch's range and half as much again each side (not below 0 for a range >= 0)
-        lo1, hi1 = a - 0.5 * (b - a), b + 0.5 * (b - a)
-        if a >= 0.0:
-            lo1 = max(lo1, 0.0)
-    else:
-        lo1, hi1 = range1
-    span = max(hi1 - lo1, 1e-12)
-    curve = BoundaryCurve(sp.type, key1, key2, sp.period, [sp.value], [p2_0], detail=sp.detail)
-    side = (
-        math.copysign(1.0, anchor.values[key1] - sp.value)
-        if anchor.values[key1] != sp.value
-        else -1.0
-    )
-    offset = max(abs(anchor.values[key1] - sp.value), 0.3 * window * span)
-    if on_point:
-        on_point(sp.value, p2_0)
-    for p2 in np.linspace(p2_0, to2, steps + 1)[1:]:
-        if len(curve.p1) >= 2:
-            s = (curve.p1[-1] - curve.p1[-2]) / (curve.p2[-1] - curve.p2[-2])
-            pred = curve.p1[-1] + s * (p2 - curve.p2[-1])
-        else:
-            pred = curve.p1[-1]
-        start = None
-        # the orbit next to the point, carried to the new key2 by continuation in key2 at
-        # fixed key1 (robust where the orbit moves much between two steps of key2) ...
-        p2_prev = float(anchor.values[key2])
-        try:
-            mover = Continuer(
-                system,
-                key2,
-                (min(p2_prev, p2), max(p2_prev, p2)),
-                method=method,
-                tol=tol,
-                step=0.2,
-                max_step=0.5,
-                max_points=30,
-                pscale=abs(p2 - p2_prev) or 1.0,
-            )
-            moved = mover.run(anchor, 1.0 if p2 > p2_prev else -1.0)
-            last = moved.points[-1]
-            if abs(last.values[key2] - p2) <= 1e-9 * max(abs(p2), 1.0) and signature(
-                last
-            ) == signature(anchor):
-                start = last
-        except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-            start = None
-        # ... or solved there afresh, a little further from the predicted point
-        for grow in () if start is not None else (1.0, 3.0, 9.0):
-            start_val = min(max(pred + side * offset * grow, lo1), hi1)
-            vals = _with(anchor, {key1: start_val, key2: float(p2)})
-            try:
-                cand = solve_fixed(
-                    system, vals, anchor.period, anchor.phase, anchor.cuts, anchor.z, method, tol
-                )
-            except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                continue
-            if signature(cand) == signature(anchor):
-                start = cand
-                break
-        if start is None:
-            curve.stop = f"no orbit next to the {sp.type} point at {key2} = {p2:.6g}"
-            break
-        w = window * span
-        cont = Continuer(
-            system,  # the orbit's values carry key2 = p2
+    lo1, hi1, lo2, hi2 = _ranges(system, branch, key2, p2_0, to2, range1)
+    if range2 is not None:
+        lo2, hi2 = (float(x) for x in range2)
+    box = (lo1, hi1, lo2, hi2)
+    npts = int(max_points) if max_points is not None else 20 * int(steps)
+    direction = 1.0 if to2 > p2_0 else -1.0
+    if sp.type == "grazing":
+        side = branch.points[sp.index]
+        side = replace(side, values={**side.values, key2: p2_0})
+        return _trace_grazing(
+            system,
+            sp,
+            side,
             key1,
-            (lo1, hi1),
-            method=method,
-            tol=tol,
-            step=0.5 * w / span,
-            max_step=2 * w / span,
-            max_points=60,
-            pscale=span,
-            stop_on=sp.type,
+            key2,
+            box,
+            direction,
+            1.0 / steps,
+            min_step / steps,
+            window,
+            npts,
+            method,
+            tol,
+            on_point,
         )
+    if sp.type not in SMOOTH_TYPES:
+        raise InputError(f"type: {sp.type!r}; allowed {', '.join(SMOOTH_TYPES)} or grazing")
+    return _trace_smooth(
+        system,
+        sp,
+        anchor,
+        key1,
+        key2,
+        box,
+        direction,
+        1.0 / steps,
+        min_step / steps,
+        npts,
+        method,
+        tol,
+        on_point,
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# fold, period doubling, Neimark-Sacker: the augmented system
+# ----------------------------------------------------------------------------------------
+
+
+class Augmented:
+    """The shooting equations of one orbit structure with both parameters free, and the
+    test function of one bifurcation (module docstring)."""
+
+    def __init__(
+        self,
+        system: Any,
+        orbit: Orbit,
+        kind: str,
+        key1: str,
+        key2: str,
+        scales: tuple[float, float],
+        method: str,
+    ) -> None:
+        self.system = system
+        self.kind = kind
+        self.key1, self.key2 = key1, key2
+        self.method = method
+        self.sh = Shooter(
+            system,
+            dict(orbit.values),
+            key1,
+            orbit.period,
+            orbit.phase,
+            orbit.cuts,
+            method,
+            scales[0],
+            key2=key2,
+            pscale2=scales[1],
+        )
+        # central-difference step of the test function's gradient (scaled unknowns)
+        self.delta = 1e-5 if method != "fd" else 1e-3
+
+    def pack(self, o: Orbit) -> np.ndarray:
+        """Scaled unknowns of an orbit of this structure."""
+        return self.sh.pack(o.z, o.values[self.key1], o.values[self.key2])
+
+    def g_at(self, V: np.ndarray) -> float:
+        """The test function at V (the monodromy at fixed parameters)."""
+        vals = self.sh.values_of(V)
+        z, _ = self.sh.unpack(V)
+        fixed = Shooter(
+            self.system, vals, None, self.sh.period, self.sh.phase, self.sh.cuts, self.method
+        )
+        _, _, Js = fixed.residual(fixed.pack(z, None))
+        return bifurcation_function(self.kind, monodromy_of(Js))
+
+    def equations(self, V: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        """(r, g), their Jacobian ((N + 1) x (N + 2)) and the segment Jacobians."""
+        R, DR, Js = self.sh.residual(V)
+        g = bifurcation_function(self.kind, monodromy_of(Js))
+        grad = np.zeros(V.size)
+        d = self.delta
+        for i in range(V.size):
+            e = np.zeros(V.size)
+            e[i] = d
+            grad[i] = (self.g_at(V + e) - self.g_at(V - e)) / (2 * d)
+        return np.concatenate([R, [g]]), np.vstack([DR, grad]), Js
+
+    def tangent(self, DF: np.ndarray, prev: np.ndarray | None, direction: float) -> np.ndarray:
+        """Unit null vector of the Jacobian, oriented as ``prev`` (or with lambda_2 in
+        ``direction``)."""
+        _, _, vt = np.linalg.svd(DF)
+        tau = vt[-1] / np.linalg.norm(vt[-1])
+        if prev is not None:
+            if float(tau @ prev) < 0:
+                tau = -tau
+        elif tau[-1] * direction < 0:
+            tau = -tau
+        return tau
+
+    def correct(
+        self, Vp: np.ndarray, normal: np.ndarray, tol: float, gtol: float, max_iter: int = 10
+    ) -> tuple[np.ndarray, float, int, np.ndarray, list[np.ndarray]]:
+        """Newton's method on r = 0, g = 0, normal . (V - Vp) = 0. Returns (V, g,
+        iterations, Jacobian of (r, g), segment Jacobians)."""
+        V = Vp.copy()
+        F, DF, Js = self.equations(V)
+        f0 = float(np.max(np.abs(F)))
+        for it in range(1, max_iter + 1):
+            A = np.vstack([DF, normal])
+            b = -np.concatenate([F, [float(normal @ (V - Vp))]])
+            try:
+                dV = np.linalg.solve(A, b)
+            except np.linalg.LinAlgError:
+                dV = np.linalg.lstsq(A, b, rcond=None)[0]
+            V = V + dV
+            F, DF, Js = self.equations(V)
+            r = float(np.max(np.abs(F[:-1])))
+            g = abs(float(F[-1]))
+            if not math.isfinite(r + g) or max(r, g) > 10 * max(f0, tol):
+                raise ContinuationError(f"Newton diverged on the augmented system ({r:.3g})")
+            step = float(np.max(np.abs(dV)))
+            # converged: the residuals at tolerance and the test function too, or the steps
+            # down to the test function's noise (that of the monodromy: about 3e-8 with the
+            # exact map at rtol 1e-10, 1e-6 with central differences)
+            if r < tol and ((g < gtol and step < 1e3 * tol) or step < 1e2 * tol):
+                return V, float(F[-1]), it, DF, Js
+        raise ContinuationError(
+            f"Newton did not converge on the augmented system in {max_iter} iterations"
+        )
+
+    def orbit(self, V: np.ndarray, Js: list[np.ndarray]) -> Orbit:
+        """The orbit at converged unknowns."""
+        return finish(self.sh, V, 0.0, 0, Js)
+
+
+def _moved(system: Any, o: Orbit) -> Orbit:
+    """The same orbit cut at a phase away from onsets and exits, its states at the new cuts
+    integrated from the old ones (not solved again: at a fold the orbit's own Newton matrix
+    M - I is singular)."""
+    prep = system.prepare(o.values)
+    w = prep.omega
+    th = choose_phase(o.profile, w, o.period, o.segments)
+    t0 = o.phase / w
+    if th / w < t0:
+        th += 2 * math.pi * o.period
+    cuts = cuts_from(o.profile, w, th, o.period, o.segments, t0)
+    times = th / w + np.arange(o.segments) * o.profile.period / o.segments
+    n = 2 * prep.n_coords
+    c0 = o.cuts[0]
+    z = states_at(system, o.values, t0, o.z[0][:n], c0.modes, c0.v0s(o.z[0][n:]), times, cuts)
+    full = 2 * math.pi * o.period
+    return replace(o, phase=float(th % full), cuts=cuts, z=tuple(z))
+
+
+def _trace_smooth(
+    system: Any,
+    sp: SpecialPoint,
+    anchor: Orbit,
+    key1: str,
+    key2: str,
+    box: tuple[float, float, float, float],
+    direction: float,
+    hmax: float,
+    hmin: float,
+    npts: int,
+    method: str,
+    tol: float,
+    on_point: Callable[[float, float], None] | None,
+) -> BoundaryCurve:
+    lo1, hi1, lo2, hi2 = box
+    scales = (hi1 - lo1, hi2 - lo2)
+    gtol = 1e-9 if method != "fd" else 1e-6
+    curve = BoundaryCurve(sp.type, key1, key2, sp.period, detail=sp.detail)
+    aug = Augmented(system, anchor, sp.type, key1, key2, scales, method)
+    V = aug.pack(anchor)
+    # the located point onto the augmented system, lambda_2 held
+    e2 = np.zeros(V.size)
+    e2[-1] = 1.0
+    try:
+        V, g, _, DF, Js = aug.correct(V, e2, tol, gtol)
+    except _FAILURES as exc:
+        curve.stop = f"the {sp.type} point did not converge on the augmented system ({exc})"
+        return curve
+    o = aug.orbit(V, Js)
+    sig = signature(o)
+    curve.add(o.values[key1], o.values[key2], g, on_point, o)
+    tau = aug.tangent(DF, None, direction)
+    h = 0.5 * hmax
+    while len(curve.p1) < npts:
+        plane = math.hypot(tau[-2], tau[-1])
+        step = h / max(plane, 0.1)
         try:
-            local = cont.run(start, -side)
-        except (ContinuationError, SimulationError) as exc:
-            curve.stop = f"continuation failed at {key2} = {p2:.6g} ({exc})"
+            Vn, g, its, DFn, Js = aug.correct(V + step * tau, tau, tol, gtol)
+            on = aug.orbit(Vn, Js)
+            if signature(on) != sig:
+                a, b = on.values[key1], on.values[key2]
+                if h > 4 * hmin:
+                    raise ContinuationError("the contact structure changed within the step")
+                curve.stop = (
+                    f"the orbit's contact structure changed near ({key1}, {key2}) = "
+                    f"({a:.6g}, {b:.6g}): the {sp.type} curve meets a grazing"
+                )
+                break
+        except _FAILURES as exc:
+            h *= 0.5
+            if h < hmin:
+                curve.stop = f"step below {hmin:g} at {key2} = {curve.p2[-1]:.6g} ({exc})"
+                break
+            continue
+        a, b = on.values[key1], on.values[key2]
+        out1 = not (lo1 <= a <= hi1)
+        out2 = not (lo2 <= b <= hi2)
+        if out1 or out2:
+            # land on the edge the step crossed, that parameter held there
+            i, edge = (-1, hi2 if b > hi2 else lo2) if out2 else (-2, hi1 if a > hi1 else lo1)
+            e = np.zeros(V.size)
+            e[i] = 1.0
+            Ve = Vn.copy()
+            Ve[i] = edge / scales[i + 2]
+            try:
+                Ve, g, _, _, Js = aug.correct(Ve, e, tol, gtol)
+                oe = aug.orbit(Ve, Js)
+                curve.add(oe.values[key1], oe.values[key2], g, on_point, oe)
+            except _FAILURES:
+                pass
+            name = key2 if out2 else key1
+            curve.stop = f"left the range of {name} at {edge:.6g}"
             break
-        found = [s for s in local.special if s.type == sp.type]
-        if not found:
-            curve.stop = f"no {sp.type} point found at {key2} = {p2:.6g} (local run: {local.stop})"
-            break
-        best = min(found, key=lambda s: abs(s.value - pred))
-        curve.p1.append(float(best.value))
-        curve.p2.append(float(p2))
-        if on_point:
-            on_point(float(best.value), float(p2))
-        anchor = local.points[best.index]
-        if anchor.values[key1] != best.value:
-            side = math.copysign(1.0, anchor.values[key1] - best.value)
-        offset = max(abs(anchor.values[key1] - best.value), 0.3 * window * span)
+        curve.add(a, b, g, on_point, on)
+        tau = aug.tangent(DFn, tau, direction)
+        V = Vn
+        if its <= 3:
+            h = min(1.5 * h, hmax)
+        # keep the cuts away from onsets and exits
+        prof = on.profile
+        w = system.prepare(on.values).omega
+        tcut = on.phase / w
+        if any(
+            prof.event_distance(tcut + j * prof.period / on.segments) < 0.01 * prof.period
+            for j in range(on.segments)
+        ):
+            try:
+                moved = _moved(system, on)
+                aug = Augmented(system, moved, sp.type, key1, key2, scales, method)
+                V = aug.pack(moved)
+                e2 = np.zeros(V.size)  # (the state's size may change with the cut)
+                e2[-1] = 1.0
+                V, g, _, DF, Js = aug.correct(V, e2, tol, gtol)
+                tau_new = aug.tangent(DF, None, float(np.sign(tau[-1]) or direction))
+                # keep the orientation: compare the parameter components (the state
+                # components changed meaning with the cut)
+                if float(tau_new[-2:] @ tau[-2:]) < 0:
+                    tau_new = -tau_new
+                tau = tau_new
+            except _FAILURES as exc:
+                curve.stop = f"could not move the section at {key2} = {b:.6g} ({exc})"
+                break
+        if len(curve.p1) > 3:
+            d = math.hypot(
+                (curve.p1[-1] - curve.p1[0]) / scales[0], (curve.p2[-1] - curve.p2[0]) / scales[1]
+            )
+            if d < 0.5 * h:
+                curve.stop = "the curve closed on itself"
+                break
     else:
-        curve.stop = f"reached {key2} = {to2:.6g}"
+        curve.stop = f"{npts} points reached"
+    return curve
+
+
+# ----------------------------------------------------------------------------------------
+# grazing: continuation in the parameter plane
+# ----------------------------------------------------------------------------------------
+
+
+class GrazingLost(ContinuationError):
+    """The approaching orbit family ends before it grazes (the grazing curve ends)."""
+
+
+class _GrazingPlane:
+    """Orbits of the approaching structure at points of the scaled parameter plane."""
+
+    def __init__(
+        self,
+        system: Any,
+        start: Orbit,
+        key1: str,
+        key2: str,
+        box: tuple[float, float, float, float],
+        method: str,
+        tol: float,
+    ) -> None:
+        self.system = system
+        self.key1, self.key2 = key1, key2
+        self.lo1, self.hi1, self.lo2, self.hi2 = box
+        self.s1, self.s2 = self.hi1 - self.lo1, self.hi2 - self.lo2
+        self.sig = signature(start)
+        self.known: list[tuple[np.ndarray, Orbit]] = [(self.q(start), start)]
+        self.method, self.tol = method, tol
+
+    def q(self, o: Orbit) -> np.ndarray:
+        return np.array([o.values[self.key1] / self.s1, o.values[self.key2] / self.s2])
+
+    def lam(self, q: np.ndarray) -> tuple[float, float]:
+        return float(q[0] * self.s1), float(q[1] * self.s2)
+
+    def orbit(self, q: np.ndarray) -> Orbit | None:
+        """The orbit of the approaching structure at q, or None where it does not exist
+        (Newton fails, or converges to another structure). It is carried from the nearest
+        known orbit in steps of ``SUBSTEP``, doubled after each success up to 4 ``SUBSTEP``
+        and quartered after a failure (orbits of both structures can coexist near a
+        grazing: a long jump could land on the other one)."""
+        qc, o = min(self.known, key=lambda kv: float(np.linalg.norm(kv[0] - q)))
+        h = SUBSTEP
+        for _ in range(math.ceil(float(np.linalg.norm(q - qc)) / SUBSTEP) + 64):
+            d = float(np.linalg.norm(q - qc))
+            if d == 0.0:
+                break
+            qk = q if d <= h else qc + (q - qc) * (h / d)
+            a, b = self.lam(qk)
+            try:
+                ok = solve_fixed(
+                    self.system,
+                    {**o.values, self.key1: a, self.key2: b},
+                    o.period,
+                    o.phase,
+                    o.cuts,
+                    o.z,
+                    self.method,
+                    self.tol,
+                )
+            except (*_FAILURES, InputError):
+                # Newton's iterates can meet the wall far from the orbit: a shorter step
+                h *= 0.25
+                if h < SUBSTEP / 300:
+                    return None
+                continue
+            # (a gap minimum that reached zero has crossed the wall between the solver's
+            # checks: beyond the grazing as well)
+            if signature(ok) != self.sig or not (0.0 < ok.profile.approach < math.inf):
+                return None
+            qc, o = qk.copy(), ok
+            self.known.append((qc, o))
+            h = min(2.0 * h, 4 * SUBSTEP)
+        else:
+            return None
+        if len(self.known) > 60:
+            del self.known[1:21]
+        return o
+
+    def locate(
+        self, qc: np.ndarray, n: np.ndarray, first: float, reach: float
+    ) -> tuple[np.ndarray, float, Orbit] | None:
+        """The grazing on the line qc + s n, |s| <= ``reach`` (n pointing from the
+        approaching structure's side to the other): (point, distance to grazing of the
+        nearest orbit, that orbit), None when no bracket is found."""
+        pts: list[tuple[float, float, Orbit]] = []  # (s, approach, orbit) on side A
+        s_b: float | None = None  # where the approaching structure does not exist
+        o = self.orbit(qc)
+        step = first
+        if o is not None:
+            pts.append((0.0, o.profile.approach, o))
+            s_b = self._forward(qc, n, pts, step, reach)
+        else:
+            s_b, s = 0.0, 0.0
+            while abs(s) < reach:
+                s -= step
+                o = self.orbit(qc + s * n)
+                if o is not None:
+                    pts.append((s, o.profile.approach, o))
+                    break
+                s_b = s
+                step *= 2.0
+        if not pts or s_b is None:
+            return None
+        for _ in range(4):
+            s_b = self._refine(qc, n, pts, s_b)
+            # a structure that ended well before its distance to grazing extrapolates to
+            # zero: the verdict at s_b came from a jump onto a coexisting orbit of the
+            # other structure; carried from the orbit now next to it, look again
+            a_top = max(p[1] for p in pts)
+            ext = _extrapolated(pts)
+            if pts[-1][1] <= 1e-3 * a_top or ext is None or ext <= s_b + 0.01 * (s_b - pts[0][0]):
+                break
+            o = self.orbit(qc + s_b * n)
+            if o is None:
+                break
+            pts.append((s_b, o.profile.approach, o))
+            nb = self._forward(qc, n, pts, max(ext - s_b, GRAZING_XTOL), reach)
+            if nb is None:
+                return None
+            s_b = nb
+        s_a, a_a, o_a = pts[-1]
+        ext = grazing_zero([(p[0], p[1]) for p in pts])
+        # (where the corrector gives up just before a stiff contact lifts off, the zero lies
+        # a little beyond the last orbit: extrapolated, as on a branch; a zero further than
+        # 2 % of the search's reach is not the family's end but an extrapolation past it)
+        if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
+            # the family ends with its distance to grazing still finite: not a grazing (a
+            # fold of the family, or another structure taking over)
+            raise GrazingLost(
+                f"the orbit family ends at ({self.key1}, {self.key2}) = "
+                f"{self.lam(qc + s_a * n)} with its distance to grazing still {a_a:.3g} m "
+                "(a fold of the family or another bifurcation ends the grazing curve)"
+            )
+        return qc + ext * n, a_a, o_a
+
+    def _forward(
+        self, qc: np.ndarray, n: np.ndarray, pts: list[Any], step: float, reach: float
+    ) -> float | None:
+        """From the last orbit of ``pts``, step along n (doubling) until the approaching
+        structure ends; its s (None: not within ``reach``)."""
+        s = pts[-1][0]
+        while abs(s) < reach:
+            s += step
+            o = self.orbit(qc + s * n)
+            if o is None:
+                return s
+            pts.append((s, o.profile.approach, o))
+            step *= 2.0
+        return None
+
+    def _refine(self, qc: np.ndarray, n: np.ndarray, pts: list[Any], s_b: float) -> float:
+        """Close the bracket (last of ``pts``, s_b) round the grazing; the new s_b."""
+        pts.sort(key=lambda p: p[0])
+        theta = 1.0
+        for _ in range(30):
+            s_a = pts[-1][0]
+            w = s_b - s_a
+            if w < GRAZING_XTOL:
+                break
+            # regula falsi on the distance to grazing (its zero extrapolated from the two
+            # orbits nearest it), a little beyond that zero so that the bracket closes round
+            # it; after a miss (the structure ended before it) only part of the way there
+            ext = _extrapolated(pts)
+            if ext is None or ext <= s_a:
+                ext = s_a + 0.5 * w
+            if ext > s_b and w < 0.1 * (ext - s_a):
+                break  # the family ends short of the zero: it is extrapolated (locate)
+            ext = min(ext, s_b)
+            nudge = max(0.25 * GRAZING_XTOL, 1e-3 * w) if theta >= 1.0 else 0.0
+            trial = s_a + theta * (ext - s_a) + nudge
+            trial = min(max(trial, s_a + 1e-3 * w), s_b - 1e-3 * w)
+            o = self.orbit(qc + trial * n)
+            if o is None:
+                s_b = trial
+                theta = max(0.5 * theta, 0.05)
+            else:
+                pts.append((trial, o.profile.approach, o))
+                pts.sort(key=lambda p: p[0])
+                theta = 1.0
+        return s_b
+
+
+def _extrapolated(pts: list[tuple[float, float, Orbit]]) -> float | None:
+    """Where the distance to grazing of the two orbits nearest the grazing extrapolates to
+    zero (linear in the parameters near a regular grazing)."""
+    if len(pts) < 2:
+        return None
+    (s1, a1, _), (s2, a2, _) = pts[-2], pts[-1]
+    if a1 == a2 or s1 == s2:
+        return None
+    return float(s2 - a2 * (s2 - s1) / (a2 - a1))
+
+
+def _trace_grazing(
+    system: Any,
+    sp: SpecialPoint,
+    side: Orbit,
+    key1: str,
+    key2: str,
+    box: tuple[float, float, float, float],
+    direction: float,
+    hmax: float,
+    hmin: float,
+    window: float,
+    npts: int,
+    method: str,
+    tol: float,
+    on_point: Callable[[float, float], None] | None,
+) -> BoundaryCurve:
+    lo1, hi1, lo2, hi2 = box
+    start = sp.orbit if sp.orbit is not None else side
+    start = replace(start, values={**start.values, key2: side.values[key2]})
+    plane = _GrazingPlane(system, start, key1, key2, box, method, tol)
+    curve = BoundaryCurve(sp.type, key1, key2, sp.period, detail=sp.detail)
+    q0 = np.array([sp.value / plane.s1, side.values[key2] / plane.s2])
+    # the normal points from the approaching side to the other
+    n = np.array([math.copysign(1.0, sp.value - side.values[key1]), 0.0])
+    t = np.array([0.0, direction])
+    curve.add(sp.value, side.values[key2], 0.0, on_point)
+    qs = [q0]
+    h = 0.5 * hmax
+    first = max(window, 1e-3)
+    while len(curve.p1) < npts:
+        qp = qs[-1] + h * t
+        n_line = np.array([t[1], -t[0]])
+        if float(n_line @ n) < 0:
+            n_line = -n_line
+        try:
+            found = plane.locate(qp, n_line, min(first, 0.5 * h + 1e-3), 3 * h)
+        except GrazingLost as exc:
+            if h > 4 * hmin:
+                h *= 0.5
+                continue
+            curve.stop = str(exc)
+            break
+        if found is None or float(np.linalg.norm(found[0] - qs[-1])) > 3 * h:
+            h *= 0.5
+            if h < hmin:
+                curve.stop = (
+                    f"no grazing found next to ({key1}, {key2}) = "
+                    f"({curve.p1[-1]:.6g}, {curve.p2[-1]:.6g}) (step below {hmin:g})"
+                )
+                break
+            continue
+        qn, dist, _ = found
+        a, b = plane.lam(qn)
+        out1 = not (lo1 <= a <= hi1)
+        out2 = not (lo2 <= b <= hi2)
+        if out1 or out2:
+            # the point where the chord from the last point crosses the edge, on the curve
+            qe = qs[-1].copy()
+            if out2:
+                edge = hi2 if b > hi2 else lo2
+                qe[1] = edge / plane.s2
+                line = np.array([1.0 if n_line[0] >= 0 else -1.0, 0.0])
+            else:
+                edge = hi1 if a > hi1 else lo1
+                qe[0] = edge / plane.s1
+                line = np.array([0.0, 1.0 if n_line[1] >= 0 else -1.0])
+            try:
+                fe = plane.locate(qe, line, min(first, 0.5 * h + 1e-3), 3 * h)
+            except GrazingLost:
+                fe = None
+            if fe is not None:
+                ae, be = plane.lam(fe[0])
+                if lo1 - 1e-12 <= ae <= hi1 + 1e-12 and lo2 - 1e-12 <= be <= hi2 + 1e-12:
+                    curve.add(ae, be, fe[1], on_point, fe[2])
+            curve.stop = f"left the range of {key2 if out2 else key1} at {edge:.6g}"
+            break
+        curve.add(a, b, dist, on_point, found[2])
+        chord = qn - qs[-1]
+        t = chord / float(np.linalg.norm(chord))
+        n = n_line
+        qs.append(qn)
+        h = min(1.5 * h, hmax)
+    else:
+        curve.stop = f"{npts} points reached"
     return curve

@@ -1,0 +1,133 @@
+"""Two-parameter continuation of special points against closed forms.
+
+* A period doubling of the piecewise-linear impact oscillator followed in (Omega, F) on the
+  augmented system (shooting equations + det(M + I)): each point against the reference's
+  own period doubling in Omega at that F (closed-form phases matched, Brent's method on
+  det(M + I); ``tests/reference/pwl_oscillator.py``).
+* The grazing of the oscillator's orbit without impacts followed in (Omega, F) through
+  resonance, where the curve turns back in F: each point against the closed form
+  F = g |k - m Omega^2 + i c Omega| (the steady state's amplitude reaching the wall).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from braidsim.continuation import ModelSystem, seed_orbit
+from braidsim.continuation.branch import continue_orbit
+from braidsim.continuation.twopar import bifurcation_function, trace_boundary
+from braidsim.errors import InputError
+from reference import pwl_oscillator as pwl
+from reference.pwl_braidsim import braidsim_oscillator, oscillator_system
+
+W, F = "force_frequency", "force_amplitude"
+
+
+@pytest.fixture(scope="module")
+def doubling():
+    base = pwl.PARAMETER_SETS["period_doubled"]
+    system = oscillator_system(base._replace(force_frequency=2.2))
+    o = seed_orbit(system, {}, 1, transient_cycles=200, method="fd")
+    br = continue_orbit(system, o, W, 2.45, method="fd", switch=False, max_points=60)
+    (pd,) = [s for s in br.special if s.type == "period_doubling"]
+    return base, system, br, pd
+
+
+@pytest.mark.parametrize("to", [1.5, 0.5])
+def test_period_doubling_curve_matches_the_closed_form(doubling, to: float) -> None:
+    base, system, br, pd = doubling
+    c = trace_boundary(
+        system, br, pd, F, to, steps=4, method="fd", range1=(1.5, 3.5), range2=(0.5, 1.5)
+    )
+    assert c.stop.startswith("left the range of force_amplitude")
+    assert len(c.p1) >= 4
+    assert c.p2[0] == pytest.approx(1.0) and c.p2[-1] == pytest.approx(to)
+    for w, f in zip(c.p1, c.p2, strict=True):
+        ref, _ = pwl.critical_parameter(
+            base._replace(force_amplitude=f), W, w - 0.02, w + 0.02, steps=2
+        )
+        assert w == pytest.approx(ref, rel=1e-7)
+    assert max(abs(r) for r in c.residuals) < 1e-6
+
+
+def test_grazing_curve_turns_back_through_resonance() -> None:
+    """Below resonance the orbit without impacts grazes the wall at a forcing amplitude
+    that falls as Omega rises, above resonance at one that rises again: followed from
+    F = 0.06 N towards smaller F, the curve passes its lowest F near Omega = 1 rad/s and
+    comes back up to F = 0.06 N on the other side."""
+    p = pwl.PARAMETER_SETS["stable_p1"]._replace(
+        force_amplitude=0.06, force_frequency=0.5, damping=0.3
+    )
+    system = oscillator_system(p)
+    o = seed_orbit(system, {}, 1, transient_cycles=200, method="fd")
+    assert o.profile.impacts == 0
+    br = continue_orbit(system, o, W, 0.9, method="fd", switch=False, max_points=60)
+    (g,) = [s for s in br.special if s.type == "grazing"]
+
+    def f_graze(w: float) -> float:
+        return p.gap * abs(complex(p.stiffness - p.mass * w * w, p.damping * w))
+
+    assert f_graze(g.value) == pytest.approx(0.06, rel=1e-6)
+    c = trace_boundary(system, br, g, F, 0.02, steps=3, method="fd", range1=(0.5, 1.5))
+    w, f = np.array(c.p1), np.array(c.p2)
+    for wi, fi in zip(w, f, strict=True):
+        assert fi == pytest.approx(f_graze(wi), rel=1e-6)
+    # down through the lowest grazing amplitude and up again: F turns back
+    i = int(np.argmin(f))
+    assert 0 < i < f.size - 1
+    assert np.all(np.diff(f[: i + 1]) < 0) and np.all(np.diff(f[i:]) > 0)
+    assert np.all(np.diff(w) > 0)
+    assert f[i] < 1.1 * min(f_graze(x) for x in np.linspace(0.9, 1.1, 2001))
+    assert c.stop == "left the range of force_amplitude at 0.06"
+    assert f[-1] == pytest.approx(0.06) and w[-1] > 1.2
+
+
+def test_test_functions_and_bad_input(doubling) -> None:
+    _, system, br, pd = doubling
+    M = np.diag([-1.0, 0.5])
+    assert bifurcation_function("period_doubling", M) == pytest.approx(0.0)
+    assert bifurcation_function("fold", np.diag([1.0, 0.5])) == pytest.approx(0.0)
+    r = 1.0 + 1e-3
+    rot = r * np.array([[math.cos(1.0), -math.sin(1.0)], [math.sin(1.0), math.cos(1.0)]])
+    assert bifurcation_function("neimark_sacker", rot) == pytest.approx(1e-3)
+    with pytest.raises(InputError, match="steps"):
+        trace_boundary(system, br, pd, F, 1.5, steps=0)
+    with pytest.raises(InputError, match="force_amplitud"):
+        trace_boundary(system, br, pd, "force_amplitud", 1.5)
+
+
+def test_neimark_sacker_of_the_linear_oscillator() -> None:
+    """Without a wall the forced oscillator m x'' + c x' + k x = F cos(Omega t) is linear:
+    its orbit's multipliers are exp(lambda T), lambda = -c / 2m +- i sqrt(k/m - c^2/4m^2), a
+    complex pair of modulus exp(-c T / 2m) that crosses the unit circle at c = 0 whatever
+    k is. Continued in c from 0.05 to -0.05 N s/m the branch has one Neimark-Sacker point,
+    at c = 0; followed in k it stays at c = 0."""
+    p = pwl.PARAMETER_SETS["stable_p1"]._replace(gap=math.inf, damping=0.05)
+    system = ModelSystem(braidsim_oscillator(p), length_scale=1.0)
+    o = seed_orbit(system, {}, 1, transient_cycles=400, method="fd")
+    T = 2 * math.pi / p.force_frequency
+    lam = complex(-p.damping / 2, math.sqrt(p.stiffness - p.damping**2 / 4))
+    mu = np.exp(lam * T)
+    assert np.allclose(
+        np.sort_complex(o.multipliers), np.sort_complex([mu, mu.conjugate()]), atol=1e-6
+    )
+    br = continue_orbit(system, o, "damping", -0.05, method="fd", switch=False, max_points=40)
+    (ns,) = [s for s in br.special if s.type == "neimark_sacker"]
+    assert abs(ns.value) < 1e-8
+    assert ns.orbit is not None and np.allclose(np.abs(ns.orbit.multipliers), 1.0, atol=1e-7)
+    c = trace_boundary(
+        system,
+        br,
+        ns,
+        "stiffness",
+        1.5,
+        steps=2,
+        method="fd",
+        range1=(-0.05, 0.05),
+        range2=(0.7, 1.5),
+    )
+    assert len(c.p1) >= 3 and c.p2[-1] == pytest.approx(1.5)
+    assert max(abs(x) for x in c.p1) < 1e-8
