@@ -96,6 +96,7 @@ def test_x_carrier_sensitivities_match_finite_differences() -> None:
     _check_against_fd(sc, keys, 0.02)
 
 
+@pytest.mark.slow  # 100 s, most of it compiling the xy solver with tangents for this test alone
 def test_xy_carrier_with_transfers_matches_finite_differences() -> None:
     """The xy carrier hitting both slot walls and the track, with transfers to the next
     horn gear (the state jumps; the transfer times move with the transfer period)."""
