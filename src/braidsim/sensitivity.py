@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.core import layout as L
-from braidsim.core.driver import SensitivityRun, Tangents
+from braidsim.core.driver import RawRun, SensitivityRun, Tangents
 from braidsim.errors import InputError, SimulationError
 
 if TYPE_CHECKING:
@@ -402,7 +402,6 @@ def flow_map(
     from braidsim.model import build_model
     from braidsim.params import Scenario as _Sc
     from braidsim.params import load_scenario
-    from braidsim.result import impacts_frame
     from braidsim.simulate import failure_message, stats_dict
 
     sc = scenario if isinstance(scenario, _Sc) else load_scenario(scenario)
@@ -482,36 +481,7 @@ def flow_map(
         raise sensitivity_error(raw.t)
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
-    sens = raw.sensitivity
-    assert sens is not None
-    rs = raw.restart[0]
-    modes1 = (int(rs["mode_0"]), int(rs["mode_1"]))
-    v0s1 = np.array([rs["v0_0"] if modes1[0] else math.nan, rs["v0_1"] if modes1[1] else math.nan])
-    S = sens.S  # (k, n)
-    D = sens.DV0.copy()  # (k, 2)
-    for p in range(2):
-        if modes1[p] == 0:
-            D[:, p] = 0.0
-    return FlowMap(
-        t0=t0,
-        t1=t1,
-        y0=y[:n].copy(),
-        modes0=modes_t,
-        v0s0=np.where(np.array(modes_t) != 0, v0a, math.nan),
-        y1=raw.y[:n].copy(),
-        modes1=modes1,
-        v0s1=v0s1,
-        jac_y=S[:n].T.copy(),
-        jac_v0=S[n : n + 2].T.copy(),
-        dv0_dy=D[:n].T.copy(),
-        dv0_dv0=D[n : n + 2].T.copy(),
-        keys=tuple(keys),
-        jac_p=S[n + 2 :].T.copy(),
-        dv0_dp=D[n + 2 :].T.copy(),
-        impacts=impacts_frame(raw.episodes),
-        impact_sens=sens.impacts,
-        min_gaps=_min_gaps(raw, model),
-    )
+    return _flow_map_of_run(t0, t1, y[:n], modes_t, v0a, raw, n, keys, _min_gaps(raw, model))
 
 
 def _min_gaps(raw: Any, model: Model) -> np.ndarray:
@@ -638,7 +608,6 @@ def record_flow_map(
     """
     from braidsim.core import run as core_run
     from braidsim.core.driver import state_size
-    from braidsim.result import impacts_frame
 
     t0, t1 = float(t0), float(t1)
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
@@ -696,20 +665,39 @@ def record_flow_map(
             f"map of {type(record).__name__} from t = {t0:.9g} s)",
             raw.t,
         )
+    return _flow_map_of_run(t0, t1, ya, modes_t, v0a, raw, n, keys, np.full((2, 2), math.nan))
+
+
+def _flow_map_of_run(
+    t0: float,
+    t1: float,
+    y0: np.ndarray,
+    modes_t: tuple[int, int],
+    v0a: np.ndarray,
+    raw: RawRun,
+    n: int,
+    keys: Sequence[str],
+    min_gaps: np.ndarray,
+) -> FlowMap:
+    """The :class:`FlowMap` of a run that carried the tangents of (state, latched speeds,
+    keys) from t0 (state ``y0``, contact modes ``modes_t``, latched speeds ``v0a``) to t1;
+    the latched speed of a contact closed at t1 has no derivative."""
+    from braidsim.result import impacts_frame  # pandas: only once a map is made
+
     sens = raw.sensitivity
     assert sens is not None
     rs = raw.restart[0]
     modes1 = (int(rs["mode_0"]), int(rs["mode_1"]))
     v0s1 = np.array([rs["v0_0"] if modes1[0] else math.nan, rs["v0_1"] if modes1[1] else math.nan])
-    D = sens.DV0.copy()
+    S = sens.S  # (k, n)
+    D = sens.DV0.copy()  # (k, 2)
     for p in range(2):
         if modes1[p] == 0:
             D[:, p] = 0.0
-    S = sens.S
     return FlowMap(
         t0=t0,
         t1=t1,
-        y0=ya.copy(),
+        y0=np.array(y0, dtype=float),
         modes0=modes_t,
         v0s0=np.where(np.array(modes_t) != 0, v0a, math.nan),
         y1=raw.y[:n].copy(),
@@ -724,5 +712,5 @@ def record_flow_map(
         dv0_dp=D[n + 2 :].T.copy(),
         impacts=impacts_frame(raw.episodes),
         impact_sens=sens.impacts,
-        min_gaps=np.full((2, 2), math.nan),
+        min_gaps=min_gaps,
     )
