@@ -593,30 +593,6 @@ class Continuer:
             return None, 0.5 * (la + lb), abs(lb - la)
         return o, lam_of(o, self.key), w * abs(lb - la)
 
-    def _locate_fold(
-        self,
-        sh: Shooter,
-        Ua: np.ndarray,
-        Ub: np.ndarray,
-        fa: float,
-        fb: float,
-        f: Callable[[Orbit], float | None],
-    ) -> tuple[Orbit | None, float, float]:
-        """A fold between two points: the zero of the tangent's parameter component, by
-        regula falsi along the chord (the parameter itself is stationary there). Returns
-        (orbit, value [SI], width of the final bracket in the parameter [SI], an upper
-        bound: the value's own error is of second order in it)."""
-        la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
-
-        def on_chord(t: float) -> tuple[Orbit, float | None]:
-            o = self._secant_point(sh, Ua, Ub, t)
-            return o, f(o)
-
-        o, _, w = self._illinois(fa, fb, on_chord, 1e-9)
-        if o is None:
-            return None, 0.5 * (la + lb), abs(lb - la)
-        return o, lam_of(o, self.key), w * max(abs(lb - la), 1e-300)
-
     def _locate_grazing(self, oa: Orbit, ob: Orbit) -> tuple[Orbit | None, Orbit | None]:
         """Bisect in the parameter between two orbits of different contact structure. Each
         trial is solved at fixed parameter from the last orbit of ``oa``'s structure, so the
@@ -708,7 +684,12 @@ class Continuer:
             def f_fold(o: Orbit) -> float:
                 return float(self.setup(o, ta, 1.0)[2][-1])
 
-            of, lam, w = self._locate_fold(sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold)
+            # the parameter is stationary at a fold: regula falsi along the chord on the
+            # tangent's parameter component (the bracket width bounds the value's error,
+            # which is of second order in it)
+            of, lam, w = self._locate(
+                sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold, monotone=False
+            )
             br.special.append(
                 SpecialPoint("fold", lam, k, idx, of, "a multiplier crosses +1", tolerance=w)
             )
