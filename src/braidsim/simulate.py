@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -119,7 +119,7 @@ def run_model(
     windows: np.ndarray | None = None,
     series: bool | SeriesSink = True,
     record_events: bool = True,
-    energy: bool = True,
+    energy: bool | Literal["dissipation"] = True,
     start: State | None = None,
     tangents: Tangents | None = None,
 ) -> RawRun:
@@ -131,16 +131,29 @@ def run_model(
     then ends at ``start.t + model.duration``. ``series``: keep the rows (True), none
     (False: the lean path), or stream them to a callable. Raises :class:`SimulationError` on
     a numerical failure. ``tangents``: carry forward sensitivities
-    (:func:`braidsim.sensitivity.directions`).
+    (:func:`braidsim.sensitivity.directions`). ``energy``: integrate all the energy
+    quadratures (True), none (False), or only the energy each contact dissipates
+    (``"dissipation"``: what the impact table reports; the lean path).
+
+    The returned ``y`` is always the model's full state: the quadratures a run did not
+    integrate are NaN there, and a run started from such a state integrates them from its
+    own start.
     """
-    opts = model.options._replace(record_events=record_events, energy=energy)
-    y0 = model.y0 if energy else model.y0[: state_size(model.record, False)]
+    lean = energy == "dissipation"
+    opts = model.options._replace(
+        record_events=record_events, energy=bool(energy), dissipation_only=lean
+    )
+    n = state_size(model.record, bool(energy), lean)
+    n_full = state_size(model.record, True)
+    y0 = model.y0[:n]
     restart = None
     if start is not None:
         y0 = np.asarray(start.y, dtype=float)
-        n = state_size(model.record, energy)
-        if y0.shape != (n,):
-            raise InputError(f"start: the state vector needs {n} entries, got {y0.shape}")
+        if y0.shape != (n_full,):
+            raise InputError(f"start: the state vector needs {n_full} entries, got {y0.shape}")
+        n_coord2 = state_size(model.record, False)
+        # a quadrature the previous run did not integrate starts from this run's start
+        y0 = np.where(np.isnan(y0) & (np.arange(n_full) >= n_coord2), 0.0, y0)[:n]
         restart = L.new_restart()
         r = restart[0]
         r["started"] = L.CONTINUED
@@ -168,6 +181,8 @@ def run_model(
         raise sensitivity_error(raw.t)
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
+    if n < n_full:
+        raw.y = np.concatenate([raw.y, np.full(n_full - n, np.nan)])
     return raw
 
 
@@ -293,6 +308,8 @@ def simulate(
         # the series' tangents come back with the rows kept by the driver
         series=(True if tangents is not None else keep) if series is True else series,
         record_events=record_events and series is not False,
+        # the lean path integrates only the energy the impact table reports
+        energy="dissipation" if series is False else True,
         start=start,
         tangents=tangents,
     )

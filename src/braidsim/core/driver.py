@@ -126,10 +126,14 @@ class RawRun:
         return float(self.restart[0]["t"])
 
 
-def state_size(model: Any, energy: bool) -> int:
-    """Length of the state vector of ``model`` (with or without the energy quadratures)."""
-    n_coords, _, n_quads = model_size.py(model)
-    return 2 * n_coords + (n_quads if energy else 0)
+def state_size(model: Any, energy: bool, dissipation_only: bool = False) -> int:
+    """Length of the state vector of ``model``: 2 n_coords, plus its n_quads energy
+    quadratures with ``energy``, or only the n_pairs dissipation quadratures (which every
+    model puts first) with ``dissipation_only`` as well."""
+    n_coords, n_pairs, n_quads = model_size.py(model)
+    if not energy:
+        return 2 * n_coords
+    return 2 * n_coords + (n_pairs if dissipation_only else n_quads)
 
 
 def max_samples_per_step(sample_times: np.ndarray, max_step: float) -> int:
@@ -175,7 +179,7 @@ def run(
         Carry forward sensitivities along these directions (a series sink cannot take them:
         with ``tangents.series`` the series must be kept, ``series=True``).
     """
-    n = state_size(model, opts.energy)
+    n = state_size(model, opts.energy, opts.dissipation_only)
     y = np.array(y0, dtype=float)
     if y.shape != (n,):
         raise ValueError(

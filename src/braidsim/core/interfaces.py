@@ -129,7 +129,10 @@ def wall_accel_bound(ex):
 
 @generic
 def model_size(model):
-    """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures."""
+    """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures.
+
+    The first n_pairs quadratures are the energies the pairs' contact laws dissipate, in
+    pair order (:func:`dissipation_index`): the lean path integrates only those."""
     raise NotImplementedError
 
 
@@ -137,7 +140,8 @@ def model_size(model):
 def derivatives(model, t, y, modes, v0s, n_state, out):
     """Write dy/dt into ``out[:n_state]`` in the contact modes ``modes`` (per pair: -1 inner,
     +1 outer, 0 free) with the latched approach speeds ``v0s``; ``n_state`` is 2 n_coords, or
-    2 n_coords + n_quads when the energy quadratures are integrated."""
+    2 n_coords + n_quads when the energy quadratures are integrated, or 2 n_coords + n_pairs
+    when only the dissipation quadratures are."""
     raise NotImplementedError
 
 

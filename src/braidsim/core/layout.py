@@ -68,6 +68,10 @@ class SolverOptions(NamedTuple):
         Write the exact onset, exit, peak and transfer states into the series.
     energy : bool
         Integrate the energy quadratures (work of every force) with the motion.
+    dissipation_only : bool
+        With ``energy``, integrate only the first ``n_pairs`` quadratures, the energy each
+        contact law dissipates (what the impact table reports); the other works are not
+        integrated (the state is shorter, the series gives them as NaN). The lean path.
     """
 
     rtol: float
@@ -78,6 +82,7 @@ class SolverOptions(NamedTuple):
     t_end: float
     record_events: bool = True
     energy: bool = True
+    dissipation_only: bool = False
 
 
 class SensitivityWork(NamedTuple):

@@ -199,6 +199,7 @@ def _derivs_x(model, t, y, modes, v0s, n_state, out):
         # with p = s (x - wall), p' = s (x' - h'), the carrier's energy
         # E = m v^2 / 2 + K p^(n+1) / (n+1) changes at -(N - F_k) p' - f x' - load x' - s N h'
         out[2] = (nt - fkt) * pdt
+    if n_state > 3:  # all the quadratures, not the dissipation alone
         out[3] = fx * y[1]
         out[4] = -load_x * y[1]
         out[5] = -mt * nt * hd
@@ -222,6 +223,7 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
     if n_state > 4:
         out[4] = (nt - fkt) * pdt
         out[5] = (ns - fks) * pds
+    if n_state > 6:  # all the quadratures, not the dissipation alone
         out[6] = fx * y[1]
         out[7] = fy * y[3]
         out[8] = -load_x * y[1]
@@ -368,15 +370,15 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
         row[12] = nns
         row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
         for i in range(8):
-            row[15 + i] = y[4 + i] if n_state > 4 else math.nan
-        row[26] = y[12] if n_state > 4 else math.nan
+            row[15 + i] = y[4 + i] if 4 + i < n_state else math.nan
+        row[26] = y[12] if 12 < n_state else math.nan
     else:
         for i in (3, 4, 9, 10, 11, 12, 14):
             row[i] = 0.0
         # state order: track_dissipated, friction_work_x, load_work_x, track_work
-        energy = n_state > 2
-        row[15] = y[2] if energy else math.nan
-        row[16] = 0.0 if energy else math.nan
+        energy = n_state > 3  # all the quadratures
+        row[15] = y[2] if n_state > 2 else math.nan
+        row[16] = 0.0 if n_state > 2 else math.nan
         row[17] = y[3] if energy else math.nan
         row[18] = 0.0 if energy else math.nan
         row[19] = y[4] if energy else math.nan

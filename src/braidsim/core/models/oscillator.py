@@ -115,6 +115,7 @@ def _derivs(model, t, y, modes, v0s, n_state, out):
     out[1] = (force - model.damping * y[1] - model.stiffness * y[0] - mode * nn) / model.mass
     if n_state > 2:
         out[2] = (nn - fk) * pd
+    if n_state > 3:  # all the quadratures, not the dissipation alone
         out[3] = model.damping * y[1] * y[1]
         out[4] = force * y[1]
 
@@ -167,7 +168,7 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     row[5] = s * fc
     row[6] = s * nn
     for i in range(3):
-        row[7 + i] = y[2 + i] if n_state > 2 else math.nan
+        row[7 + i] = y[2 + i] if 2 + i < n_state else math.nan
     row[10] = kind
 
 

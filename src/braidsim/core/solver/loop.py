@@ -157,7 +157,8 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         A model of :mod:`braidsim.core.models`.
     opts : SolverOptions
     y : array
-        The state (length 2 n_coords, plus n_quads with ``opts.energy``); in and out.
+        The state (length 2 n_coords, plus n_quads with ``opts.energy``, or n_pairs with
+        ``opts.dissipation_only`` as well); in and out.
     RS : array of RESTART_DTYPE, shape (1,)
         Where the run stands; in and out (:func:`braidsim.core.layout.new_restart`).
     ST, TR : arrays
@@ -185,7 +186,10 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     """
     n_coords, n_pairs, n_quads = model_size(model)
     n_dof2 = 2 * n_coords
-    n = n_dof2 + n_quads if opts.energy else n_dof2
+    n = n_dof2
+    if opts.energy:
+        # the dissipation quadratures come first in every model's state
+        n += n_pairs if opts.dissipation_only else n_quads
     if (
         y.shape[0] != n
         or WIN.shape[0] != RANGES.shape[0]
