@@ -294,7 +294,14 @@ def run_samples(model: Model, sample_times: np.ndarray, windows: np.ndarray) -> 
     """:func:`braidsim.simulate.run_model` with samples only (no event rows): the fast path."""
     from braidsim.simulate import run_model
 
-    return run_model(model, sample_times=sample_times, windows=windows, record_events=False)
+    # the window metrics read the dissipations and friction works, not the other works
+    return run_model(
+        model,
+        sample_times=sample_times,
+        windows=windows,
+        record_events=False,
+        energy="friction",
+    )
 
 
 def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -> None:

@@ -12,7 +12,7 @@ import numpy as np
 from braidsim.core import CARRIER_COLUMNS, RawRun, state_size
 from braidsim.core import layout as L
 from braidsim.core import run as core_run
-from braidsim.core.driver import SeriesSink, Tangents
+from braidsim.core.driver import SeriesSink, Tangents, quadrature_prefix
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
@@ -119,7 +119,7 @@ def run_model(
     windows: np.ndarray | None = None,
     series: bool | SeriesSink = True,
     record_events: bool = True,
-    energy: bool | Literal["dissipation"] = True,
+    energy: bool | Literal["dissipation", "friction"] = True,
     start: State | None = None,
     tangents: Tangents | None = None,
 ) -> RawRun:
@@ -132,18 +132,17 @@ def run_model(
     (False: the lean path), or stream them to a callable. Raises :class:`SimulationError` on
     a numerical failure. ``tangents``: carry forward sensitivities
     (:func:`braidsim.sensitivity.directions`). ``energy``: integrate all the energy
-    quadratures (True), none (False), or only the energy each contact dissipates
-    (``"dissipation"``: what the impact table reports; the lean path).
+    quadratures (True), none (False), only the energy each contact dissipates
+    (``"dissipation"``: what the impact table reports; the lean path), or that and the
+    friction work (``"friction"``: what the batch metrics read).
 
     The returned ``y`` is always the model's full state: the quadratures a run did not
     integrate are NaN there, and a run started from such a state integrates them from its
     own start.
     """
-    lean = energy == "dissipation"
-    opts = model.options._replace(
-        record_events=record_events, energy=bool(energy), dissipation_only=lean
-    )
-    n = state_size(model.record, bool(energy), lean)
+    nq = quadrature_prefix(model.record, energy) if isinstance(energy, str) else -1
+    opts = model.options._replace(record_events=record_events, energy=bool(energy), quadratures=nq)
+    n = state_size(model.record, bool(energy), nq)
     n_full = state_size(model.record, True)
     y0 = model.y0[:n]
     restart = None

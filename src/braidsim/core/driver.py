@@ -126,14 +126,26 @@ class RawRun:
         return float(self.restart[0]["t"])
 
 
-def state_size(model: Any, energy: bool, dissipation_only: bool = False) -> int:
-    """Length of the state vector of ``model``: 2 n_coords, plus its n_quads energy
-    quadratures with ``energy``, or only the n_pairs dissipation quadratures (which every
-    model puts first) with ``dissipation_only`` as well."""
-    n_coords, n_pairs, n_quads = model_size.py(model)
+def state_size(model: Any, energy: bool, quadratures: int = -1) -> int:
+    """Length of the state vector of ``model``: 2 n_coords, plus with ``energy`` the first
+    ``quadratures`` of its n_quads energy quadratures (-1: all; see
+    :class:`~braidsim.core.layout.SolverOptions`)."""
+    n_coords, _, n_quads = model_size.py(model)
     if not energy:
         return 2 * n_coords
-    return 2 * n_coords + (n_pairs if dissipation_only else n_quads)
+    return 2 * n_coords + (n_quads if quadratures < 0 else min(quadratures, n_quads))
+
+
+def quadrature_prefix(model: Any, which: str) -> int:
+    """The number of leading quadratures that hold ``which``: ``"dissipation"`` (the energy
+    each contact pair dissipates) or ``"friction"`` (those and the friction work along each
+    coordinate)."""
+    n_coords, n_pairs, _ = model_size.py(model)
+    if which == "dissipation":
+        return int(n_pairs)
+    if which == "friction":
+        return int(n_pairs + n_coords)
+    raise ValueError(f"quadratures: {which!r}; allowed 'dissipation' or 'friction'")
 
 
 def max_samples_per_step(sample_times: np.ndarray, max_step: float) -> int:
@@ -179,7 +191,13 @@ def run(
         Carry forward sensitivities along these directions (a series sink cannot take them:
         with ``tangents.series`` the series must be kept, ``series=True``).
     """
-    n = state_size(model, opts.energy, opts.dissipation_only)
+    n_coords, n_pairs, n_quads = model_size.py(model)
+    if opts.quadratures not in (-1, n_quads, n_pairs, n_pairs + n_coords):
+        # the models write their quadratures in these blocks only
+        raise ValueError(
+            f"quadratures: {opts.quadratures}; allowed -1, {n_pairs} or {n_pairs + n_coords}"
+        )
+    n = state_size(model, opts.energy, opts.quadratures)
     y = np.array(y0, dtype=float)
     if y.shape != (n,):
         raise ValueError(

@@ -131,8 +131,9 @@ def wall_accel_bound(ex):
 def model_size(model):
     """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures.
 
-    The first n_pairs quadratures are the energies the pairs' contact laws dissipate, in
-    pair order (:func:`dissipation_index`): the lean path integrates only those."""
+    The quadratures are ordered so that a run can integrate a prefix of them: first the
+    energy each pair's contact law dissipates, in pair order (:func:`dissipation_index`),
+    then the friction work along each coordinate, then the rest."""
     raise NotImplementedError
 
 
@@ -141,7 +142,7 @@ def derivatives(model, t, y, modes, v0s, n_state, out):
     """Write dy/dt into ``out[:n_state]`` in the contact modes ``modes`` (per pair: -1 inner,
     +1 outer, 0 free) with the latched approach speeds ``v0s``; ``n_state`` is 2 n_coords, or
     2 n_coords + n_quads when the energy quadratures are integrated, or 2 n_coords + n_pairs
-    when only the dissipation quadratures are."""
+    (the dissipations only) or 2 n_coords + n_pairs + n_coords (and the friction works)."""
     raise NotImplementedError
 
 

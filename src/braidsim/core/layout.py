@@ -68,10 +68,13 @@ class SolverOptions(NamedTuple):
         Write the exact onset, exit, peak and transfer states into the series.
     energy : bool
         Integrate the energy quadratures (work of every force) with the motion.
-    dissipation_only : bool
-        With ``energy``, integrate only the first ``n_pairs`` quadratures, the energy each
-        contact law dissipates (what the impact table reports); the other works are not
-        integrated (the state is shorter, the series gives them as NaN). The lean path.
+    quadratures : int
+        With ``energy``: how many of the model's quadratures to integrate, counted from the
+        first; -1 all of them. Every model orders its quadratures so that two shorter
+        prefixes mean something: the energy each contact pair dissipates (n_pairs, what the
+        impact table reports: the lean path), then the friction work along each coordinate
+        as well (n_pairs + n_coords, what the batch metrics read). The works not integrated
+        are not in the state (the series gives them as NaN).
     """
 
     rtol: float
@@ -82,7 +85,7 @@ class SolverOptions(NamedTuple):
     t_end: float
     record_events: bool = True
     energy: bool = True
-    dissipation_only: bool = False
+    quadratures: int = -1
 
 
 class SensitivityWork(NamedTuple):

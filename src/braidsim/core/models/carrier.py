@@ -199,8 +199,9 @@ def _derivs_x(model, t, y, modes, v0s, n_state, out):
         # with p = s (x - wall), p' = s (x' - h'), the carrier's energy
         # E = m v^2 / 2 + K p^(n+1) / (n+1) changes at -(N - F_k) p' - f x' - load x' - s N h'
         out[2] = (nt - fkt) * pdt
-    if n_state > 3:  # all the quadratures, not the dissipation alone
+    if n_state > 3:  # the friction work too
         out[3] = fx * y[1]
+    if n_state > 4:  # all the quadratures
         out[4] = -load_x * y[1]
         out[5] = -mt * nt * hd
         out[6] = 0.0  # transfers change the energy at an instant (apply_transfer)
@@ -223,9 +224,10 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
     if n_state > 4:
         out[4] = (nt - fkt) * pdt
         out[5] = (ns - fks) * pds
-    if n_state > 6:  # all the quadratures, not the dissipation alone
+    if n_state > 6:  # the friction works too
         out[6] = fx * y[1]
         out[7] = fy * y[3]
+    if n_state > 8:  # all the quadratures
         out[8] = -load_x * y[1]
         out[9] = -mt * nt * hd
         out[10] = model.load_y * y[3]
@@ -376,11 +378,11 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
         for i in (3, 4, 9, 10, 11, 12, 14):
             row[i] = 0.0
         # state order: track_dissipated, friction_work_x, load_work_x, track_work
-        energy = n_state > 3  # all the quadratures
+        energy = n_state > 4  # all the quadratures
         row[15] = y[2] if n_state > 2 else math.nan
         row[16] = 0.0 if n_state > 2 else math.nan
-        row[17] = y[3] if energy else math.nan
-        row[18] = 0.0 if energy else math.nan
+        row[17] = y[3] if n_state > 3 else math.nan
+        row[18] = 0.0 if n_state > 3 else math.nan
         row[19] = y[4] if energy else math.nan
         row[20] = y[5] if energy else math.nan
         row[21] = 0.0 if energy else math.nan

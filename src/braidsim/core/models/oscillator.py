@@ -115,8 +115,9 @@ def _derivs(model, t, y, modes, v0s, n_state, out):
     out[1] = (force - model.damping * y[1] - model.stiffness * y[0] - mode * nn) / model.mass
     if n_state > 2:
         out[2] = (nn - fk) * pd
-    if n_state > 3:  # all the quadratures, not the dissipation alone
+    if n_state > 3:  # the work of the damper (the "friction" of this model) too
         out[3] = model.damping * y[1] * y[1]
+    if n_state > 4:
         out[4] = force * y[1]
 
 

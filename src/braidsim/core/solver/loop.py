@@ -157,8 +157,8 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         A model of :mod:`braidsim.core.models`.
     opts : SolverOptions
     y : array
-        The state (length 2 n_coords, plus n_quads with ``opts.energy``, or n_pairs with
-        ``opts.dissipation_only`` as well); in and out.
+        The state (length 2 n_coords, plus with ``opts.energy`` the first
+        ``opts.quadratures`` of the n_quads quadratures, all for -1); in and out.
     RS : array of RESTART_DTYPE, shape (1,)
         Where the run stands; in and out (:func:`braidsim.core.layout.new_restart`).
     ST, TR : arrays
@@ -188,8 +188,8 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     n_dof2 = 2 * n_coords
     n = n_dof2
     if opts.energy:
-        # the dissipation quadratures come first in every model's state
-        n += n_pairs if opts.dissipation_only else n_quads
+        # a prefix of the quadratures (the dissipations, then the friction works, come first)
+        n += n_quads if opts.quadratures < 0 else min(opts.quadratures, n_quads)
     if (
         y.shape[0] != n
         or WIN.shape[0] != RANGES.shape[0]
