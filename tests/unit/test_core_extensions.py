@@ -150,3 +150,23 @@ def test_a_bad_record_is_refused(tmp_path: Path) -> None:
     path.write_text("t,x\n0,0\n1,0\n2,0\n3,0\n")
     with pytest.raises(ValueError, match="columns t and h"):
         MeasuredTrack.from_csv(path)
+
+
+def test_an_implementation_must_name_its_parameters_as_the_declaration() -> None:
+    """numba inlines a registered implementation in place of the generic function, which
+    matches arguments by name: a law whose parameters are named otherwise is refused when
+    it is registered, with the names it needs."""
+    from typing import NamedTuple
+
+    from braidsim.core.interfaces import friction_force
+
+    class Odd(NamedTuple):
+        c: float
+
+    with pytest.raises(TypeError, match=r"must be named \(law, v, normal, mu\)"):
+
+        @friction_force.register(Odd)
+        def _odd(fr, v, normal, mu):  # pragma: no cover - refused before use
+            return fr.c * v
+
+    assert Odd not in friction_force.generic.impls

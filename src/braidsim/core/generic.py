@@ -6,7 +6,7 @@ or ``derivatives(model, t, ...)``. Each contact law, friction law, excitation an
 class::
 
     @contact_forces.register(MyLaw)
-    def _my_law_forces(law, p, p_dot, v0): ...
+    def _my_law_forces(law, p, p_dot, v0): ...   # parameters named as the declaration's
 
 Inside compiled code the call ``contact_forces(law, ...)`` is resolved by the *type* of
 ``law`` when the caller is compiled (numba's ``overload`` mechanism), so the dispatch costs
@@ -49,18 +49,22 @@ class GenericFunction:
         self.params = list(inspect.signature(stub).parameters)
         self.impls: dict[type, Any] = {}
         # The typing function must have the stub's own parameters (numba matches them by
-        # name), so it is written out for this signature.
+        # name), so it is written out for this signature. An inlined implementation is
+        # handed to numba as the overload itself (its parameters are named as the stub's);
+        # one that is called goes through a wrapper that calls its compiled function.
         args = ", ".join(self.params)
         src = (
             f"def typer({args}):\n"
             f"    fn = impls.get(getattr({self.params[0]}, 'instance_class', None))\n"
-            f"    if fn is None:\n"
-            f"        return None\n"
+            f"    if fn is None or inline:\n"
+            f"        return fn\n"
             f"    def impl({args}):\n"
             f"        return fn({args})\n"
             f"    return impl\n"
         )
-        namespace: dict[str, Any] = {"impls": self.impls}
+        # impls: the Python functions when inlined, their compiled functions when called
+        self._overloads: dict[type, Any] = {}
+        namespace: dict[str, Any] = {"impls": self._overloads, "inline": inline}
         exec(src, namespace)  # a fixed template over the stub's parameter names
         overload(stub, inline="always" if inline else "never")(namespace["typer"])
         self.inline = inline
@@ -72,7 +76,17 @@ class GenericFunction:
         def deco(fn: F) -> F:
             if cls in self.impls:
                 raise TypeError(f"{self.name} is already defined for {cls.__name__}")
+            names = list(inspect.signature(fn).parameters)
+            if self.inline and names != self.params:
+                # numba inlines the implementation in place of the stub: same names
+                raise TypeError(
+                    f"{fn.__name__} implements {self.name}: its parameters must be named "
+                    f"({', '.join(self.params)}), not ({', '.join(names)})"
+                )
             self.impls[cls] = (inline_helper if self.inline else helper)(fn)
+            # handing numba the Python function itself saves a level of inlining: the
+            # wrapper's IR copied and typed at every call site was ~5 s of a 40-s cold compile
+            self._overloads[cls] = fn if self.inline else self.impls[cls]
             return fn
 
         return deco

@@ -467,30 +467,30 @@ def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
 
 @pair_gaps_jvp.register(CarrierX)
 @pair_gaps_jvp.register(CarrierXY)
-def _gaps_jvp(model, dm, pair, t, y, s):
+def _gaps_jvp(model, dmodel, pair, t, y, s):
     if pair == 0:
-        dh, dhd, _ = wall_motion_jvp(model.track, dm.track, t)
+        dh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
         du = s[0] - dh
-        return du, dm.track_clearance - du, s[1] - dhd
-    dsp, dsd, _ = wall_motion_jvp(model.horn_gear, dm.horn_gear, t)
+        return du, dmodel.track_clearance - du, s[1] - dhd
+    dsp, dsd, _ = wall_motion_jvp(model.horn_gear, dmodel.horn_gear, t)
     du = s[2] - dsp
-    return du, dm.slot_clearance - du, s[3] - dsd
+    return du, dmodel.slot_clearance - du, s[3] - dsd
 
 
 @pair_law_jvp.register(CarrierX)
 @pair_law_jvp.register(CarrierXY)
-def _law_jvp(model, dm, pair, p, dp, p_dot, dp_dot, v0, dv0):
+def _law_jvp(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
     if pair == 0:
-        return contact_forces_jvp(model.track_law, dm.track_law, p, dp, p_dot, dp_dot, v0, dv0)
-    return contact_forces_jvp(model.slot_law, dm.slot_law, p, dp, p_dot, dp_dot, v0, dv0)
+        return contact_forces_jvp(model.track_law, dmodel.track_law, p, dp, p_dot, dp_dot, v0, dv0)
+    return contact_forces_jvp(model.slot_law, dmodel.slot_law, p, dp, p_dot, dp_dot, v0, dv0)
 
 
 @apply_transfer_jvp.register(CarrierX)
 @apply_transfer_jvp.register(CarrierXY)
-def _transfer_jvp(model, dm, t, y, s, dt, out):
+def _transfer_jvp(model, dmodel, t, y, s, dt, out):
     # x -> h + eps - clamp(x - h, 0, eps),  x' -> 2 h' - x' + v_tr, at the time t + dt
     hh, hd, hdd = wall_motion(model.track, t)
-    dhh, dhd, _ = wall_motion_jvp(model.track, dm.track, t)
+    dhh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
     dhh += hd * dt
     dhd += hdd * dt
     xr = y[0] - hh
@@ -499,9 +499,9 @@ def _transfer_jvp(model, dm, t, y, s, dt, out):
     if xr < 0.0:
         dxr = 0.0
     elif xr > eps:
-        dxr = dm.track_clearance
-    out[0] = dhh + dm.track_clearance - dxr
-    out[1] = 2.0 * dhd - s[1] + dm.transfer_speed
+        dxr = dmodel.track_clearance
+    out[0] = dhh + dmodel.track_clearance - dxr
+    out[1] = 2.0 * dhd - s[1] + dmodel.transfer_speed
     n_coords, _, _ = model_size(model)
     if n_coords == 2:
         out[2] = s[2]

@@ -214,16 +214,16 @@ def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
 
 
 @pair_gaps_jvp.register(ImpactOscillator)
-def _gaps_jvp(model, dm, pair, t, y, s):
-    return s[0] + dm.gap_inner, dm.gap_outer - s[0], s[1]
+def _gaps_jvp(model, dmodel, pair, t, y, s):
+    return s[0] + dmodel.gap_inner, dmodel.gap_outer - s[0], s[1]
 
 
 @pair_law_jvp.register(ImpactOscillator)
-def _law_jvp(model, dm, pair, p, dp, p_dot, dp_dot, v0, dv0):
-    return contact_forces_jvp(model.law, dm.law, p, dp, p_dot, dp_dot, v0, dv0)
+def _law_jvp(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
+    return contact_forces_jvp(model.law, dmodel.law, p, dp, p_dot, dp_dot, v0, dv0)
 
 
 @apply_transfer_jvp.register(ImpactOscillator)
-def _transfer_jvp(model, dm, t, y, s, dt, out):
+def _transfer_jvp(model, dmodel, t, y, s, dt, out):
     out[0] = s[0]  # the oscillator has no transfers
     out[1] = s[1]

@@ -25,18 +25,18 @@ class CoulombViscousFriction(NamedTuple):
 
 
 @friction_force.register(CoulombViscousFriction)
-def _friction(fr, v, normal, mu):
-    return mu * normal * math.tanh(v / fr.regularization_velocity) + fr.viscous * v
+def _friction(law, v, normal, mu):
+    return mu * normal * math.tanh(v / law.regularization_velocity) + law.viscous * v
 
 
 @friction_force_jvp.register(CoulombViscousFriction)
-def _friction_jvp(fr, dfr, v, dv, normal, dnormal, mu, dmu):
-    vhat = fr.regularization_velocity
+def _friction_jvp(law, dlaw, v, dv, normal, dnormal, mu, dmu):
+    vhat = law.regularization_velocity
     g = math.tanh(v / vhat)
-    du = dv / vhat - v * dfr.regularization_velocity / (vhat * vhat)
+    du = dv / vhat - v * dlaw.regularization_velocity / (vhat * vhat)
     return (
         (dmu * normal + mu * dnormal) * g
         + mu * normal * (1.0 - g * g) * du
-        + dfr.viscous * v
-        + fr.viscous * dv
+        + dlaw.viscous * v
+        + law.viscous * dv
     )

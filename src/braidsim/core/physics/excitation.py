@@ -229,25 +229,25 @@ def horn_gear_accel_jvp(hg, dhg, t):
 
 
 @wall_motion_jvp.register(HornGear)
-def _slot_motion_jvp(hg, dhg, t):
-    om, _ = horn_gear_state(hg, t)
-    dom, ds = horn_gear_state_jvp(hg, dhg, t)
-    rc = hg.turning_radius
-    drc = dhg.turning_radius
+def _slot_motion_jvp(ex, dex, t):
+    om, _ = horn_gear_state(ex, t)
+    dom, ds = horn_gear_state_jvp(ex, dex, t)
+    rc = ex.turning_radius
+    drc = dex.turning_radius
     return (
         ds,
         drc * om + rc * dom,
-        drc * horn_gear_accel(hg, t) + rc * horn_gear_accel_jvp(hg, dhg, t),
+        drc * horn_gear_accel(ex, t) + rc * horn_gear_accel_jvp(ex, dex, t),
     )
 
 
 @wall_motion.register(HornGear)
-def _slot_motion(hg, t):
-    om, s = horn_gear_state(hg, t)
-    rc = hg.turning_radius
-    return s, rc * om, rc * horn_gear_accel(hg, t)
+def _slot_motion(ex, t):
+    om, s = horn_gear_state(ex, t)
+    rc = ex.turning_radius
+    return s, rc * om, rc * horn_gear_accel(ex, t)
 
 
 @wall_accel_bound.register(HornGear)
-def _slot_bound(hg):
+def _slot_bound(ex):
     return math.inf

@@ -30,44 +30,44 @@ class RegularizedFriction(NamedTuple):
 
 
 @friction_force.register(RegularizedFriction)
-def _friction(fr, v, normal, mu):
-    law = fr.law
-    vhat = fr.regularization_velocity
-    if law == 0:
+def _friction(law, v, normal, mu):
+    kind = law.law
+    vhat = law.regularization_velocity
+    if kind == 0:
         return mu * normal * (2.0 / math.pi) * math.atan(v / vhat)
-    if law == 1:
+    if kind == 1:
         return mu * normal * math.tanh(v / vhat)
-    if law == 2:
-        vs = fr.stribeck_velocity
-        mu_eff = mu * (1.0 + (fr.static_ratio - 1.0) * math.exp(-((v / vs) ** 2)))
+    if kind == 2:
+        vs = law.stribeck_velocity
+        mu_eff = mu * (1.0 + (law.static_ratio - 1.0) * math.exp(-((v / vs) ** 2)))
         return mu_eff * normal * math.tanh(v / vhat)
     return 0.0
 
 
 @friction_force_jvp.register(RegularizedFriction)
-def _friction_jvp(fr, dfr, v, dv, normal, dnormal, mu, dmu):
-    law = fr.law
-    if law == 3:
+def _friction_jvp(law, dlaw, v, dv, normal, dnormal, mu, dmu):
+    kind = law.law
+    if kind == 3:
         return 0.0
-    vhat = fr.regularization_velocity
+    vhat = law.regularization_velocity
     u = v / vhat
-    du = dv / vhat - v * dfr.regularization_velocity / (vhat * vhat)
-    if law == 0:
+    du = dv / vhat - v * dlaw.regularization_velocity / (vhat * vhat)
+    if kind == 0:
         g = (2.0 / math.pi) * math.atan(u)
         dg = (2.0 / math.pi) / (1.0 + u * u) * du
         return (dmu * normal + mu * dnormal) * g + mu * normal * dg
     g = math.tanh(u)
     dg = (1.0 - g * g) * du
-    if law == 1:
+    if kind == 1:
         return (dmu * normal + mu * dnormal) * g + mu * normal * dg
     # stribeck: mu_eff = mu (1 + (r_s - 1) e), e = exp(-(v / v_s)^2)
-    vs = fr.stribeck_velocity
+    vs = law.stribeck_velocity
     w = v / vs
-    dw = dv / vs - v * dfr.stribeck_velocity / (vs * vs)
+    dw = dv / vs - v * dlaw.stribeck_velocity / (vs * vs)
     e = math.exp(-(w * w))
     de = -2.0 * w * e * dw
-    mu_eff = mu * (1.0 + (fr.static_ratio - 1.0) * e)
-    dmu_eff = dmu * (1.0 + (fr.static_ratio - 1.0) * e) + mu * (
-        dfr.static_ratio * e + (fr.static_ratio - 1.0) * de
+    mu_eff = mu * (1.0 + (law.static_ratio - 1.0) * e)
+    dmu_eff = dmu * (1.0 + (law.static_ratio - 1.0) * e) + mu * (
+        dlaw.static_ratio * e + (law.static_ratio - 1.0) * de
     )
     return (dmu_eff * normal + mu_eff * dnormal) * g + mu_eff * normal * dg

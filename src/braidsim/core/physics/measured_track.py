@@ -85,9 +85,9 @@ def _piece(tr, t):
 
 
 @wall_motion.register(MeasuredTrack)
-def _motion(tr, t):
-    i, s = _piece(tr, t)
-    c = tr.coeffs
+def _motion(ex, t):
+    i, s = _piece(ex, t)
+    c = ex.coeffs
     c3 = c[0, i]
     c2 = c[1, i]
     c1 = c[2, i]
@@ -99,10 +99,10 @@ def _motion(tr, t):
 
 
 @wall_motion_jvp.register(MeasuredTrack)
-def _motion_jvp(tr, dtr, t):
+def _motion_jvp(ex, dex, t):
     # the spline is linear in its coefficients (the knots are fixed)
-    i, s = _piece(tr, t)
-    c = dtr.coeffs
+    i, s = _piece(ex, t)
+    c = dex.coeffs
     h = ((c[0, i] * s + c[1, i]) * s + c[2, i]) * s + c[3, i]
     hd = (3.0 * c[0, i] * s + 2.0 * c[1, i]) * s + c[2, i]
     hdd = 6.0 * c[0, i] * s + 2.0 * c[1, i]
@@ -110,12 +110,12 @@ def _motion_jvp(tr, dtr, t):
 
 
 @wall_accel_bound.register(MeasuredTrack)
-def _bound(tr):
+def _bound(ex):
     # h'' is linear on each piece: its largest magnitude is at a knot
-    c = tr.coeffs
+    c = ex.coeffs
     acc = 0.0
     for i in range(c.shape[1]):
-        dt = tr.times[i + 1] - tr.times[i]
+        dt = ex.times[i + 1] - ex.times[i]
         a0 = abs(2.0 * c[1, i])
         a1 = abs(6.0 * c[0, i] * dt + 2.0 * c[1, i])
         acc = max(acc, a0, a1)
