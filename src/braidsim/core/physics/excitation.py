@@ -32,10 +32,19 @@ class TrackHarmonics(NamedTuple):
 
 @wall_motion.register(TrackHarmonics)
 def _track_motion(ex, t):
+    tab = ex.table
+    if tab.shape[0] == 1:
+        # one harmonic (the usual track) in straight-line code: where the solver asks for
+        # the wall's position and its acceleration at one instant in two calls, the compiler
+        # then shares their cosine
+        a = tab[0, 0]
+        w = tab[0, 1]
+        arg = w * t + tab[0, 2]
+        c = math.cos(arg)
+        return a * c, -a * w * math.sin(arg), -a * w * w * c
     h = 0.0
     hd = 0.0
     hdd = 0.0
-    tab = ex.table
     for i in range(tab.shape[0]):
         a = tab[i, 0]
         w = tab[i, 1]
