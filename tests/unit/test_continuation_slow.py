@@ -142,3 +142,64 @@ def test_period_doubling_curve_of_the_carrier_against_branches() -> None:
             assert abs(x[0] - x[1]) < 1e-9
         else:
             assert spread[0] < 1e-9 and spread[1] < 1e-9 and spread[2] > 1e-7
+
+
+def _onsets_after(system, orbit, values, cycles: int) -> int:
+    """Contact onsets in the last 20 of ``cycles`` forcing cycles of a plain run started on
+    ``orbit``'s state at ``values``."""
+    from braidsim.continuation.fdmap import advance
+
+    prep = system.prepare(values)
+    T = prep.period
+    t0 = orbit.phase / prep.omega
+    c0 = orbit.cuts[0]
+    run = advance(
+        prep, t0, t0 + (cycles - 20) * T, orbit.z[0][:2], c0.modes, c0.v0s(orbit.z[0][2:])
+    )
+    t1 = t0 + (cycles - 20) * T
+    seg = advance(prep, t1, t1 + 20 * T, run.y1, run.modes1, run.v0s1, t1 + T * np.arange(21))
+    return int(np.count_nonzero(seg.episodes["initial"] == 0.0))
+
+
+def test_lift_off_in_the_clearance_speed_plane() -> None:
+    """The resting carrier's lift-off on the (clearance, speed) map at h_a = 0.1 mm, met by
+    a branch over the speed and followed in the clearance: it does not depend on the
+    clearance (the resting carrier never nears the outer wall); a branch over h_a at that
+    speed lifts off at h_a = 0.1 mm; a plain run started on the resting orbit stays on the
+    wall 1 % above that speed and leaves it 1 % below."""
+    import math
+
+    from braidsim.continuation.twopar import crossing_boundaries
+
+    om, cl = "horn_gear.angular_velocity", "track.clearance"
+    sc = braidsim.load_scenario("paper-3.3", overrides={HA: 0.1e-3})
+    system = ScenarioSystem(sc)
+    _, (c,) = crossing_boundaries(
+        system,
+        cl,
+        1.2e-3,
+        om,
+        6 * math.pi,
+        3 * math.pi,
+        0.2e-3,
+        steps=2,
+        method="fd",
+        branch_options={"max_points": 12, "step": 0.05, "max_step": 0.25},
+    )
+    assert c.name == "lift-off" and c.key1 == om and c.key2 == cl
+    assert c.p2[0] == pytest.approx(1.2e-3) and c.p2[-1] == pytest.approx(0.2e-3)
+    w_lift = c.p1[0]
+    assert 4 * math.pi < w_lift < 4.5 * math.pi
+    assert np.allclose(c.p1, w_lift, rtol=1e-5, atol=0)
+    # the same lift-off met along h_a at that speed
+    sys_w = ScenarioSystem(braidsim.load_scenario("paper-3.3", overrides={om: w_lift}))
+    rest = seed_orbit(sys_w, {HA: 0.05e-3}, 1, method="fd")
+    assert rest.profile.impacts == 0
+    b = continue_orbit(sys_w, rest, HA, 0.12e-3, method="fd", switch=False, max_points=40)
+    g = [s for s in b.special if s.type == "grazing"]
+    assert g[0].value == pytest.approx(0.1e-3, rel=1e-2)
+    # plain runs from the resting orbit next to the lift-off (the curve's last point)
+    o = c.orbits[-1]
+    assert o is not None and o.profile.impacts == 0
+    assert _onsets_after(system, o, {**o.values, om: 1.01 * w_lift}, 300) == 0
+    assert _onsets_after(system, o, {**o.values, om: 0.99 * w_lift}, 300) > 0

@@ -54,12 +54,17 @@ from braidsim.continuation.orbit import (
     cuts_from,
     finish,
     reseat,
+    resting_speed,
     solve_fixed,
     states_at,
 )
 from braidsim.errors import InputError, SimulationError
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "grazing")
+GRAZING_REACH = 0.05
+"""A grazing's zero extrapolated from the last orbits of the approaching family is accepted
+up to this fraction of the branch step beyond the last orbit found (the family's corrector
+gives up just before a stiff contact lifts off)."""
 LOCATE_RTOL = 1e-9
 """Bracket width, relative to the continuation's parameter scale |to - from|, to which
 fold, period-doubling and Neimark-Sacker points are located."""
@@ -483,7 +488,15 @@ class Continuer:
     def restructure(self, o: Orbit) -> Orbit:
         """The orbit re-solved with cuts that match its contacts, when they changed."""
         prep = self.system.prepare(o.values)
-        cuts = cuts_from(o.profile, prep.omega, o.phase, o.period, o.segments, 0.0)
+        cuts = cuts_from(
+            o.profile,
+            prep.omega,
+            o.phase,
+            o.period,
+            o.segments,
+            0.0,
+            resting_speed(self.system, o.values),
+        )
         if cuts == o.cuts or (
             [c.modes for c in cuts] == [c.modes for c in o.cuts]
             and [c.v0_state for c in cuts] == [c.v0_state for c in o.cuts]
@@ -605,19 +618,7 @@ class Continuer:
         hist = [oa]
         for _ in range(40):
             lam = 0.5 * (la + lb)
-            try:
-                o: Orbit | None = solve_fixed(
-                    self.system,
-                    {**best_a.values, self.key: lam},
-                    best_a.period,
-                    best_a.phase,
-                    best_a.cuts,
-                    best_a.z,
-                    self.method,
-                    self.tol,
-                )
-            except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                o = None
+            o = self._carry(best_a, lam, sig_a)
             if o is not None and signature(o) == sig_a:
                 la, best_a = lam, o
                 hist.append(o)
@@ -634,7 +635,48 @@ class Continuer:
         lg = grazing_zero([(o.values[self.key], o.profile.approach) for o in hist])
         if lg is not None and min(la, lb) <= lg <= max(la, lb):
             self.grazing_value = float(lg)
+        elif (
+            lg is not None
+            and (lg - la) * (lb - la) > 0
+            and abs(lg - la) <= GRAZING_REACH * abs(ob.values[self.key] - oa.values[self.key])
+        ):
+            # the family ends just short of its zero (Newton's iterates fall onto the other
+            # structure next to a stiff contact's lift-off): extrapolated, as past_grazing does
+            self.grazing_value = float(lg)
         return best_a, best_b
+
+    def _carry(self, o: Orbit, lam: float, sig: tuple[Any, ...]) -> Orbit | None:
+        """The orbit of ``o``'s family at ``lam`` by Newton's method from ``o``; where that
+        lands on another structure or fails, again in 4 shorter steps (the structures
+        coexist next to a grazing, and a long jump can land on the other one). None where
+        Newton fails."""
+        out: Orbit | None = None
+        for n in (1, 4):
+            cur: Orbit | None = o
+            l0 = o.values[self.key]
+            for j in range(1, n + 1):
+                assert cur is not None
+                try:
+                    cur = solve_fixed(
+                        self.system,
+                        {**cur.values, self.key: l0 + (lam - l0) * j / n},
+                        cur.period,
+                        cur.phase,
+                        cur.cuts,
+                        cur.z,
+                        self.method,
+                        self.tol,
+                    )
+                except (ContinuationError, SimulationError, np.linalg.LinAlgError):
+                    cur = None
+                    break
+                if signature(cur) != sig:
+                    break
+            if cur is not None:
+                out = cur
+                if signature(cur) == sig:
+                    return cur
+        return out
 
     def detect(
         self,

@@ -32,6 +32,8 @@ CURVE_STYLE = {
     "grazing": ("k", "--"),
 }
 
+ALT_COLORS = ("C0", "C5", "C1", "C6")
+"""Colours of further boundaries of one type (a lift-off and a grazing of another wall)."""
 
 MERGE_FRACTION = 0.025
 """Special points of one type closer than this fraction of both axes' spans are drawn as one."""
@@ -158,19 +160,25 @@ def plot_operating_map(
     marks: Sequence[tuple[float, float, str]] = (),
     bound: tuple[np.ndarray, np.ndarray] | None = None,
     title: str | None = None,
+    keys: tuple[str, str] | None = None,
 ) -> Figure:
     """The safe operating map: boundary curves in (key2, key1) over a regime map.
 
     Parameters
     ----------
     curves : BoundaryCurve
-        Drawn with key2 on the x axis and key1 (the branch parameter) on the y axis.
+        Drawn with key2 on the x axis and key1 (the branch parameter) on the y axis; a
+        curve with the two the other way round (followed from a branch over the second
+        parameter, :func:`~braidsim.continuation.twopar.crossing_boundaries`) is drawn in
+        the same axes.
     regimes : (values1, values2, labels), optional
         A brute-force regime map: labels[i][j] the regime at (values1[i], values2[j]).
     marks : (value1, value2, text)
         Points to mark (e.g. the paper's cases).
     bound : (values2, values1), optional
         An analytic curve (dotted), e.g. the contact-loss bound a_p = h_a omega_h^2.
+    keys : (key1, key2), optional
+        The parameters of the y and x axes (default those of the first curve).
     """
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
@@ -179,8 +187,8 @@ def plot_operating_map(
     ax = fig.add_subplot(1, 1, 1)
     if not curves and regimes is None:
         return fig
-    key1 = curves[0].key1 if curves else ""
-    key2 = curves[0].key2 if curves else ""
+    key1 = keys[0] if keys else curves[0].key1 if curves else ""
+    key2 = keys[1] if keys else curves[0].key2 if curves else ""
     f1, lab1 = parameter_axis(key1) if key1 else (1.0, "")
     f2, lab2 = parameter_axis(key2) if key2 else (1.0, "")
     handles: list[Any] = []
@@ -204,12 +212,19 @@ def plot_operating_map(
             for n in names
         ]
     seen: set[str] = set()
+    names: dict[tuple[str, str], int] = {}  # distinct boundaries of one type: own colours
     for c in curves:
         color, ls = CURVE_STYLE.get(c.type, ("k", "-"))
-        lab = f"{c.type.replace('_', ' ')} (period {c.period})"
+        name = c.name or c.type.replace("_", " ")
+        n_of_type = sum(1 for t, _ in names if t == c.type)
+        i = names.setdefault((c.type, name), n_of_type)
+        if i:
+            color = ALT_COLORS[(i - 1) % len(ALT_COLORS)]
+        lab = f"{name} (period {c.period})"
+        ys, xs = (c.p2, c.p1) if (c.key1, c.key2) == (key2, key1) != (key1, key2) else (c.p1, c.p2)
         (ln,) = ax.plot(
-            np.asarray(c.p2) * f2,
-            np.asarray(c.p1) * f1,
+            np.asarray(xs) * f2,
+            np.asarray(ys) * f1,
             ls=ls,
             color=color,
             lw=1.6,

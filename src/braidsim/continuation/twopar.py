@@ -74,6 +74,7 @@ from braidsim.continuation.orbit import (
     cuts_from,
     finish,
     monodromy_of,
+    resting_speed,
     solve_fixed,
     states_at,
 )
@@ -82,6 +83,9 @@ from braidsim.errors import InputError, SimulationError
 SMOOTH_TYPES = ("fold", "period_doubling", "neimark_sacker")
 GRAZING_XTOL = 1e-7
 """Bracket width (units of the parameters' ranges) to which a grazing is located."""
+GRAZING_ATOL = 1e-9
+"""An orbit whose distance to grazing is below this fraction of the length scale L is at
+the grazing."""
 SUBSTEP = 0.005
 """Grazing: the longest step (units of the parameters' ranges) over which an orbit of the
 approaching structure is carried at fixed parameters."""
@@ -110,6 +114,9 @@ class BoundaryCurve:
     residuals : list of float
         The test function at each point (0 up to the corrector's tolerance; for grazing the
         distance to grazing of the nearest orbit of the approaching structure [m]).
+    name : str
+        What the boundary is, in words (for a grazing: which contact opens or appears,
+        :func:`grazing_name`; else the type).
     """
 
     type: str
@@ -122,6 +129,7 @@ class BoundaryCurve:
     detail: str = ""
     residuals: list[float] = field(default_factory=list)
     orbits: list[Orbit | None] = field(default_factory=list, repr=False)
+    name: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -132,6 +140,7 @@ class BoundaryCurve:
             "points": [[a, b] for a, b in zip(self.p1, self.p2, strict=True)],
             "stop": self.stop,
             "detail": self.detail,
+            "name": self.name,
         }
 
     def add(
@@ -167,6 +176,32 @@ def bifurcation_function(kind: str, M: np.ndarray) -> float:
             )
         return float(np.abs(cx[np.argmin(np.abs(np.abs(cx) - 1.0))]) - 1.0)
     raise InputError(f"type: {kind!r}; allowed {', '.join(SMOOTH_TYPES)} or grazing")
+
+
+WALL_NAMES = {(0, -1): "inner wall", (0, 1): "outer wall", (1, -1): "slot", (1, 1): "slot"}
+"""The walls of the contact pairs (pair, wall): the track's inner and outer walls, the
+horn-gear slot's two flanks."""
+
+
+def grazing_name(sp: SpecialPoint, side: Orbit | None = None) -> str:
+    """A grazing in words: ``lift-off`` where a contact open over the whole orbit (the
+    carrier resting on a wall) opens, else which walls' contacts appear or disappear."""
+    a = sp.orbit if sp.orbit is not None else side
+    if a is None:
+        return "grazing"
+    walls_a = set(zip(a.profile.onset_pairs.tolist(), a.profile.onset_walls.tolist(), strict=True))
+    resting = not walls_a and any(m != 0 for c in a.cuts for m in c.modes)
+    if resting:
+        return "lift-off"
+    if sp.other is None:
+        return "grazing"
+    b = sp.other.profile
+    walls_b = set(zip(b.onset_pairs.tolist(), b.onset_walls.tolist(), strict=True))
+    new = sorted(walls_b - walls_a)
+    lost = sorted(walls_a - walls_b)
+    words = [f"grazing of the {WALL_NAMES.get(w, 'wall')}" for w in new]
+    words += [f"{WALL_NAMES.get(w, 'wall')} contact lost" for w in lost]
+    return ", ".join(words) if words else "grazing"
 
 
 def _ranges(
@@ -395,7 +430,7 @@ def _moved(system: Any, o: Orbit) -> Orbit:
     t0 = o.phase / w
     if th / w < t0:
         th += 2 * math.pi * o.period
-    cuts = cuts_from(o.profile, w, th, o.period, o.segments, t0)
+    cuts = cuts_from(o.profile, w, th, o.period, o.segments, t0, resting_speed(system, o.values))
     times = th / w + np.arange(o.segments) * o.profile.period / o.segments
     n = 2 * prep.n_coords
     c0 = o.cuts[0]
@@ -422,7 +457,9 @@ def _trace_smooth(
     lo1, hi1, lo2, hi2 = box
     scales = (hi1 - lo1, hi2 - lo2)
     gtol = 1e-9 if method != "fd" else 1e-6
-    curve = BoundaryCurve(sp.type, key1, key2, sp.period, detail=sp.detail)
+    curve = BoundaryCurve(
+        sp.type, key1, key2, sp.period, detail=sp.detail, name=sp.type.replace("_", " ")
+    )
     aug = Augmented(system, anchor, sp.type, key1, key2, scales, method)
     V = aug.pack(anchor)
     # the located point onto the augmented system, lambda_2 held
@@ -548,6 +585,9 @@ class _GrazingPlane:
         self.sig = signature(start)
         self.known: list[tuple[np.ndarray, Orbit]] = [(self.q(start), start)]
         self.method, self.tol = method, tol
+        # an orbit this close to grazing is at it (a resting contact's least depth can
+        # reach the integrator's noise, 1e-18 m, before Newton fails beyond it)
+        self.atol = GRAZING_ATOL * float(system.scales(start.values)[0])
 
     def q(self, o: Orbit) -> np.ndarray:
         return np.array([o.values[self.key1] / self.s1, o.values[self.key2] / self.s2])
@@ -642,6 +682,9 @@ class _GrazingPlane:
                 return None
             s_b = nb
         s_a, a_a, o_a = pts[-1]
+        s_n, a_n, o_n = min(pts, key=lambda p: p[1])
+        if a_n <= self.atol:
+            return qc + s_n * n, a_n, o_n
         ext = grazing_zero([(p[0], p[1]) for p in pts])
         # (where the corrector gives up just before a stiff contact lifts off, the zero lies
         # a little beyond the last orbit: extrapolated, as on a branch; a zero further than
@@ -734,7 +777,9 @@ def _trace_grazing(
     start = sp.orbit if sp.orbit is not None else side
     start = replace(start, values={**start.values, key2: side.values[key2]})
     plane = _GrazingPlane(system, start, key1, key2, box, method, tol)
-    curve = BoundaryCurve(sp.type, key1, key2, sp.period, detail=sp.detail)
+    curve = BoundaryCurve(
+        sp.type, key1, key2, sp.period, detail=sp.detail, name=grazing_name(sp, side)
+    )
     q0 = np.array([sp.value / plane.s1, side.values[key2] / plane.s2])
     # the normal points from the approaching side to the other
     n = np.array([math.copysign(1.0, sp.value - side.values[key1]), 0.0])
@@ -799,3 +844,71 @@ def _trace_grazing(
     else:
         curve.stop = f"{npts} points reached"
     return curve
+
+
+# ----------------------------------------------------------------------------------------
+# boundaries crossed along the second parameter
+# ----------------------------------------------------------------------------------------
+
+
+def crossing_boundaries(
+    system: Any,
+    key1: str,
+    value1: float,
+    key2: str,
+    from2: float,
+    to2: float,
+    to1: float,
+    *,
+    period: int = 1,
+    types: tuple[str, ...] = ("grazing",),
+    steps: int = 10,
+    window: float = 0.04,
+    method: str = "auto",
+    range1: tuple[float, float] | None = None,
+    range2: tuple[float, float] | None = None,
+    branch_options: dict[str, Any] | None = None,
+    on_point: Callable[[float, float], None] | None = None,
+) -> tuple[Branch, list[BoundaryCurve]]:
+    """Boundaries of the (``key1``, ``key2``) map met along ``key2``: the orbit seeded at
+    (``value1``, ``from2``) [SI] is continued in ``key2`` towards ``to2`` at ``key1 =
+    value1``, and the first special point of each of ``types`` on that branch is followed
+    in ``key1`` towards ``to1`` with :func:`trace_boundary` (its curves have ``key1`` and
+    ``key2`` the other way round: the branch's parameter first).
+
+    A boundary that a branch over ``key1`` never meets is found this way: on the
+    (clearance, speed) map the resting orbit's lift-off does not depend on the clearance,
+    so a branch over the clearance never lifts off, while one over the speed does.
+
+    ``range1`` and ``range2`` are the ranges of ``key1`` and ``key2`` (default from the
+    start to the target of each); the branch stops where it leaves ``range2``.
+    ``branch_options`` go to :func:`~braidsim.continuation.branch.continue_orbit`.
+    Returns the branch and the curves.
+    """
+    from braidsim.continuation.branch import continue_orbit
+    from braidsim.continuation.orbit import seed_orbit
+
+    r1 = range1 if range1 is not None else (min(value1, to1), max(value1, to1))
+    r2 = range2 if range2 is not None else (min(from2, to2), max(from2, to2))
+    orbit = seed_orbit(system, {key1: float(value1), key2: float(from2)}, period, method=method)
+    opts = {"switch": False, **(branch_options or {})}
+    branch = continue_orbit(system, orbit, key2, to2, bounds=r2, method=method, **opts)
+    curves = []
+    for kind in types:
+        for sp in [s for s in branch.special if s.type == kind][:1]:
+            curves.append(
+                trace_boundary(
+                    system,
+                    branch,
+                    sp,
+                    key1,
+                    to1,
+                    steps=steps,
+                    window=window,
+                    method=method,
+                    range1=r2,
+                    range2=r1,
+                    on_point=on_point,
+                )
+            )
+    return branch, curves
