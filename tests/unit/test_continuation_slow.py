@@ -203,3 +203,33 @@ def test_lift_off_in_the_clearance_speed_plane() -> None:
     assert o is not None and o.profile.impacts == 0
     assert _onsets_after(system, o, {**o.values, om: 1.01 * w_lift}, 300) == 0
     assert _onsets_after(system, o, {**o.values, om: 0.99 * w_lift}, 300) > 0
+
+
+def test_lift_off_does_not_depend_on_the_seed() -> None:
+    """The resting contact's latched speed is the law's floor, whatever run seeded the
+    orbit: the lift-off curve followed in omega from a branch seeded at 4 pi rad/s, and a
+    branch over h_a seeded by its own run at the curve's last speed, lift off at the same
+    h_a (the seeding runs latch different speeds, 2.0e-3 m/s at 4 pi and 6.3e-3 m/s at
+    4.5 pi; kept, they moved the lift-off by 0.4 %)."""
+    import math
+
+    from braidsim.continuation.twopar import trace_boundary
+
+    om = "horn_gear.angular_velocity"
+    system = ScenarioSystem(braidsim.load_scenario("paper-3.3"))
+    rest = seed_orbit(system, {HA: 0.05e-3}, 1, method="fd")
+    assert rest.cuts[0].v0_fixed[0] == pytest.approx(1e-4)
+    br = continue_orbit(system, rest, HA, 0.15e-3, method="fd", switch=False, max_points=40)
+    (g, *_) = [s for s in br.special if s.type == "grazing"]
+    c = trace_boundary(
+        system, br, g, om, 4.5 * math.pi, steps=2, method="fd", range1=(0.05e-3, 0.2e-3)
+    )
+    w2, h2 = c.p2[-1], c.p1[-1]
+    assert w2 > 4.2 * math.pi
+    sys2 = ScenarioSystem(braidsim.load_scenario("paper-3.3", overrides={om: w2}))
+    rest2 = seed_orbit(sys2, {HA: 0.05e-3}, 1, method="fd")
+    assert rest2.cuts[0].v0_fixed[0] == pytest.approx(1e-4)
+    br2 = continue_orbit(sys2, rest2, HA, 0.15e-3, method="fd", switch=False, max_points=40)
+    (g2, *_) = [s for s in br2.special if s.type == "grazing"]
+    print("lift-off:", w2 / math.pi, h2, g2.value, c.stop)
+    assert h2 == pytest.approx(g2.value, rel=1e-4)

@@ -784,7 +784,18 @@ def _trace_grazing(
     # the normal points from the approaching side to the other
     n = np.array([math.copysign(1.0, sp.value - side.values[key1]), 0.0])
     t = np.array([0.0, direction])
-    curve.add(sp.value, side.values[key2], 0.0, on_point)
+    # the branch's grazing located again on the plane's terms (the branch's bisection and
+    # the plane's regula falsi end on different sides of a stiff contact's lift-off)
+    try:
+        f0 = plane.locate(q0, n, min(max(window, 1e-3), 0.25 * hmax), hmax)
+    except GrazingLost:
+        f0 = None
+    if f0 is not None and abs(float(f0[0][1] - q0[1])) < 1e-12 * max(1.0, abs(q0[1])):
+        q0 = f0[0]
+        a0, b0 = plane.lam(q0)
+        curve.add(a0, b0, f0[1], on_point, f0[2])
+    else:
+        curve.add(sp.value, side.values[key2], 0.0, on_point)
     qs = [q0]
     h = 0.5 * hmax
     first = max(window, 1e-3)
