@@ -233,3 +233,34 @@ def test_lift_off_does_not_depend_on_the_seed() -> None:
     (g2, *_) = [s for s in br2.special if s.type == "grazing"]
     print("lift-off:", w2 / math.pi, h2, g2.value, c.stop)
     assert h2 == pytest.approx(g2.value, rel=1e-4)
+
+
+def test_period_doubling_curve_ends_where_its_orbit_grazes_the_outer_wall() -> None:
+    """The carrier's doubling curve over (h_a, omega), followed from 4 pi rad/s, goes on
+    past 7.39 pi rad/s, where the corrector used to stall on the central-difference
+    monodromy's noise (the exact map takes over), and ends where its orbit's flight reaches
+    the outer wall: a grazing-doubling point, the multiplier -1 there and the gap to the
+    wall down to the integrator's noise."""
+    import math
+
+    from braidsim.continuation.twopar import trace_boundary
+
+    om = "horn_gear.angular_velocity"
+    system = ScenarioSystem(braidsim.load_scenario("paper-3.3"))
+    seed = seed_orbit(system, {HA: 0.1e-3}, 1, method="fd")
+    br = continue_orbit(system, seed, HA, 0.13e-3, method="fd", switch=False)
+    (pd,) = [s for s in br.special if s.type == "period_doubling"]
+    c = trace_boundary(
+        system, br, pd, om, 10 * math.pi, steps=8, method="fd", range1=(0.02e-3, 0.6e-3)
+    )
+    assert c.end == "grazing", c.stop
+    end = c.orbits[-1]
+    assert end is not None
+    assert 9.4 * math.pi < c.p2[-1] < 9.6 * math.pi
+    assert 0.5e-3 < c.p1[-1] < 0.53e-3
+    assert end.profile.min_gap < 1e-7
+    # the flight's highest point is at the outer wall (the clearance)
+    assert end.profile.u_max == pytest.approx(system.value("track.clearance"), abs=1e-7)
+    assert abs(end.multipliers[0] + 1) < 1e-6
+    # the curve is the doubling all along: at most the corrector's noise in det(M + I)
+    assert max(abs(r) for r in c.residuals) < 1e-5

@@ -105,25 +105,29 @@ def plot_branches(
         su = np.array([o.profile.strobe_u for o in br.points]) * 1e3
         st = br.stable
         color = f"C{b_i % 10}"
+        # one legend entry per branch (its colour); the line styles are explained once
+        rests = {o.profile.impacts == 0 for o in br.points}
+        kind = (
+            {True: "resting", False: "impacting"}[rests.pop()]
+            if len(rests) == 1
+            else "resting, then impacting"
+        )
+        ax.plot([], [], color=color, lw=1.3, label=f"branch {b_i + 1}: period {br.period}, {kind}")
         for a, b, stable in _segments(st):
             for s in range(su.shape[1]):
-                lab = None
-                key_l = f"period {br.period} {'stable' if stable else 'unstable'}"
-                if key_l not in seen and s == 0:
-                    lab = key_l
-                    seen.add(key_l)
                 ax.plot(
                     v[a : b + 1],
                     su[a : b + 1, s],
                     ls="-" if stable else "--",
                     lw=1.3 if stable else 0.9,
                     color=color,
-                    label=lab,
                 )
         for sp in br.special:
             o = sp.orbit if sp.orbit is not None else br.points[min(sp.index, len(br.points) - 1)]
             for y in o.profile.strobe_u * 1e3:
                 marks.append((sp.value * f, float(y), sp.type))
+    ax.plot([], [], color="0.3", ls="-", lw=1.3, label="stable (solid)")
+    ax.plot([], [], color="0.3", ls="--", lw=0.9, label="unstable (dashed)")
     # special points closer than MERGE_FRACTION of the axes are drawn once per type, the
     # number merged beside them (branches born at a point, a grazing next to a doubling)
     ax.autoscale_view()
@@ -212,12 +216,12 @@ def plot_operating_map(
             for n in names
         ]
     seen: set[str] = set()
-    names: dict[tuple[str, str], int] = {}  # distinct boundaries of one type: own colours
+    distinct: dict[tuple[str, str], int] = {}  # boundaries of one type: own colours
     for c in curves:
         color, ls = CURVE_STYLE.get(c.type, ("k", "-"))
         name = c.name or c.type.replace("_", " ")
-        n_of_type = sum(1 for t, _ in names if t == c.type)
-        i = names.setdefault((c.type, name), n_of_type)
+        n_of_type = sum(1 for t, _ in distinct if t == c.type)
+        i = distinct.setdefault((c.type, name), n_of_type)
         if i:
             color = ALT_COLORS[(i - 1) % len(ALT_COLORS)]
         lab = f"{name} (period {c.period})"
@@ -235,6 +239,15 @@ def plot_operating_map(
         if lab not in seen:
             handles.append(ln)
         seen.add(lab)
+        if getattr(c, "end", "") == "grazing" and len(xs):
+            # a codimension-two point: the bifurcation's orbit grazes a wall there
+            elab = f"{name} meets a grazing"
+            (mk,) = ax.plot(
+                [xs[-1] * f2], [ys[-1] * f1], "X", color=color, ms=8, mec="k", mew=0.6, label=elab
+            )
+            if elab not in seen:
+                handles.append(mk)
+            seen.add(elab)
     if bound is not None:
         (ln,) = ax.plot(
             np.asarray(bound[0]) * f2,

@@ -72,6 +72,7 @@ from braidsim.continuation.orbit import (
     Shooter,
     choose_phase,
     cuts_from,
+    exact_available,
     finish,
     monodromy_of,
     resting_speed,
@@ -117,6 +118,10 @@ class BoundaryCurve:
     name : str
         What the boundary is, in words (for a grazing: which contact opens or appears,
         :func:`grazing_name`; else the type).
+    end : str
+        ``"grazing"`` where a fold, doubling or Neimark-Sacker curve ends on a grazing of
+        its orbit (a codimension-two point: the last point; the contact pattern changes
+        there and the test function belongs to another family beyond), else empty.
     """
 
     type: str
@@ -130,6 +135,7 @@ class BoundaryCurve:
     residuals: list[float] = field(default_factory=list)
     orbits: list[Orbit | None] = field(default_factory=list, repr=False)
     name: str = ""
+    end: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -141,6 +147,7 @@ class BoundaryCurve:
             "stop": self.stop,
             "detail": self.detail,
             "name": self.name,
+            "end": self.end,
         }
 
     def add(
@@ -409,7 +416,11 @@ class Augmented:
             # converged: the residuals at tolerance and the test function too, or the steps
             # down to the test function's noise (that of the monodromy: about 3e-8 with the
             # exact map at rtol 1e-10, 1e-6 with central differences)
-            if r < tol and ((g < gtol and step < 1e3 * tol) or step < 1e2 * tol):
+            # (tiny steps with g far above its noise: the corrector is stuck where g is
+            # not smooth, at a grazing, and the point is not on the curve)
+            if r < tol and (
+                (g < gtol and step < 1e3 * tol) or (step < 1e2 * tol and g < 1e3 * gtol)
+            ):
                 return V, float(F[-1]), it, DF, Js
         raise ContinuationError(
             f"Newton did not converge on the augmented system in {max_iter} iterations"
@@ -418,6 +429,26 @@ class Augmented:
     def orbit(self, V: np.ndarray, Js: list[np.ndarray]) -> Orbit:
         """The orbit at converged unknowns."""
         return finish(self.sh, V, 0.0, 0, Js)
+
+
+GRAZING_END = 1e-3
+"""A fold, doubling or Neimark-Sacker curve whose corrector stalls where its orbit's
+distance to grazing has fallen below this fraction of the largest along the curve ends on
+a grazing."""
+
+
+def _at_grazing(curve: BoundaryCurve, system: Any) -> bool:
+    """Whether the curve's last orbit is at a grazing: its distance to grazing (a
+    free-flight gap minimum or a contact's least depth) below ``GRAZING_END`` of the
+    largest along the curve, or below 1e-9 of the length scale."""
+    dist = [o.profile.approach for o in curve.orbits if o is not None]
+    dist = [d for d in dist if math.isfinite(d)]
+    if len(dist) < 2:
+        return False
+    last = curve.orbits[-1]
+    assert last is not None
+    L = float(system.scales(last.values)[0])
+    return dist[-1] < max(GRAZING_END * max(dist), GRAZING_ATOL * L)
 
 
 def _moved(system: Any, o: Orbit) -> Orbit:
@@ -489,11 +520,47 @@ def _trace_smooth(
                     f"the orbit's contact structure changed near ({key1}, {key2}) = "
                     f"({a:.6g}, {b:.6g}): the {sp.type} curve meets a grazing"
                 )
+                curve.end = "grazing"
                 break
         except _FAILURES as exc:
             h *= 0.5
             if h < hmin:
+                last = curve.orbits[-1]
+                if aug.method == "fd" and last is not None and exact_available():
+                    # the central-difference monodromy's error grows with the impacts'
+                    # hardness (about 1e-2 on the multipliers at 5 kN on the carrier),
+                    # and det(M + I) jumps by as much between neighbouring orbits: the
+                    # corrector stalls on noise, not on the curve. Go on with the exact map.
+                    try:
+                        aug = Augmented(system, last, sp.type, key1, key2, scales, "exact")
+                        gtol = 1e-9
+                        V = aug.pack(last)
+                        V, g, _, DF, _ = aug.correct(V, tau, tol, gtol)
+                        # oriented on the parameters' components (the noisy gradient of
+                        # g tilted the old tangent's state components)
+                        tau_new = aug.tangent(DF, None, direction)
+                        if float(tau_new[-2:] @ tau[-2:]) < 0:
+                            tau_new = -tau_new
+                        tau = tau_new
+                        h = 0.5 * hmax
+                        curve.detail += (
+                            f"; exact flow map from {key2} = {curve.p2[-1]:.6g} on (the "
+                            "central-difference monodromy was too noisy for the corrector)"
+                        )
+                        continue
+                    except _FAILURES:
+                        pass
                 curve.stop = f"step below {hmin:g} at {key2} = {curve.p2[-1]:.6g} ({exc})"
+                if _at_grazing(curve, system):
+                    a, b = curve.p1[-1], curve.p2[-1]
+                    assert last is not None
+                    curve.stop = (
+                        f"the {sp.type} curve meets a grazing at ({key1}, {key2}) = "
+                        f"({a:.6g}, {b:.6g}): the orbit's distance to grazing fell to "
+                        f"{last.profile.approach:.3g} m (a codimension-two point; beyond it "
+                        "the contact pattern changes)"
+                    )
+                    curve.end = "grazing"
                 break
             continue
         a, b = on.values[key1], on.values[key2]
