@@ -88,7 +88,7 @@ def branches_at(omega: float, hi: float, small: bool, method: str) -> dict[str, 
     """Resting and bouncing branches over h_a at the horn-gear speed ``omega``."""
     sc = braidsim.load_scenario("paper-3.3", overrides={OMEGA: omega})
     system = ScenarioSystem(sc)
-    npts = 20 if small else 120
+    npts = 30 if small else 120
     rest = seed_orbit(system, {HA: 0.02 * MM}, 1, method=method)
     out: dict[str, Any] = {"system": system}
     steps = {"step": 0.05, "max_step": 0.25} if small else {"step": 0.01, "max_step": 0.03}

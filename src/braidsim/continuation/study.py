@@ -19,6 +19,8 @@ Spec (SI numbers or unit strings)::
     max_doublings = 2
     both_directions = false
     transient_cycles = 300              # of the simulated steady state that seeds the orbit
+    resting_speed = "0.1 mm/s"          # latched speed of a contact open all along an orbit
+                                        # (default contact.min_impact_velocity)
     seed = ["0.05 mm", "0 m/s"]         # optional (x, vx) at forcing phase 0 instead
     restart = "earlier/branch_0.nc"     # optional: start from a saved branch ...
     restart_point = -1                  # ... at this point (default the last)
@@ -94,6 +96,7 @@ CONT_KEYS = (
     "seed",
     "restart",
     "restart_point",
+    "resting_speed",
 )
 MAP_KEYS = ("parameter", "to", "steps", "types", "regime_points", "window", "cross")
 REPORT_KIND = "continuation"
@@ -121,6 +124,7 @@ class ContinuationSpec:
     seed: tuple[float, ...] | None = None
     restart: str | None = None
     restart_point: int = -1
+    resting_speed: float | None = None
     map_parameter: str | None = None
     map_to: float = 0.0
     map_steps: int = 10
@@ -206,6 +210,16 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         seed = tuple(
             float(to_si("continuation.seed", v, u)) for v, u in zip(s, units, strict=False)
         )
+    resting = None
+    if "resting_speed" in cont:
+        from braidsim.units import to_si
+
+        resting = float(to_si("continuation.resting_speed", cont["resting_speed"], "m/s"))
+        if not (math.isfinite(resting) and resting > 0.0):
+            raise InputError(
+                f"continuation.resting_speed: {cont['resting_speed']!r} is out of range; "
+                "allowed a speed > 0 m/s"
+            )
     restart = cont.get("restart")
     if restart is not None and not isinstance(restart, str):
         raise InputError("continuation.restart: expected the path of a saved branch (.nc or .zarr)")
@@ -277,6 +291,7 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         seed=seed,
         restart=str(base_dir / restart) if restart else None,
         restart_point=int(cont.get("restart_point", -1)),
+        resting_speed=resting,
         map_parameter=map_key,
         map_to=map_to,
         map_steps=_int("operating_map.steps", mp.get("steps", 10), 1) if mp else 10,
@@ -329,7 +344,7 @@ def run_study(
     import time
 
     say = progress or (lambda s: None)
-    system = ScenarioSystem(spec.scenario)
+    system = ScenarioSystem(spec.scenario, resting_speed=spec.resting_speed)
     key = spec.parameter
     t_start = time.process_time()
     if spec.restart:
