@@ -168,14 +168,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         target,
                         steps=steps,
                         method=args.method,
-                        range1=(0.02 * MM, 0.4 * MM),
+                        range1=(0.02 * MM, 0.6 * MM),
                     )
                 )
     n1, n2 = (2, 2) if small else (14, 12)
     regimes = regime_map(
         system.scenario,
         HA,
-        np.linspace(0.03 * MM, 0.3 * MM, n1),
+        np.linspace(0.03 * MM, 0.3 * MM if small else 0.55 * MM, n1 if small else 18),
         np.linspace(3 * math.pi, to_w, n2),
         small,
     )

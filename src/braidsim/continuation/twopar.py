@@ -87,6 +87,9 @@ GRAZING_XTOL = 1e-7
 GRAZING_ATOL = 1e-9
 """An orbit whose distance to grazing is below this fraction of the length scale L is at
 the grazing."""
+CARRY_FROM = 0.05
+"""Grazing: orbits are carried from known ones at least this fraction of the largest known
+distance to grazing away from it."""
 SUBSTEP = 0.005
 """Grazing: the longest step (units of the parameters' ranges) over which an orbit of the
 approaching structure is carried at fixed parameters."""
@@ -644,13 +647,14 @@ class _GrazingPlane:
         box: tuple[float, float, float, float],
         method: str,
         tol: float,
+        before: tuple[Orbit, ...] = (),
     ) -> None:
         self.system = system
         self.key1, self.key2 = key1, key2
         self.lo1, self.hi1, self.lo2, self.hi2 = box
         self.s1, self.s2 = self.hi1 - self.lo1, self.hi2 - self.lo2
         self.sig = signature(start)
-        self.known: list[tuple[np.ndarray, Orbit]] = [(self.q(start), start)]
+        self.known: list[tuple[np.ndarray, Orbit]] = [(self.q(o), o) for o in (*before, start)]
         self.method, self.tol = method, tol
         # an orbit this close to grazing is at it (a resting contact's least depth can
         # reach the integrator's noise, 1e-18 m, before Newton fails beyond it)
@@ -668,7 +672,11 @@ class _GrazingPlane:
         known orbit in steps of ``SUBSTEP``, doubled after each success up to 4 ``SUBSTEP``
         and quartered after a failure (orbits of both structures can coexist near a
         grazing: a long jump could land on the other one)."""
-        qc, o = min(self.known, key=lambda kv: float(np.linalg.norm(kv[0] - q)))
+        # carried from the nearest known orbit not itself next to the grazing (Newton from
+        # an orbit at the grazing can fall either way: onto the other structure)
+        top = max(kv[1].profile.approach for kv in self.known)
+        pool = [kv for kv in self.known if kv[1].profile.approach >= CARRY_FROM * top]
+        qc, o = min(pool or self.known, key=lambda kv: float(np.linalg.norm(kv[0] - q)))
         h = SUBSTEP
         for _ in range(math.ceil(float(np.linalg.norm(q - qc)) / SUBSTEP) + 64):
             d = float(np.linalg.norm(q - qc))
@@ -756,6 +764,23 @@ class _GrazingPlane:
         # (where the corrector gives up just before a stiff contact lifts off, the zero lies
         # a little beyond the last orbit: extrapolated, as on a branch; a zero further than
         # 2 % of the search's reach is not the family's end but an extrapolation past it)
+        if (ext is None or ext < s_a or ext - s_a > 0.02 * reach) and _hyperbolic(o_a):
+            # the family ends short of its extrapolated zero, but its orbits are far from a
+            # fold (no multiplier near +1): a family of such orbits continues smoothly
+            # until its contact pattern changes, so it ends at the grazing, its distance to
+            # grazing collapsing faster than linearly (a Hertz contact softens as its
+            # depth falls to zero). The bracket is closed by bisection on existence.
+            s_b2 = s_b
+            for _ in range(40):
+                if s_b2 - s_a <= GRAZING_XTOL:
+                    break
+                mid = 0.5 * (s_a + s_b2)
+                om = self.orbit(qc + mid * n)
+                if om is None:
+                    s_b2 = mid
+                else:
+                    s_a, a_a, o_a = mid, om.profile.approach, om
+            return qc + s_a * n, a_a, o_a
         if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
             # the family ends with its distance to grazing still finite: not a grazing (a
             # fold of the family, or another structure taking over)
@@ -813,6 +838,15 @@ class _GrazingPlane:
         return s_b
 
 
+HYPERBOLIC = 0.2
+"""An orbit whose multipliers all lie farther than this from +1 is far from a fold."""
+
+
+def _hyperbolic(o: Orbit) -> bool:
+    """Whether no multiplier of ``o`` is near +1 (``HYPERBOLIC``)."""
+    return bool(np.all(np.abs(o.multipliers - 1.0) > HYPERBOLIC))
+
+
 def _extrapolated(pts: list[tuple[float, float, Orbit]]) -> float | None:
     """Where the distance to grazing of the two orbits nearest the grazing extrapolates to
     zero (linear in the parameters near a regular grazing)."""
@@ -843,7 +877,9 @@ def _trace_grazing(
     lo1, hi1, lo2, hi2 = box
     start = sp.orbit if sp.orbit is not None else side
     start = replace(start, values={**start.values, key2: side.values[key2]})
-    plane = _GrazingPlane(system, start, key1, key2, box, method, tol)
+    # (the branch's orbit before the grazing too: the located one can be at the grazing)
+    before = (side,) if side is not start and math.isfinite(side.profile.approach) else ()
+    plane = _GrazingPlane(system, start, key1, key2, box, method, tol, before)
     curve = BoundaryCurve(
         sp.type, key1, key2, sp.period, detail=sp.detail, name=grazing_name(sp, side)
     )
