@@ -299,7 +299,8 @@ def test_example_specs_parse() -> None:
     assert (a.parameter, a.map_parameter) == (HA, "horn_gear.angular_velocity")
     b = load_spec(ex / "continuation_clearance.toml")
     assert (b.parameter, b.map_parameter) == ("track.clearance", "horn_gear.angular_velocity")
-    assert b.scenario[HA] == pytest.approx(0.1e-3) and b.regime_points == (6, 4)
+    assert b.scenario[HA] == pytest.approx(0.1e-3) and b.regime_points == (6, 7)
+    assert b.map_cross == pytest.approx((6 * math.pi, 3 * math.pi))
 
 
 def test_resting_orbit_does_not_remember_its_seed(system) -> None:
