@@ -347,7 +347,9 @@ class Continuer:
                     jumped = self.past_grazing(
                         br, direction if not br.tangents else float(np.sign(tau[-1]) or direction)
                     )
-                    if jumped is None:
+                    if jumped is None or self.stop_on == "grazing":
+                        if jumped is not None:
+                            br.stop = "found a grazing point"
                         break
                     o = jumped
                     sh, U, tau = self.setup(o, None, _heading(tau, direction))

@@ -764,23 +764,16 @@ class _GrazingPlane:
         # (where the corrector gives up just before a stiff contact lifts off, the zero lies
         # a little beyond the last orbit: extrapolated, as on a branch; a zero further than
         # 2 % of the search's reach is not the family's end but an extrapolation past it)
-        if (ext is None or ext < s_a or ext - s_a > 0.02 * reach) and _hyperbolic(o_a):
-            # the family ends short of its extrapolated zero, but its orbits are far from a
-            # fold (no multiplier near +1): a family of such orbits continues smoothly
-            # until its contact pattern changes, so it ends at the grazing, its distance to
-            # grazing collapsing faster than linearly (a Hertz contact softens as its
-            # depth falls to zero). The bracket is closed by bisection on existence.
-            s_b2 = s_b
-            for _ in range(40):
-                if s_b2 - s_a <= GRAZING_XTOL:
-                    break
-                mid = 0.5 * (s_a + s_b2)
-                om = self.orbit(qc + mid * n)
-                if om is None:
-                    s_b2 = mid
-                else:
-                    s_a, a_a, o_a = mid, om.profile.approach, om
-            return qc + s_a * n, a_a, o_a
+        if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
+            # the family ends short of its extrapolated zero: either at a fold, or at a
+            # grazing whose distance collapses faster than linearly (a Hertz contact
+            # softens as its depth falls to zero), where Newton's method from the orbits
+            # on this line falls onto the other structure. A branch through the last
+            # orbit tells them apart (its grazing location carries the family in short
+            # steps up to the grazing).
+            via = self._by_branch(o_a, n, reach)
+            if via is not None:
+                return via
         if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
             # the family ends with its distance to grazing still finite: not a grazing (a
             # fold of the family, or another structure taking over)
@@ -790,6 +783,47 @@ class _GrazingPlane:
                 "(a fold of the family or another bifurcation ends the grazing curve)"
             )
         return qc + ext * n, a_a, o_a
+
+    def _by_branch(
+        self, o: Orbit, n: np.ndarray, reach: float
+    ) -> tuple[np.ndarray, float, Orbit] | None:
+        """The grazing met by a one-parameter branch from ``o`` in the parameter along
+        which ``n`` mostly points (the other held), within ``reach``; None where the branch
+        meets no grazing of ``o``'s structure first (a fold, or nothing)."""
+        from braidsim.continuation.branch import Continuer
+
+        i = 0 if abs(n[0]) >= abs(n[1]) else 1
+        key, scale = ((self.key1, self.s1), (self.key2, self.s2))[i]
+        lo, hi = ((self.lo1, self.hi1), (self.lo2, self.hi2))[i]
+        lam0 = float(o.values[key])
+        sign = 1.0 if n[i] > 0 else -1.0
+        to = min(max(lam0 + sign * reach * scale, lo), hi)
+        if to == lam0:
+            return None
+        cont = Continuer(
+            self.system,
+            key,
+            (lam0, to),
+            method=self.method,
+            tol=self.tol,
+            step=0.02,
+            max_step=0.1,
+            max_points=30,
+            pscale=abs(to - lam0),
+            stop_on="grazing",
+        )
+        try:
+            br = cont.run(o, sign)
+        except (*_FAILURES, InputError):
+            return None
+        first = next((sp for sp in br.special if sp.type in ("grazing", "fold")), None)
+        if first is None or first.type != "grazing" or first.orbit is None:
+            return None
+        if signature(first.orbit) != self.sig:
+            return None
+        q = self.q(o)
+        q[i] = first.value / scale
+        return q, first.orbit.profile.approach, first.orbit
 
     def _forward(
         self, qc: np.ndarray, n: np.ndarray, pts: list[Any], step: float, reach: float
@@ -836,15 +870,6 @@ class _GrazingPlane:
                 pts.sort(key=lambda p: p[0])
                 theta = 1.0
         return s_b
-
-
-HYPERBOLIC = 0.2
-"""An orbit whose multipliers all lie farther than this from +1 is far from a fold."""
-
-
-def _hyperbolic(o: Orbit) -> bool:
-    """Whether no multiplier of ``o`` is near +1 (``HYPERBOLIC``)."""
-    return bool(np.all(np.abs(o.multipliers - 1.0) > HYPERBOLIC))
 
 
 def _extrapolated(pts: list[tuple[float, float, Orbit]]) -> float | None:
