@@ -819,6 +819,13 @@ class _GrazingPlane:
         first = next((sp for sp in br.special if sp.type in ("grazing", "fold")), None)
         if first is None or first.type != "grazing" or first.orbit is None:
             return None
+        # a branch that turned back on its way met a fold first (undetected where the
+        # grazing lies in the same step): the family ends there, not at this grazing
+        v = br.values[: first.index + 1]
+        if v.size > 1 and np.any(np.diff(v) * sign <= 0):
+            return None
+        if (first.value - lam0) * sign <= 0:
+            return None
         if signature(first.orbit) != self.sig:
             return None
         q = self.q(o)
@@ -974,9 +981,20 @@ def _trace_grazing(
                     curve.add(ae, be, fe[1], on_point, fe[2])
             curve.stop = f"left the range of {key2 if out2 else key1} at {edge:.6g}"
             break
-        curve.add(a, b, dist, on_point, found[2])
         chord = qn - qs[-1]
-        t = chord / float(np.linalg.norm(chord))
+        t_new = chord / float(np.linalg.norm(chord))
+        if len(qs) > 1 and float(t_new @ t) < -0.5:
+            # the curve would turn by more than 120 degrees in one step: the family ended
+            # at a fold just past the last point and the new point lies on the way back
+            # (the same grazing seen from the other side of the turn)
+            curve.stop = (
+                f"the orbit family ends at a fold next to ({key1}, {key2}) = "
+                f"({curve.p1[-1]:.6g}, {curve.p2[-1]:.6g}) (the grazing curve turns back "
+                "onto itself there)"
+            )
+            break
+        curve.add(a, b, dist, on_point, found[2])
+        t = t_new
         n = n_line
         qs.append(qn)
         h = min(1.5 * h, hmax)
