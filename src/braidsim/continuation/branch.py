@@ -620,7 +620,7 @@ class Continuer:
         hist = [oa]
         for _ in range(40):
             lam = 0.5 * (la + lb)
-            o = self._carry(best_a, lam, sig_a)
+            o = self._carry(best_a, lam, sig_a, hist[-2] if len(hist) > 1 else None)
             if o is not None and signature(o) == sig_a:
                 la, best_a = lam, o
                 hist.append(o)
@@ -647,25 +647,39 @@ class Continuer:
             self.grazing_value = float(lg)
         return best_a, best_b
 
-    def _carry(self, o: Orbit, lam: float, sig: tuple[Any, ...]) -> Orbit | None:
-        """The orbit of ``o``'s family at ``lam`` by Newton's method from ``o``; where that
-        lands on another structure or fails, again in 4 shorter steps (the structures
-        coexist next to a grazing, and a long jump can land on the other one). None where
-        Newton fails."""
+    def _carry(
+        self, o: Orbit, lam: float, sig: tuple[Any, ...], prev: Orbit | None = None
+    ) -> Orbit | None:
+        """The orbit of ``o``'s family at ``lam`` by Newton's method from ``o`` (its state
+        extrapolated along the secant from ``prev``, an orbit of the family, where given);
+        where that lands on another structure or fails, again in 4, then 16 shorter steps
+        (the structures coexist next to a grazing, and a long jump can land on the other
+        one). None where Newton fails."""
         out: Orbit | None = None
-        for n in (1, 4):
+        l0 = o.values[self.key]
+        slope: list[np.ndarray] | None = None
+        if prev is not None and prev.cuts == o.cuts and prev.values[self.key] != l0:
+            dl = l0 - prev.values[self.key]
+            slope = [(a - b) / dl for a, b in zip(o.z, prev.z, strict=True)]
+        for n in (1, 4, 16):
             cur: Orbit | None = o
-            l0 = o.values[self.key]
             for j in range(1, n + 1):
                 assert cur is not None
+                lj = l0 + (lam - l0) * j / n
+                lc = cur.values[self.key]
+                z0 = (
+                    [z + d * (lj - lc) for z, d in zip(cur.z, slope, strict=True)]
+                    if slope is not None
+                    else cur.z
+                )
                 try:
                     cur = solve_fixed(
                         self.system,
-                        {**cur.values, self.key: l0 + (lam - l0) * j / n},
+                        {**cur.values, self.key: lj},
                         cur.period,
                         cur.phase,
                         cur.cuts,
-                        cur.z,
+                        z0,
                         self.method,
                         self.tol,
                     )
