@@ -249,6 +249,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         regimes=regimes_c,
         keys=(CLEARANCE, OMEGA),
         title="(clearance, speed) at h_a = 0.1 mm: lift-off and outer-wall grazing",
+        legend_loc="upper right",
     )
     save(fig, out / "continuation_clearance_map.png")
     findings["clearance_curves"] = [c.to_dict() for c in curves_c]

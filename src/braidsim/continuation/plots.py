@@ -165,6 +165,7 @@ def plot_operating_map(
     bound: tuple[np.ndarray, np.ndarray] | None = None,
     title: str | None = None,
     keys: tuple[str, str] | None = None,
+    legend_loc: str = "upper left",
 ) -> Figure:
     """The safe operating map: boundary curves in (key2, key1) over a regime map.
 
@@ -183,6 +184,8 @@ def plot_operating_map(
         An analytic curve (dotted), e.g. the contact-loss bound a_p = h_a omega_h^2.
     keys : (key1, key2), optional
         The parameters of the y and x axes (default those of the first curve).
+    legend_loc : str
+        Where the legend goes (a matplotlib location).
     """
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
@@ -264,7 +267,7 @@ def plot_operating_map(
     ax.set_xlabel(lab2)
     ax.set_ylabel(lab1)
     ax.grid(True, lw=0.3, alpha=0.5)
-    ax.legend(handles=handles, fontsize=7, frameon=True, loc="upper left")
+    ax.legend(handles=handles, fontsize=7, frameon=True, loc=legend_loc)
     ax.set_title(
         title or "safe operating map: boundaries over the brute-force regimes", fontsize=10
     )
