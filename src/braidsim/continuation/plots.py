@@ -165,7 +165,7 @@ def plot_operating_map(
     bound: tuple[np.ndarray, np.ndarray] | None = None,
     title: str | None = None,
     keys: tuple[str, str] | None = None,
-    legend_loc: str = "upper left",
+    legend_loc: Any = "upper left",
 ) -> Figure:
     """The safe operating map: boundary curves in (key2, key1) over a regime map.
 
