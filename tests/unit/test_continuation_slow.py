@@ -198,7 +198,7 @@ def test_lift_off_in_the_clearance_speed_plane() -> None:
     assert rest.profile.impacts == 0
     b = continue_orbit(sys_w, rest, HA, 0.12e-3, method="fd", switch=False, max_points=40)
     g = [s for s in b.special if s.type == "grazing"]
-    assert g[0].value == pytest.approx(0.1e-3, rel=1e-2)
+    assert g[0].value == pytest.approx(0.1e-3, rel=1e-6)  # (measured: 2e-13)
     # plain runs from the resting orbit next to the lift-off (the curve's last point)
     o = c.orbits[-1]
     assert o is not None and o.profile.impacts == 0
