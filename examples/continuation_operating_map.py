@@ -14,7 +14,9 @@ This example follows the carrier's periodic orbits instead of sampling settled r
 3. the (clearance, speed) map at h_a = 0.1 mm: the orbit with one impact per cycle on the
    inner wall, followed towards smaller track clearances, grazes the outer wall; that
    grazing followed in omega bounds the clearances at which the carrier strikes both
-   walls, over the brute-force regime map of the same range.
+   walls; the resting orbit, followed down in omega, lifts off, and that lift-off followed
+   in the clearance bounds the speeds at which the carrier can rest; over the brute-force
+   regime map of the same range.
 
 Below the fold curve the carrier can only rest; between the fold and lift-off curves resting
 and bouncing coexist (which one a run ends in depends on its start); above the lift-off
@@ -44,7 +46,7 @@ from braidsim.analysis.regimes import contact_loss_bound
 from braidsim.continuation import ScenarioSystem, seed_orbit
 from braidsim.continuation.branch import continue_orbit
 from braidsim.continuation.plots import plot_branches, plot_operating_map
-from braidsim.continuation.twopar import trace_boundary
+from braidsim.continuation.twopar import crossing_boundaries, trace_boundary
 from braidsim.plotting import new_figure, save
 
 HA = "track.vibration_amplitude"
@@ -86,7 +88,7 @@ def branches_at(omega: float, hi: float, small: bool, method: str) -> dict[str, 
     """Resting and bouncing branches over h_a at the horn-gear speed ``omega``."""
     sc = braidsim.load_scenario("paper-3.3", overrides={OMEGA: omega})
     system = ScenarioSystem(sc)
-    npts = 20 if small else 120
+    npts = 30 if small else 120
     rest = seed_orbit(system, {HA: 0.02 * MM}, 1, method=method)
     out: dict[str, Any] = {"system": system}
     steps = {"step": 0.05, "max_step": 0.25} if small else {"step": 0.01, "max_step": 0.03}
@@ -166,14 +168,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         target,
                         steps=steps,
                         method=args.method,
-                        range1=(0.02 * MM, 0.4 * MM),
+                        range1=(0.02 * MM, 0.6 * MM),
                     )
                 )
     n1, n2 = (2, 2) if small else (14, 12)
     regimes = regime_map(
         system.scenario,
         HA,
-        np.linspace(0.03 * MM, 0.3 * MM, n1),
+        np.linspace(0.03 * MM, 0.3 * MM if small else 0.55 * MM, n1 if small else 18),
         np.linspace(3 * math.pi, to_w, n2),
         small,
     )
@@ -218,6 +220,23 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     range1=(0.2 * MM, 3 * MM),
                 )
             )
+    # the resting orbit's lift-off does not depend on the clearance: a branch over the
+    # clearance never meets it, one over the speed does
+    br_x, curves_x = crossing_boundaries(
+        sys_c,
+        CLEARANCE,
+        1.2 * MM,
+        OMEGA,
+        6 * math.pi,  # above the fold curve: only the resting orbit exists there
+        3 * math.pi,
+        0.2 * MM,
+        steps=steps,
+        method=args.method,
+        range1=(0.2 * MM, 1.2 * MM),
+        range2=(3 * math.pi, to_w),
+        branch_options={"max_points": 40, "step": 0.05, "max_step": 0.25},
+    )
+    curves_c += curves_x
     regimes_c = regime_map(
         sc_c,
         CLEARANCE,
@@ -228,11 +247,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     fig = plot_operating_map(
         curves_c,
         regimes=regimes_c,
-        title="(clearance, speed) at h_a = 0.1 mm: outer-wall grazing over the regimes",
+        keys=(CLEARANCE, OMEGA),
+        title="(clearance, speed) at h_a = 0.1 mm: lift-off and outer-wall grazing",
+        legend_loc="upper right",
     )
     save(fig, out / "continuation_clearance_map.png")
     findings["clearance_curves"] = [c.to_dict() for c in curves_c]
     findings["clearance_special_points"] = [s.to_dict() for s in br_c.special]
+    findings["clearance_cross_special_points"] = [s.to_dict() for s in br_x.special]
     findings["curves"] = [c.to_dict() for c in curves]
     (out / "findings.json").write_text(json.dumps(findings, indent=1), encoding="utf-8")
     return findings

@@ -220,6 +220,12 @@ def test_cli_json_and_restart(tmp_path) -> None:
             2,
             "continuation.period",
         ),
+        (
+            '[continuation]\nparameter = "track.vibration_amplitude"\nfrom = "0.1 mm"\n'
+            'to = "0.2 mm"\nresting_speed = "-1 m/s"\n',
+            2,
+            "continuation.resting_speed",
+        ),
     ],
 )
 def test_cli_bad_input(tmp_path, capsys, body: str, code: int, words: str) -> None:
@@ -293,4 +299,29 @@ def test_example_specs_parse() -> None:
     assert (a.parameter, a.map_parameter) == (HA, "horn_gear.angular_velocity")
     b = load_spec(ex / "continuation_clearance.toml")
     assert (b.parameter, b.map_parameter) == ("track.clearance", "horn_gear.angular_velocity")
-    assert b.scenario[HA] == pytest.approx(0.1e-3) and b.regime_points == (6, 4)
+    assert b.scenario[HA] == pytest.approx(0.1e-3) and b.regime_points == (6, 7)
+    assert b.map_cross == pytest.approx((6 * math.pi, 3 * math.pi))
+
+
+def test_resting_orbit_does_not_remember_its_seed(system) -> None:
+    """A contact open all along the orbit gets the law's floor as its latched speed, so
+    resting orbits seeded from runs that latched different speeds (300 cycles from the
+    scenario's start; 40 cycles from a state dropped onto the wall) are one orbit; another
+    resting_speed gives another orbit (the speed sets the contact's damping)."""
+    vals = {HA: 0.05e-3}
+    a = seed_orbit(system, vals, 1, method="fd")
+    prep = system.prepare(vals)
+    drop = (0.0, np.array([1e-6, -0.05]), (0, 0), np.array([math.nan, math.nan]))
+    b = seed_orbit(system, vals, 1, method="fd", transient_cycles=40, start=drop)
+    for o in (a, b):
+        assert o.profile.impacts == 0 and o.cuts[0].modes[0] == -1
+        assert o.cuts[0].v0_fixed[0] == system.value("contact.min_impact_velocity")
+    t_a, t_b = a.phase / prep.omega, b.phase / prep.omega
+    assert t_a == pytest.approx(t_b)
+    # to Newton's tolerance (1e-8 of L and L omega_h)
+    L, V = system.scales(vals)
+    assert abs(a.z[0][0] - b.z[0][0]) < 1e-8 * L and abs(a.z[0][1] - b.z[0][1]) < 1e-8 * V
+    other = ScenarioSystem(system.scenario, resting_speed=2e-3)
+    c = seed_orbit(other, vals, 1, method="fd")
+    assert c.cuts[0].v0_fixed[0] == 2e-3
+    assert abs(c.profile.approach - a.profile.approach) > 1e-3 * a.profile.approach

@@ -54,12 +54,17 @@ from braidsim.continuation.orbit import (
     cuts_from,
     finish,
     reseat,
+    resting_speed,
     solve_fixed,
     states_at,
 )
 from braidsim.errors import InputError, SimulationError
 
 SPECIAL_TYPES = ("fold", "period_doubling", "neimark_sacker", "grazing")
+GRAZING_REACH = 0.05
+"""A grazing's zero extrapolated from the last orbits of the approaching family is accepted
+up to this fraction of the branch step beyond the last orbit found (the family's corrector
+gives up just before a stiff contact lifts off)."""
 LOCATE_RTOL = 1e-9
 """Bracket width, relative to the continuation's parameter scale |to - from|, to which
 fold, period-doubling and Neimark-Sacker points are located."""
@@ -342,7 +347,9 @@ class Continuer:
                     jumped = self.past_grazing(
                         br, direction if not br.tangents else float(np.sign(tau[-1]) or direction)
                     )
-                    if jumped is None:
+                    if jumped is None or self.stop_on == "grazing":
+                        if jumped is not None:
+                            br.stop = "found a grazing point"
                         break
                     o = jumped
                     sh, U, tau = self.setup(o, None, _heading(tau, direction))
@@ -483,7 +490,15 @@ class Continuer:
     def restructure(self, o: Orbit) -> Orbit:
         """The orbit re-solved with cuts that match its contacts, when they changed."""
         prep = self.system.prepare(o.values)
-        cuts = cuts_from(o.profile, prep.omega, o.phase, o.period, o.segments, 0.0)
+        cuts = cuts_from(
+            o.profile,
+            prep.omega,
+            o.phase,
+            o.period,
+            o.segments,
+            0.0,
+            resting_speed(self.system, o.values),
+        )
         if cuts == o.cuts or (
             [c.modes for c in cuts] == [c.modes for c in o.cuts]
             and [c.v0_state for c in cuts] == [c.v0_state for c in o.cuts]
@@ -605,19 +620,7 @@ class Continuer:
         hist = [oa]
         for _ in range(40):
             lam = 0.5 * (la + lb)
-            try:
-                o: Orbit | None = solve_fixed(
-                    self.system,
-                    {**best_a.values, self.key: lam},
-                    best_a.period,
-                    best_a.phase,
-                    best_a.cuts,
-                    best_a.z,
-                    self.method,
-                    self.tol,
-                )
-            except (ContinuationError, SimulationError, np.linalg.LinAlgError):
-                o = None
+            o = self._carry(best_a, lam, sig_a, hist[-2] if len(hist) > 1 else None)
             if o is not None and signature(o) == sig_a:
                 la, best_a = lam, o
                 hist.append(o)
@@ -634,7 +637,62 @@ class Continuer:
         lg = grazing_zero([(o.values[self.key], o.profile.approach) for o in hist])
         if lg is not None and min(la, lb) <= lg <= max(la, lb):
             self.grazing_value = float(lg)
+        elif (
+            lg is not None
+            and (lg - la) * (lb - la) > 0
+            and abs(lg - la) <= GRAZING_REACH * abs(ob.values[self.key] - oa.values[self.key])
+        ):
+            # the family ends just short of its zero (Newton's iterates fall onto the other
+            # structure next to a stiff contact's lift-off): extrapolated, as past_grazing does
+            self.grazing_value = float(lg)
         return best_a, best_b
+
+    def _carry(
+        self, o: Orbit, lam: float, sig: tuple[Any, ...], prev: Orbit | None = None
+    ) -> Orbit | None:
+        """The orbit of ``o``'s family at ``lam`` by Newton's method from ``o`` (its state
+        extrapolated along the secant from ``prev``, an orbit of the family, where given);
+        where that lands on another structure or fails, again in 4, then 16 shorter steps
+        (the structures coexist next to a grazing, and a long jump can land on the other
+        one). None where Newton fails."""
+        out: Orbit | None = None
+        l0 = o.values[self.key]
+        slope: list[np.ndarray] | None = None
+        if prev is not None and prev.cuts == o.cuts and prev.values[self.key] != l0:
+            dl = l0 - prev.values[self.key]
+            slope = [(a - b) / dl for a, b in zip(o.z, prev.z, strict=True)]
+        for n in (1, 4, 16):
+            cur: Orbit | None = o
+            for j in range(1, n + 1):
+                assert cur is not None
+                lj = l0 + (lam - l0) * j / n
+                lc = cur.values[self.key]
+                z0 = (
+                    [z + d * (lj - lc) for z, d in zip(cur.z, slope, strict=True)]
+                    if slope is not None
+                    else cur.z
+                )
+                try:
+                    cur = solve_fixed(
+                        self.system,
+                        {**cur.values, self.key: lj},
+                        cur.period,
+                        cur.phase,
+                        cur.cuts,
+                        z0,
+                        self.method,
+                        self.tol,
+                    )
+                except (ContinuationError, SimulationError, np.linalg.LinAlgError):
+                    cur = None
+                    break
+                if signature(cur) != sig:
+                    break
+            if cur is not None:
+                out = cur
+                if signature(cur) == sig:
+                    return cur
+        return out
 
     def detect(
         self,

@@ -15,8 +15,14 @@ the rest of that contact, so it is part of the state: the map z -> z' includes h
 latched again at the next onset, and the monodromy matrix (the Jacobian of the return map)
 has the same eigenvalues wherever the period is cut. A contact that lasts the whole orbit
 (the carrier resting on a wall) never latches again; its v0 is then a fixed parameter of the
-orbit (kept from the seed), not a state entry (it would add a multiplier 1 that means
-nothing).
+orbit, not a state entry (it would add a multiplier 1 that means nothing).
+
+That parameter is a memory of how the contact formed, which a periodic orbit does not
+know: continuation gives it one value, :func:`resting_speed`, by default the law's floor
+``min_impact_velocity``. At a lift-off the orbits beyond it strike the wall with approach
+speeds that fall to zero at the grazing, so they latch the floor: with the floor the
+resting orbit is the limit of the bouncing family at its lift-off (the grazing is
+continuous), and it does not depend on which run seeded it.
 
 Shooting
 --------
@@ -732,10 +738,33 @@ def choose_phase(prof: Profile, omega: float, period: int, segments: int) -> flo
     return float(theta)
 
 
+def resting_speed(system: Any, values: Mapping[str, float]) -> float | None:
+    """The latched approach speed v0 [m/s] given to a contact open over the whole orbit
+    (the carrier resting on a wall), the convention of continuation (module docstring):
+    the system's ``resting_speed`` where set, else the floor ``min_impact_velocity`` of the
+    contact law (``contact.min_impact_velocity`` of a scenario). None (a record without
+    that floor): the speed the seeding run latched is kept."""
+    v = getattr(system, "resting_speed", None)
+    if v is not None:
+        return float(v)
+    if isinstance(system, ScenarioSystem):
+        return float(system.scenario_at(values)["contact.min_impact_velocity"])
+    floor = getattr(system.prepare(values).record, "min_impact_velocity", None)
+    return None if floor is None else float(floor)
+
+
 def cuts_from(
-    prof: Profile, omega: float, phase: float, period: int, segments: int, values_t0: float
+    prof: Profile,
+    omega: float,
+    phase: float,
+    period: int,
+    segments: int,
+    values_t0: float,
+    resting_v0: float | None = None,
 ) -> tuple[Cut, ...]:
-    """The cuts of an orbit at ``phase`` from its profile."""
+    """The cuts of an orbit at ``phase`` from its profile; a contact open over the whole
+    orbit gets the latched speed ``resting_v0`` (:func:`resting_speed`; None: the one the
+    profile's run latched)."""
     out = []
     P = prof.period
     for j in range(segments):
@@ -750,7 +779,7 @@ def cuts_from(
                 fx.append(math.nan)
             elif modes[i] != 0:
                 st.append(False)
-                fx.append(v0[i])
+                fx.append(v0[i] if resting_v0 is None else float(resting_v0))
             else:
                 st.append(False)
                 fx.append(math.nan)
@@ -801,7 +830,7 @@ def reseat(orbit: Orbit, system: Any, method: str = "auto") -> Orbit:
     t0 = orbit.phase / w
     if th / w < t0:
         th += 2 * math.pi * orbit.period
-    cuts = cuts_from(orbit.profile, w, th, orbit.period, m, t0)
+    cuts = cuts_from(orbit.profile, w, th, orbit.period, m, t0, resting_speed(system, orbit.values))
     P = orbit.period * prep.period
     times = th / w + np.arange(m) * P / m
     z = states_at(
@@ -882,7 +911,7 @@ def seed_orbit(
         # from it as it is, cut at that phase
         t, modes, v0 = 0.0, (0, 0), np.array([math.nan, math.nan])
         prof = profile(system, values, t, period, y, modes, v0)
-        cuts = cuts_from(prof, prep.omega, 0.0, period, segments, t)
+        cuts = cuts_from(prof, prep.omega, 0.0, period, segments, t, resting_speed(system, values))
         times = t + np.arange(segments) * period * T / segments
         z = states_at(system, values, t, y, modes, v0, times, cuts)
         try:
@@ -910,7 +939,9 @@ def seed_orbit(
     t_cut = th / prep.omega
     while t_cut < t:
         t_cut += period * T
-    cuts = cuts_from(prof, prep.omega, t_cut * prep.omega, period, segments, t)
+    cuts = cuts_from(
+        prof, prep.omega, t_cut * prep.omega, period, segments, t, resting_speed(system, values)
+    )
     times = t_cut + np.arange(segments) * period * T / segments
     z = states_at(system, values, t, y, modes, v0, times, cuts)
     th_mod = _wrap(th, period)
@@ -1003,7 +1034,7 @@ def recut(
     th = float(phase)
     while th / w < t0:
         th += 2 * math.pi * orbit.period
-    cuts = cuts_from(orbit.profile, w, th, orbit.period, m, t0)
+    cuts = cuts_from(orbit.profile, w, th, orbit.period, m, t0, resting_speed(system, orbit.values))
     P = orbit.period * prep.period
     times = th / w + np.arange(m) * P / m
     c0 = orbit.cuts[0]

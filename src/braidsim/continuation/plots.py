@@ -32,6 +32,8 @@ CURVE_STYLE = {
     "grazing": ("k", "--"),
 }
 
+ALT_COLORS = ("C0", "C5", "C1", "C6")
+"""Colours of further boundaries of one type (a lift-off and a grazing of another wall)."""
 
 MERGE_FRACTION = 0.025
 """Special points of one type closer than this fraction of both axes' spans are drawn as one."""
@@ -103,25 +105,29 @@ def plot_branches(
         su = np.array([o.profile.strobe_u for o in br.points]) * 1e3
         st = br.stable
         color = f"C{b_i % 10}"
+        # one legend entry per branch (its colour); the line styles are explained once
+        rests = {o.profile.impacts == 0 for o in br.points}
+        kind = (
+            {True: "resting", False: "impacting"}[rests.pop()]
+            if len(rests) == 1
+            else "resting, then impacting"
+        )
+        ax.plot([], [], color=color, lw=1.3, label=f"branch {b_i + 1}: period {br.period}, {kind}")
         for a, b, stable in _segments(st):
             for s in range(su.shape[1]):
-                lab = None
-                key_l = f"period {br.period} {'stable' if stable else 'unstable'}"
-                if key_l not in seen and s == 0:
-                    lab = key_l
-                    seen.add(key_l)
                 ax.plot(
                     v[a : b + 1],
                     su[a : b + 1, s],
                     ls="-" if stable else "--",
                     lw=1.3 if stable else 0.9,
                     color=color,
-                    label=lab,
                 )
         for sp in br.special:
             o = sp.orbit if sp.orbit is not None else br.points[min(sp.index, len(br.points) - 1)]
             for y in o.profile.strobe_u * 1e3:
                 marks.append((sp.value * f, float(y), sp.type))
+    ax.plot([], [], color="0.3", ls="-", lw=1.3, label="stable (solid)")
+    ax.plot([], [], color="0.3", ls="--", lw=0.9, label="unstable (dashed)")
     # special points closer than MERGE_FRACTION of the axes are drawn once per type, the
     # number merged beside them (branches born at a point, a grazing next to a doubling)
     ax.autoscale_view()
@@ -158,19 +164,28 @@ def plot_operating_map(
     marks: Sequence[tuple[float, float, str]] = (),
     bound: tuple[np.ndarray, np.ndarray] | None = None,
     title: str | None = None,
+    keys: tuple[str, str] | None = None,
+    legend_loc: Any = "upper left",
 ) -> Figure:
     """The safe operating map: boundary curves in (key2, key1) over a regime map.
 
     Parameters
     ----------
     curves : BoundaryCurve
-        Drawn with key2 on the x axis and key1 (the branch parameter) on the y axis.
+        Drawn with key2 on the x axis and key1 (the branch parameter) on the y axis; a
+        curve with the two the other way round (followed from a branch over the second
+        parameter, :func:`~braidsim.continuation.twopar.crossing_boundaries`) is drawn in
+        the same axes.
     regimes : (values1, values2, labels), optional
         A brute-force regime map: labels[i][j] the regime at (values1[i], values2[j]).
     marks : (value1, value2, text)
         Points to mark (e.g. the paper's cases).
     bound : (values2, values1), optional
         An analytic curve (dotted), e.g. the contact-loss bound a_p = h_a omega_h^2.
+    keys : (key1, key2), optional
+        The parameters of the y and x axes (default those of the first curve).
+    legend_loc : str
+        Where the legend goes (a matplotlib location).
     """
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
@@ -179,8 +194,8 @@ def plot_operating_map(
     ax = fig.add_subplot(1, 1, 1)
     if not curves and regimes is None:
         return fig
-    key1 = curves[0].key1 if curves else ""
-    key2 = curves[0].key2 if curves else ""
+    key1 = keys[0] if keys else curves[0].key1 if curves else ""
+    key2 = keys[1] if keys else curves[0].key2 if curves else ""
     f1, lab1 = parameter_axis(key1) if key1 else (1.0, "")
     f2, lab2 = parameter_axis(key2) if key2 else (1.0, "")
     handles: list[Any] = []
@@ -204,12 +219,19 @@ def plot_operating_map(
             for n in names
         ]
     seen: set[str] = set()
+    distinct: dict[tuple[str, str], int] = {}  # boundaries of one type: own colours
     for c in curves:
         color, ls = CURVE_STYLE.get(c.type, ("k", "-"))
-        lab = f"{c.type.replace('_', ' ')} (period {c.period})"
+        name = c.name or c.type.replace("_", " ")
+        n_of_type = sum(1 for t, _ in distinct if t == c.type)
+        i = distinct.setdefault((c.type, name), n_of_type)
+        if i:
+            color = ALT_COLORS[(i - 1) % len(ALT_COLORS)]
+        lab = f"{name} (period {c.period})"
+        ys, xs = (c.p2, c.p1) if (c.key1, c.key2) == (key2, key1) != (key1, key2) else (c.p1, c.p2)
         (ln,) = ax.plot(
-            np.asarray(c.p2) * f2,
-            np.asarray(c.p1) * f1,
+            np.asarray(xs) * f2,
+            np.asarray(ys) * f1,
             ls=ls,
             color=color,
             lw=1.6,
@@ -220,6 +242,15 @@ def plot_operating_map(
         if lab not in seen:
             handles.append(ln)
         seen.add(lab)
+        if getattr(c, "end", "") == "grazing" and len(xs):
+            # a codimension-two point: the bifurcation's orbit grazes a wall there
+            elab = f"{name} meets a grazing"
+            (mk,) = ax.plot(
+                [xs[-1] * f2], [ys[-1] * f1], "X", color=color, ms=8, mec="k", mew=0.6, label=elab
+            )
+            if elab not in seen:
+                handles.append(mk)
+            seen.add(elab)
     if bound is not None:
         (ln,) = ax.plot(
             np.asarray(bound[0]) * f2,
@@ -236,7 +267,7 @@ def plot_operating_map(
     ax.set_xlabel(lab2)
     ax.set_ylabel(lab1)
     ax.grid(True, lw=0.3, alpha=0.5)
-    ax.legend(handles=handles, fontsize=7, frameon=True, loc="upper left")
+    ax.legend(handles=handles, fontsize=7, frameon=True, loc=legend_loc)
     ax.set_title(
         title or "safe operating map: boundaries over the brute-force regimes", fontsize=10
     )

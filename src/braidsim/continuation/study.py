@@ -19,6 +19,8 @@ Spec (SI numbers or unit strings)::
     max_doublings = 2
     both_directions = false
     transient_cycles = 300              # of the simulated steady state that seeds the orbit
+    resting_speed = "0.1 mm/s"          # latched speed of a contact open all along an orbit
+                                        # (default contact.min_impact_velocity)
     seed = ["0.05 mm", "0 m/s"]         # optional (x, vx) at forcing phase 0 instead
     restart = "earlier/branch_0.nc"     # optional: start from a saved branch ...
     restart_point = -1                  # ... at this point (default the last)
@@ -30,6 +32,14 @@ Spec (SI numbers or unit strings)::
     types = ["grazing", "fold", "period_doubling"]
     regime_points = [12, 10]            # brute-force regime map beneath (0: none)
     window = 0.04                       # grazing: first search step on the normal line
+    cross = ["5 pi rad/s", "3 pi rad/s"]  # optional: a branch over this parameter (from, to)
+                                        # at continuation.from, its boundaries followed too
+
+``operating_map.cross`` finds boundaries a branch over the first parameter never meets: the
+orbit seeded at (``continuation.from``, ``cross[0]``) is continued in the map's parameter to
+``cross[1]``, and its special points of ``types`` are followed in the first parameter
+(:func:`braidsim.continuation.twopar.crossing_boundaries`; on the (clearance, speed) map the
+resting carrier's lift-off, which does not depend on the clearance).
 
 The boundary curves are followed by pseudo-arclength continuation
 (:mod:`braidsim.continuation.twopar`): a (clearance, speed) map is a spec with
@@ -86,8 +96,9 @@ CONT_KEYS = (
     "seed",
     "restart",
     "restart_point",
+    "resting_speed",
 )
-MAP_KEYS = ("parameter", "to", "steps", "types", "regime_points", "window")
+MAP_KEYS = ("parameter", "to", "steps", "types", "regime_points", "window", "cross")
 REPORT_KIND = "continuation"
 
 
@@ -113,12 +124,14 @@ class ContinuationSpec:
     seed: tuple[float, ...] | None = None
     restart: str | None = None
     restart_point: int = -1
+    resting_speed: float | None = None
     map_parameter: str | None = None
     map_to: float = 0.0
     map_steps: int = 10
     map_types: tuple[str, ...] = ("grazing", "fold", "period_doubling")
     regime_points: tuple[int, int] = (0, 0)
     map_window: float = 0.04
+    map_cross: tuple[float, float] | None = None
     base_dir: Path = field(default_factory=Path)
 
 
@@ -197,6 +210,16 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         seed = tuple(
             float(to_si("continuation.seed", v, u)) for v, u in zip(s, units, strict=False)
         )
+    resting = None
+    if "resting_speed" in cont:
+        from braidsim.units import to_si
+
+        resting = float(to_si("continuation.resting_speed", cont["resting_speed"], "m/s"))
+        if not (math.isfinite(resting) and resting > 0.0):
+            raise InputError(
+                f"continuation.resting_speed: {cont['resting_speed']!r} is out of range; "
+                "allowed a speed > 0 m/s"
+            )
     restart = cont.get("restart")
     if restart is not None and not isinstance(restart, str):
         raise InputError("continuation.restart: expected the path of a saved branch (.nc or .zarr)")
@@ -206,6 +229,7 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
     map_to = 0.0
     types: tuple[str, ...] = ("grazing", "fold", "period_doubling")
     rp = (0, 0)
+    cross = None
     if mp:
         map_key = mp.get("parameter")
         if not isinstance(map_key, str):
@@ -223,6 +247,21 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
                     "operating_map.types: allowed a list of fold, period_doubling, grazing"
                 )
             types = tuple(t)
+        if "cross" in mp:
+            c = mp["cross"]
+            if not isinstance(c, list) or len(c) != 2:
+                raise InputError(
+                    "operating_map.cross: expected [from, to], two values of "
+                    "operating_map.parameter"
+                )
+            cross = (
+                _si(map_key, c[0], "operating_map.cross"),
+                _si(map_key, c[1], "operating_map.cross"),
+            )
+            if cross[0] == cross[1]:
+                raise InputError(
+                    f"operating_map.cross: from equals to ({cross[0]:g}); allowed two values"
+                )
         if "regime_points" in mp:
             r = mp["regime_points"]
             if not isinstance(r, list) or len(r) != 2:
@@ -252,12 +291,14 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         seed=seed,
         restart=str(base_dir / restart) if restart else None,
         restart_point=int(cont.get("restart_point", -1)),
+        resting_speed=resting,
         map_parameter=map_key,
         map_to=map_to,
         map_steps=_int("operating_map.steps", mp.get("steps", 10), 1) if mp else 10,
         map_types=types,
         regime_points=rp,
         map_window=_float("operating_map.window", mp.get("window", 0.04), 0.0, 1.0) if mp else 0.04,
+        map_cross=cross,
         base_dir=base_dir,
     )
 
@@ -277,6 +318,8 @@ class ContinuationResult:
     curves: list[BoundaryCurve] = field(default_factory=list)
     regimes: tuple[np.ndarray, np.ndarray, list[list[str]]] | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    cross_branch: Branch | None = None
+    """The branch over the map's parameter (``operating_map.cross``)."""
 
     @property
     def branches(self) -> list[Branch]:
@@ -289,6 +332,7 @@ class ContinuationResult:
             "scenario": self.spec.scenario.name,
             "branches": [branch_json(b) for b in self.branches],
             "boundaries": [c.to_dict() for c in self.curves],
+            "cross_branch": branch_json(self.cross_branch) if self.cross_branch else None,
             "timings": self.timings,
         }
 
@@ -300,7 +344,7 @@ def run_study(
     import time
 
     say = progress or (lambda s: None)
-    system = ScenarioSystem(spec.scenario)
+    system = ScenarioSystem(spec.scenario, resting_speed=spec.resting_speed)
     key = spec.parameter
     t_start = time.process_time()
     if spec.restart:
@@ -386,6 +430,39 @@ def run_study(
                     ),
                 )
                 res.curves.append(c)
+        if spec.map_cross is not None:
+            from braidsim.continuation.twopar import crossing_boundaries
+
+            f2, t2 = spec.map_cross
+            p2_0 = float(spec.scenario[spec.map_parameter])
+            r2 = (min(p2_0, spec.map_to, f2, t2), max(p2_0, spec.map_to, f2, t2))
+            say(f"branch over {spec.map_parameter} from {f2:.6g} to {t2:.6g}")
+            res.cross_branch, cs = crossing_boundaries(
+                system,
+                key,
+                spec.start if math.isfinite(spec.start) else orbit.values[key],
+                spec.map_parameter,
+                f2,
+                t2,
+                spec.to,
+                period=spec.period,
+                types=spec.map_types,
+                steps=spec.map_steps,
+                window=spec.map_window,
+                method=spec.method,
+                range1=(lo, hi),
+                range2=r2,
+                branch_options={
+                    "max_points": spec.max_points,
+                    "step": spec.step,
+                    "max_step": spec.max_step,
+                    "min_step": spec.min_step,
+                },
+                on_point=lambda a, c2: say(f"  {key} = {c2:.6g}: {spec.map_parameter} = {a:.6g}"),
+            )
+            for c in cs:
+                say(f"boundary: {c.name} met along {spec.map_parameter}")
+            res.curves += cs
         n2 = sum(len(c.p1) for c in res.curves)
         dt = time.process_time() - t1
         res.timings.update(
@@ -408,7 +485,8 @@ def regime_map(
     key2 = spec.map_parameter
     p2_0 = float(spec.scenario[key2])
     v1 = np.linspace(lo, hi, n1)
-    v2 = np.linspace(min(p2_0, spec.map_to), max(p2_0, spec.map_to), n2)
+    ends = (p2_0, spec.map_to, *(spec.map_cross or ()))
+    v2 = np.linspace(min(ends), max(ends), n2)
     sets = [{spec.parameter: float(a), key2: float(b)} for a in v1 for b in v2]
     say(f"brute-force regime map: {len(sets)} runs")
     states = run_steady_states(spec.scenario, sets, transient_cycles=200, cycles=20)
@@ -429,6 +507,9 @@ def write_outputs(res: ContinuationResult, directory: Path, fmt: str = "nc") -> 
         ds = branch_dataset(b, res.spec.scenario.name)
         p = write_branch(ds, directory / f"branch_{i}.{fmt}")
         files.append(p.name)
+    if res.cross_branch is not None:
+        ds = branch_dataset(res.cross_branch, res.spec.scenario.name)
+        files.append(write_branch(ds, directory / f"branch_cross.{fmt}").name)
     tab = pd.concat([branch_points_table(b).assign(branch=i) for i, b in enumerate(res.branches)])
     tab.to_csv(directory / "points.csv", index=False)
     sp_rows = [{"branch": i, **s.to_dict()} for i, b in enumerate(res.branches) for s in b.special]
@@ -443,12 +524,13 @@ def write_outputs(res: ContinuationResult, directory: Path, fmt: str = "nc") -> 
     files.append("bifurcation.png")
     if res.curves or res.regimes is not None:
         rows = [
-            {"curve": i, "type": c.type, "period": c.period, c.key1: a, c.key2: b}
+            {"curve": i, "type": c.type, "name": c.name, "period": c.period, c.key1: a, c.key2: b}
             for i, c in enumerate(res.curves)
             for a, b in zip(c.p1, c.p2, strict=True)
         ]
         pd.DataFrame(rows).to_csv(directory / "boundaries.csv", index=False)
-        fig = plot_operating_map(res.curves, regimes=res.regimes)
+        keys = (res.spec.parameter, res.spec.map_parameter or "")
+        fig = plot_operating_map(res.curves, regimes=res.regimes, keys=keys)
         save(fig, directory / "operating_map.png")
         files += ["boundaries.csv", "operating_map.png"]
     data = res.to_json()

@@ -135,10 +135,15 @@ class ScenarioSystem:
     rtol : float
         Integrator tolerance of continuation runs (``simulation.rtol`` is replaced by it
         unless the scenario sets a tighter one).
+    resting_speed : float, optional
+        Latched approach speed [m/s] of a contact open over the whole orbit (default
+        ``contact.min_impact_velocity``; see
+        :func:`braidsim.continuation.orbit.resting_speed`).
     """
 
     scenario: Scenario
     rtol: float = DEFAULT_RTOL
+    resting_speed: float | None = None
     _cache: dict[Any, Prepared] = field(default_factory=dict, repr=False, compare=False)
 
     @property

@@ -72,8 +72,10 @@ from braidsim.continuation.orbit import (
     Shooter,
     choose_phase,
     cuts_from,
+    exact_available,
     finish,
     monodromy_of,
+    resting_speed,
     solve_fixed,
     states_at,
 )
@@ -82,6 +84,12 @@ from braidsim.errors import InputError, SimulationError
 SMOOTH_TYPES = ("fold", "period_doubling", "neimark_sacker")
 GRAZING_XTOL = 1e-7
 """Bracket width (units of the parameters' ranges) to which a grazing is located."""
+GRAZING_ATOL = 1e-9
+"""An orbit whose distance to grazing is below this fraction of the length scale L is at
+the grazing."""
+CARRY_FROM = 0.05
+"""Grazing: orbits are carried from known ones at least this fraction of the largest known
+distance to grazing away from it."""
 SUBSTEP = 0.005
 """Grazing: the longest step (units of the parameters' ranges) over which an orbit of the
 approaching structure is carried at fixed parameters."""
@@ -110,6 +118,13 @@ class BoundaryCurve:
     residuals : list of float
         The test function at each point (0 up to the corrector's tolerance; for grazing the
         distance to grazing of the nearest orbit of the approaching structure [m]).
+    name : str
+        What the boundary is, in words (for a grazing: which contact opens or appears,
+        :func:`grazing_name`; else the type).
+    end : str
+        ``"grazing"`` where a fold, doubling or Neimark-Sacker curve ends on a grazing of
+        its orbit (a codimension-two point: the last point; the contact pattern changes
+        there and the test function belongs to another family beyond), else empty.
     """
 
     type: str
@@ -122,6 +137,8 @@ class BoundaryCurve:
     detail: str = ""
     residuals: list[float] = field(default_factory=list)
     orbits: list[Orbit | None] = field(default_factory=list, repr=False)
+    name: str = ""
+    end: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI)."""
@@ -132,6 +149,8 @@ class BoundaryCurve:
             "points": [[a, b] for a, b in zip(self.p1, self.p2, strict=True)],
             "stop": self.stop,
             "detail": self.detail,
+            "name": self.name,
+            "end": self.end,
         }
 
     def add(
@@ -167,6 +186,32 @@ def bifurcation_function(kind: str, M: np.ndarray) -> float:
             )
         return float(np.abs(cx[np.argmin(np.abs(np.abs(cx) - 1.0))]) - 1.0)
     raise InputError(f"type: {kind!r}; allowed {', '.join(SMOOTH_TYPES)} or grazing")
+
+
+WALL_NAMES = {(0, -1): "inner wall", (0, 1): "outer wall", (1, -1): "slot", (1, 1): "slot"}
+"""The walls of the contact pairs (pair, wall): the track's inner and outer walls, the
+horn-gear slot's two flanks."""
+
+
+def grazing_name(sp: SpecialPoint, side: Orbit | None = None) -> str:
+    """A grazing in words: ``lift-off`` where a contact open over the whole orbit (the
+    carrier resting on a wall) opens, else which walls' contacts appear or disappear."""
+    a = sp.orbit if sp.orbit is not None else side
+    if a is None:
+        return "grazing"
+    walls_a = set(zip(a.profile.onset_pairs.tolist(), a.profile.onset_walls.tolist(), strict=True))
+    resting = not walls_a and any(m != 0 for c in a.cuts for m in c.modes)
+    if resting:
+        return "lift-off"
+    if sp.other is None:
+        return "grazing"
+    b = sp.other.profile
+    walls_b = set(zip(b.onset_pairs.tolist(), b.onset_walls.tolist(), strict=True))
+    new = sorted(walls_b - walls_a)
+    lost = sorted(walls_a - walls_b)
+    words = [f"grazing of the {WALL_NAMES.get(w, 'wall')}" for w in new]
+    words += [f"{WALL_NAMES.get(w, 'wall')} contact lost" for w in lost]
+    return ", ".join(words) if words else "grazing"
 
 
 def _ranges(
@@ -374,7 +419,11 @@ class Augmented:
             # converged: the residuals at tolerance and the test function too, or the steps
             # down to the test function's noise (that of the monodromy: about 3e-8 with the
             # exact map at rtol 1e-10, 1e-6 with central differences)
-            if r < tol and ((g < gtol and step < 1e3 * tol) or step < 1e2 * tol):
+            # (tiny steps with g far above its noise: the corrector is stuck where g is
+            # not smooth, at a grazing, and the point is not on the curve)
+            if r < tol and (
+                (g < gtol and step < 1e3 * tol) or (step < 1e2 * tol and g < 1e3 * gtol)
+            ):
                 return V, float(F[-1]), it, DF, Js
         raise ContinuationError(
             f"Newton did not converge on the augmented system in {max_iter} iterations"
@@ -383,6 +432,26 @@ class Augmented:
     def orbit(self, V: np.ndarray, Js: list[np.ndarray]) -> Orbit:
         """The orbit at converged unknowns."""
         return finish(self.sh, V, 0.0, 0, Js)
+
+
+GRAZING_END = 1e-3
+"""A fold, doubling or Neimark-Sacker curve whose corrector stalls where its orbit's
+distance to grazing has fallen below this fraction of the largest along the curve ends on
+a grazing."""
+
+
+def _at_grazing(curve: BoundaryCurve, system: Any) -> bool:
+    """Whether the curve's last orbit is at a grazing: its distance to grazing (a
+    free-flight gap minimum or a contact's least depth) below ``GRAZING_END`` of the
+    largest along the curve, or below 1e-9 of the length scale."""
+    dist = [o.profile.approach for o in curve.orbits if o is not None]
+    dist = [d for d in dist if math.isfinite(d)]
+    if len(dist) < 2:
+        return False
+    last = curve.orbits[-1]
+    assert last is not None
+    L = float(system.scales(last.values)[0])
+    return dist[-1] < max(GRAZING_END * max(dist), GRAZING_ATOL * L)
 
 
 def _moved(system: Any, o: Orbit) -> Orbit:
@@ -395,7 +464,7 @@ def _moved(system: Any, o: Orbit) -> Orbit:
     t0 = o.phase / w
     if th / w < t0:
         th += 2 * math.pi * o.period
-    cuts = cuts_from(o.profile, w, th, o.period, o.segments, t0)
+    cuts = cuts_from(o.profile, w, th, o.period, o.segments, t0, resting_speed(system, o.values))
     times = th / w + np.arange(o.segments) * o.profile.period / o.segments
     n = 2 * prep.n_coords
     c0 = o.cuts[0]
@@ -422,7 +491,9 @@ def _trace_smooth(
     lo1, hi1, lo2, hi2 = box
     scales = (hi1 - lo1, hi2 - lo2)
     gtol = 1e-9 if method != "fd" else 1e-6
-    curve = BoundaryCurve(sp.type, key1, key2, sp.period, detail=sp.detail)
+    curve = BoundaryCurve(
+        sp.type, key1, key2, sp.period, detail=sp.detail, name=sp.type.replace("_", " ")
+    )
     aug = Augmented(system, anchor, sp.type, key1, key2, scales, method)
     V = aug.pack(anchor)
     # the located point onto the augmented system, lambda_2 held
@@ -452,11 +523,47 @@ def _trace_smooth(
                     f"the orbit's contact structure changed near ({key1}, {key2}) = "
                     f"({a:.6g}, {b:.6g}): the {sp.type} curve meets a grazing"
                 )
+                curve.end = "grazing"
                 break
         except _FAILURES as exc:
             h *= 0.5
             if h < hmin:
+                last = curve.orbits[-1]
+                if aug.method == "fd" and last is not None and exact_available():
+                    # the central-difference monodromy's error grows with the impacts'
+                    # hardness (about 1e-2 on the multipliers at 5 kN on the carrier),
+                    # and det(M + I) jumps by as much between neighbouring orbits: the
+                    # corrector stalls on noise, not on the curve. Go on with the exact map.
+                    try:
+                        aug = Augmented(system, last, sp.type, key1, key2, scales, "exact")
+                        gtol = 1e-9
+                        V = aug.pack(last)
+                        V, g, _, DF, _ = aug.correct(V, tau, tol, gtol)
+                        # oriented on the parameters' components (the noisy gradient of
+                        # g tilted the old tangent's state components)
+                        tau_new = aug.tangent(DF, None, direction)
+                        if float(tau_new[-2:] @ tau[-2:]) < 0:
+                            tau_new = -tau_new
+                        tau = tau_new
+                        h = 0.5 * hmax
+                        curve.detail += (
+                            f"; exact flow map from {key2} = {curve.p2[-1]:.6g} on (the "
+                            "central-difference monodromy was too noisy for the corrector)"
+                        )
+                        continue
+                    except _FAILURES:
+                        pass
                 curve.stop = f"step below {hmin:g} at {key2} = {curve.p2[-1]:.6g} ({exc})"
+                if _at_grazing(curve, system):
+                    a, b = curve.p1[-1], curve.p2[-1]
+                    assert last is not None
+                    curve.stop = (
+                        f"the {sp.type} curve meets a grazing at ({key1}, {key2}) = "
+                        f"({a:.6g}, {b:.6g}): the orbit's distance to grazing fell to "
+                        f"{last.profile.approach:.3g} m (a codimension-two point; beyond it "
+                        "the contact pattern changes)"
+                    )
+                    curve.end = "grazing"
                 break
             continue
         a, b = on.values[key1], on.values[key2]
@@ -540,14 +647,18 @@ class _GrazingPlane:
         box: tuple[float, float, float, float],
         method: str,
         tol: float,
+        before: tuple[Orbit, ...] = (),
     ) -> None:
         self.system = system
         self.key1, self.key2 = key1, key2
         self.lo1, self.hi1, self.lo2, self.hi2 = box
         self.s1, self.s2 = self.hi1 - self.lo1, self.hi2 - self.lo2
         self.sig = signature(start)
-        self.known: list[tuple[np.ndarray, Orbit]] = [(self.q(start), start)]
+        self.known: list[tuple[np.ndarray, Orbit]] = [(self.q(o), o) for o in (*before, start)]
         self.method, self.tol = method, tol
+        # an orbit this close to grazing is at it (a resting contact's least depth can
+        # reach the integrator's noise, 1e-18 m, before Newton fails beyond it)
+        self.atol = GRAZING_ATOL * float(system.scales(start.values)[0])
 
     def q(self, o: Orbit) -> np.ndarray:
         return np.array([o.values[self.key1] / self.s1, o.values[self.key2] / self.s2])
@@ -561,7 +672,11 @@ class _GrazingPlane:
         known orbit in steps of ``SUBSTEP``, doubled after each success up to 4 ``SUBSTEP``
         and quartered after a failure (orbits of both structures can coexist near a
         grazing: a long jump could land on the other one)."""
-        qc, o = min(self.known, key=lambda kv: float(np.linalg.norm(kv[0] - q)))
+        # carried from the nearest known orbit not itself next to the grazing (Newton from
+        # an orbit at the grazing can fall either way: onto the other structure)
+        top = max(kv[1].profile.approach for kv in self.known)
+        pool = [kv for kv in self.known if kv[1].profile.approach >= CARRY_FROM * top]
+        qc, o = min(pool or self.known, key=lambda kv: float(np.linalg.norm(kv[0] - q)))
         h = SUBSTEP
         for _ in range(math.ceil(float(np.linalg.norm(q - qc)) / SUBSTEP) + 64):
             d = float(np.linalg.norm(q - qc))
@@ -642,10 +757,23 @@ class _GrazingPlane:
                 return None
             s_b = nb
         s_a, a_a, o_a = pts[-1]
+        s_n, a_n, o_n = min(pts, key=lambda p: p[1])
+        if a_n <= self.atol:
+            return qc + s_n * n, a_n, o_n
         ext = grazing_zero([(p[0], p[1]) for p in pts])
         # (where the corrector gives up just before a stiff contact lifts off, the zero lies
         # a little beyond the last orbit: extrapolated, as on a branch; a zero further than
         # 2 % of the search's reach is not the family's end but an extrapolation past it)
+        if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
+            # the family ends short of its extrapolated zero: either at a fold, or at a
+            # grazing whose distance collapses faster than linearly (a Hertz contact
+            # softens as its depth falls to zero), where Newton's method from the orbits
+            # on this line falls onto the other structure. A branch through the last
+            # orbit tells them apart (its grazing location carries the family in short
+            # steps up to the grazing).
+            via = self._by_branch(o_a, n, reach)
+            if via is not None:
+                return via
         if ext is None or ext < s_a or ext - s_a > 0.02 * reach:
             # the family ends with its distance to grazing still finite: not a grazing (a
             # fold of the family, or another structure taking over)
@@ -655,6 +783,54 @@ class _GrazingPlane:
                 "(a fold of the family or another bifurcation ends the grazing curve)"
             )
         return qc + ext * n, a_a, o_a
+
+    def _by_branch(
+        self, o: Orbit, n: np.ndarray, reach: float
+    ) -> tuple[np.ndarray, float, Orbit] | None:
+        """The grazing met by a one-parameter branch from ``o`` in the parameter along
+        which ``n`` mostly points (the other held), within ``reach``; None where the branch
+        meets no grazing of ``o``'s structure first (a fold, or nothing)."""
+        from braidsim.continuation.branch import Continuer
+
+        i = 0 if abs(n[0]) >= abs(n[1]) else 1
+        key, scale = ((self.key1, self.s1), (self.key2, self.s2))[i]
+        lo, hi = ((self.lo1, self.hi1), (self.lo2, self.hi2))[i]
+        lam0 = float(o.values[key])
+        sign = 1.0 if n[i] > 0 else -1.0
+        to = min(max(lam0 + sign * reach * scale, lo), hi)
+        if to == lam0:
+            return None
+        cont = Continuer(
+            self.system,
+            key,
+            (lam0, to),
+            method=self.method,
+            tol=self.tol,
+            step=0.02,
+            max_step=0.1,
+            max_points=30,
+            pscale=abs(to - lam0),
+            stop_on="grazing",
+        )
+        try:
+            br = cont.run(o, sign)
+        except (*_FAILURES, InputError):
+            return None
+        first = next((sp for sp in br.special if sp.type in ("grazing", "fold")), None)
+        if first is None or first.type != "grazing" or first.orbit is None:
+            return None
+        # a branch that turned back on its way met a fold first (undetected where the
+        # grazing lies in the same step): the family ends there, not at this grazing
+        v = br.values[: first.index + 1]
+        if v.size > 1 and np.any(np.diff(v) * sign <= 0):
+            return None
+        if (first.value - lam0) * sign <= 0:
+            return None
+        if signature(first.orbit) != self.sig:
+            return None
+        q = self.q(o)
+        q[i] = first.value / scale
+        return q, first.orbit.profile.approach, first.orbit
 
     def _forward(
         self, qc: np.ndarray, n: np.ndarray, pts: list[Any], step: float, reach: float
@@ -733,13 +909,28 @@ def _trace_grazing(
     lo1, hi1, lo2, hi2 = box
     start = sp.orbit if sp.orbit is not None else side
     start = replace(start, values={**start.values, key2: side.values[key2]})
-    plane = _GrazingPlane(system, start, key1, key2, box, method, tol)
-    curve = BoundaryCurve(sp.type, key1, key2, sp.period, detail=sp.detail)
+    # (the branch's orbit before the grazing too: the located one can be at the grazing)
+    before = (side,) if side is not start and math.isfinite(side.profile.approach) else ()
+    plane = _GrazingPlane(system, start, key1, key2, box, method, tol, before)
+    curve = BoundaryCurve(
+        sp.type, key1, key2, sp.period, detail=sp.detail, name=grazing_name(sp, side)
+    )
     q0 = np.array([sp.value / plane.s1, side.values[key2] / plane.s2])
     # the normal points from the approaching side to the other
     n = np.array([math.copysign(1.0, sp.value - side.values[key1]), 0.0])
     t = np.array([0.0, direction])
-    curve.add(sp.value, side.values[key2], 0.0, on_point)
+    # the branch's grazing located again on the plane's terms (the branch's bisection and
+    # the plane's regula falsi end on different sides of a stiff contact's lift-off)
+    try:
+        f0 = plane.locate(q0, n, min(max(window, 1e-3), 0.25 * hmax), hmax)
+    except GrazingLost:
+        f0 = None
+    if f0 is not None and abs(float(f0[0][1] - q0[1])) < 1e-12 * max(1.0, abs(q0[1])):
+        q0 = f0[0]
+        a0, b0 = plane.lam(q0)
+        curve.add(a0, b0, f0[1], on_point, f0[2])
+    else:
+        curve.add(sp.value, side.values[key2], 0.0, on_point)
     qs = [q0]
     h = 0.5 * hmax
     first = max(window, 1e-3)
@@ -790,12 +981,91 @@ def _trace_grazing(
                     curve.add(ae, be, fe[1], on_point, fe[2])
             curve.stop = f"left the range of {key2 if out2 else key1} at {edge:.6g}"
             break
-        curve.add(a, b, dist, on_point, found[2])
         chord = qn - qs[-1]
-        t = chord / float(np.linalg.norm(chord))
+        t_new = chord / float(np.linalg.norm(chord))
+        if len(qs) > 1 and float(t_new @ t) < -0.5:
+            # the curve would turn by more than 120 degrees in one step: the family ended
+            # at a fold just past the last point and the new point lies on the way back
+            # (the same grazing seen from the other side of the turn)
+            curve.stop = (
+                f"the orbit family ends at a fold next to ({key1}, {key2}) = "
+                f"({curve.p1[-1]:.6g}, {curve.p2[-1]:.6g}) (the grazing curve turns back "
+                "onto itself there)"
+            )
+            break
+        curve.add(a, b, dist, on_point, found[2])
+        t = t_new
         n = n_line
         qs.append(qn)
         h = min(1.5 * h, hmax)
     else:
         curve.stop = f"{npts} points reached"
     return curve
+
+
+# ----------------------------------------------------------------------------------------
+# boundaries crossed along the second parameter
+# ----------------------------------------------------------------------------------------
+
+
+def crossing_boundaries(
+    system: Any,
+    key1: str,
+    value1: float,
+    key2: str,
+    from2: float,
+    to2: float,
+    to1: float,
+    *,
+    period: int = 1,
+    types: tuple[str, ...] = ("grazing",),
+    steps: int = 10,
+    window: float = 0.04,
+    method: str = "auto",
+    range1: tuple[float, float] | None = None,
+    range2: tuple[float, float] | None = None,
+    branch_options: dict[str, Any] | None = None,
+    on_point: Callable[[float, float], None] | None = None,
+) -> tuple[Branch, list[BoundaryCurve]]:
+    """Boundaries of the (``key1``, ``key2``) map met along ``key2``: the orbit seeded at
+    (``value1``, ``from2``) [SI] is continued in ``key2`` towards ``to2`` at ``key1 =
+    value1``, and the first special point of each of ``types`` on that branch is followed
+    in ``key1`` towards ``to1`` with :func:`trace_boundary` (its curves have ``key1`` and
+    ``key2`` the other way round: the branch's parameter first).
+
+    A boundary that a branch over ``key1`` never meets is found this way: on the
+    (clearance, speed) map the resting orbit's lift-off does not depend on the clearance,
+    so a branch over the clearance never lifts off, while one over the speed does.
+
+    ``range1`` and ``range2`` are the ranges of ``key1`` and ``key2`` (default from the
+    start to the target of each); the branch stops where it leaves ``range2``.
+    ``branch_options`` go to :func:`~braidsim.continuation.branch.continue_orbit`.
+    Returns the branch and the curves.
+    """
+    from braidsim.continuation.branch import continue_orbit
+    from braidsim.continuation.orbit import seed_orbit
+
+    r1 = range1 if range1 is not None else (min(value1, to1), max(value1, to1))
+    r2 = range2 if range2 is not None else (min(from2, to2), max(from2, to2))
+    orbit = seed_orbit(system, {key1: float(value1), key2: float(from2)}, period, method=method)
+    opts = {"switch": False, **(branch_options or {})}
+    branch = continue_orbit(system, orbit, key2, to2, bounds=r2, method=method, **opts)
+    curves = []
+    for kind in types:
+        for sp in [s for s in branch.special if s.type == kind][:1]:
+            curves.append(
+                trace_boundary(
+                    system,
+                    branch,
+                    sp,
+                    key1,
+                    to1,
+                    steps=steps,
+                    window=window,
+                    method=method,
+                    range1=r2,
+                    range2=r1,
+                    on_point=on_point,
+                )
+            )
+    return branch, curves
