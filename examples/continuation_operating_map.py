@@ -207,19 +207,22 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     )
     curves_c = []
     for sp in [s for s in br_c.special if s.type == "grazing"][:1]:
-        for target in targets:
-            curves_c.append(
-                trace_boundary(
-                    sys_c,
-                    br_c,
-                    sp,
-                    OMEGA,
-                    target,
-                    steps=steps,
-                    method=args.method,
-                    range1=(0.2 * MM, 3 * MM),
-                )
+        # towards higher speeds, up to where the family ends in a fold (about 17.2 rad/s),
+        # in steps of a third of the range: the family's grazing and that of the unstable
+        # family it meets there lie close together, and the first step's direction is a
+        # guess (steps as long as an eighth of the range landed on the other family)
+        curves_c.append(
+            trace_boundary(
+                sys_c,
+                br_c,
+                sp,
+                OMEGA,
+                6 * math.pi,
+                steps=1 if small else 3,
+                method=args.method,
+                range1=(0.2 * MM, 3 * MM),
             )
+        )
     # the resting orbit's lift-off does not depend on the clearance: a branch over the
     # clearance never meets it, one over the speed does
     br_x, curves_x = crossing_boundaries(

@@ -9,6 +9,8 @@ import json
 import math
 from pathlib import Path
 
+import pytest
+
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "continuation_operating_map.py"
 
 
@@ -36,6 +38,11 @@ def test_example_small(tmp_path: Path) -> None:
     # the outer-wall grazing and the lift-off over (clearance, omega)
     wall, lift = findings["clearance_curves"]
     assert wall["name"] == "grazing of the outer wall" and len(wall["points"]) >= 2
+    # the stable orbit's flight rises 0.622 mm above the inner wall at 4 pi: it grazes there,
+    # not at the 0.339 mm of the coexisting unstable orbit (a branch that jumps onto it near
+    # the grazing reports that one); the grazing clearance rises with the speed
+    assert wall["points"][0][0] == pytest.approx(0.6223e-3, rel=1e-3)
+    assert all(b[0] > a[0] for a, b in zip(wall["points"], wall["points"][1:], strict=False))
     assert lift["name"] == "lift-off" and lift["parameters"][0] == "horn_gear.angular_velocity"
     speeds = [p[0] for p in lift["points"]]
     assert len(speeds) >= 2 and max(speeds) - min(speeds) < 1e-5 * min(speeds)  # vertical

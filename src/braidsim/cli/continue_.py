@@ -63,5 +63,9 @@ def continue_(
         for sp in b.special:
             sys.stdout.write(f"  {sp.type} at {b.key} = {sp.value:.6g}\n")
     for c in res.curves:
-        sys.stdout.write(f"boundary {c.type} (period {c.period}): {len(c.p1)} points; {c.stop}\n")
+        what = c.name or c.type  # a grazing says which contact opens or appears
+        end = f" (ends on a {c.end} of its orbit)" if c.end else ""
+        sys.stdout.write(
+            f"boundary {what} (period {c.period}): {len(c.p1)} points; {c.stop}{end}\n"
+        )
     sys.stdout.write(f"written: {out}\n")

@@ -325,6 +325,15 @@ class Continuer:
         while len(br.points) < self.max_points:
             try:
                 nxt = self.correct(sh, U + h * tau, tau)
+                # a corrector that lands further from the prediction than the step is long
+                # has left the branch for a coexisting orbit (next to a grazing the families
+                # lie close together): a shorter step instead (on the smooth parts of the
+                # paper's branches the correction is below 0.25 of the step, at a jump 200)
+                moved = float(np.linalg.norm(sh.pack(nxt.z, lam_of(nxt, self.key)) - U - h * tau))
+                if moved > h:
+                    raise ContinuationError(
+                        f"the corrector moved {moved / h:.3g} steps off the prediction"
+                    )
             except (ContinuationError, SimulationError, np.linalg.LinAlgError) as exc:
                 h *= 0.5
                 if h < self.hmin:

@@ -983,7 +983,17 @@ def _trace_grazing(
             break
         chord = qn - qs[-1]
         t_new = chord / float(np.linalg.norm(chord))
-        if len(qs) > 1 and float(t_new @ t) < -0.5:
+        turns_back = len(qs) > 1 and float(t_new @ t) < -0.5
+        off = float(np.linalg.norm(qn - qp))
+        if len(qs) > 1 and not turns_back and off > 0.2 * h and h > 4 * hmin:
+            # found far off the predicted point: the grazing of a coexisting family (near a
+            # fold both lie close together), or a bend taken too fast; a shorter step
+            # (measured on the (clearance, speed) map: 0.002 of the step on the curve,
+            # 0.26-0.63 where it jumped to the other family's grazing). Not on the first
+            # step, whose direction is a guess (along the second parameter).
+            h *= 0.5
+            continue
+        if turns_back:
             # the curve would turn by more than 120 degrees in one step: the family ended
             # at a fold just past the last point and the new point lies on the way back
             # (the same grazing seen from the other side of the turn)
