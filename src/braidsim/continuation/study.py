@@ -377,6 +377,13 @@ def run_study(
             f"point {count[0]}: {key} = {o.values[key]:.6g}, {'stable' if o.stable else 'unstable'}"
         )
 
+    # the spec's step control, for the main branch and for the one along the map's parameter
+    branch_options: dict[str, Any] = {
+        "max_points": spec.max_points,
+        "step": spec.step,
+        "max_step": spec.max_step,
+        "min_step": spec.min_step,
+    }
     t0 = time.process_time()
     br = continue_orbit(
         system,
@@ -385,13 +392,10 @@ def run_study(
         spec.to,
         both_directions=spec.both_directions,
         method=spec.method,
-        step=spec.step,
-        min_step=spec.min_step,
-        max_step=spec.max_step,
-        max_points=spec.max_points,
         switch=spec.switch,
         max_depth=spec.max_doublings,
         on_point=on_point,
+        **branch_options,
     )
     t_cont = time.process_time() - t0
     n_points = sum(len(b.points) for b in br.all_branches())
@@ -452,12 +456,7 @@ def run_study(
                 method=spec.method,
                 range1=(lo, hi),
                 range2=r2,
-                branch_options={
-                    "max_points": spec.max_points,
-                    "step": spec.step,
-                    "max_step": spec.max_step,
-                    "min_step": spec.min_step,
-                },
+                branch_options=branch_options,
                 on_point=lambda a, c2: say(f"  {key} = {c2:.6g}: {spec.map_parameter} = {a:.6g}"),
             )
             for c in cs:

@@ -191,11 +191,11 @@ def run(
         Carry forward sensitivities along these directions (a series sink cannot take them:
         with ``tangents.series`` the series must be kept, ``series=True``).
     """
-    n_coords, n_pairs, n_quads = model_size.py(model)
-    if opts.quadratures not in (-1, n_quads, n_pairs, n_pairs + n_coords):
+    prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
+    if opts.quadratures not in (-1, model_size.py(model)[2], *prefixes):
         # the models write their quadratures in these blocks only
         raise ValueError(
-            f"quadratures: {opts.quadratures}; allowed -1, {n_pairs} or {n_pairs + n_coords}"
+            f"quadratures: {opts.quadratures}; allowed -1, {prefixes[0]} or {prefixes[1]}"
         )
     n = state_size(model, opts.energy, opts.quadratures)
     y = np.array(y0, dtype=float)
