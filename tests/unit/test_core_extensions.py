@@ -170,3 +170,56 @@ def test_an_implementation_must_name_its_parameters_as_the_declaration() -> None
             return fr.c * v
 
     assert Odd not in friction_force.generic.impls
+
+
+def test_an_inlined_implementation_is_typed_for_its_callers_and_never_compiled_alone() -> None:
+    """A generic function's implementation is inlined where it is called; numba's overload
+    would also compile it as a function of its own (never called) and type it again at every
+    request of its signature. The core skips both (about 15 s of a 35-s cold compile): the
+    implementation's own dispatcher compiles nothing, the callers get the right values, and
+    a typing error inside an implementation still stops the caller's compile."""
+    from typing import NamedTuple
+
+    import numba
+    from numba.core import event
+
+    from braidsim.core.generic import generic
+
+    @generic
+    def scaled(rec, x):  # the declaration
+        """rec.a * x (a test's generic function)."""
+
+    class Scale(NamedTuple):
+        a: float
+
+    class Broken(NamedTuple):
+        a: float
+
+    @scaled.register(Scale)
+    def _scale(rec, x):
+        return rec.a * x
+
+    @scaled.register(Broken)
+    def _broken(rec, x):
+        return rec.a * x.no_such_attribute
+
+    @numba.njit
+    def twice(rec, x):  # two call sites of one signature
+        return scaled(rec, x) + scaled(rec, 2.0 * x)
+
+    compiled: list[str] = []
+
+    class Listener(event.Listener):
+        def on_start(self, ev: event.Event) -> None:
+            disp = ev.data.get("dispatcher")
+            if disp is not None:
+                compiled.append(disp.py_func.__name__)
+
+        def on_end(self, ev: event.Event) -> None:
+            pass
+
+    with event.install_listener("numba:compile", Listener()):
+        assert twice(Scale(1.5), 2.0) == 1.5 * 2.0 + 1.5 * 4.0
+    assert compiled == ["twice"]
+    with pytest.raises(numba.core.errors.TypingError, match="no_such_attribute"):
+        twice(Broken(1.0), 2.0)
