@@ -587,11 +587,24 @@ T, summary = float(sys.argv[1]), sys.argv[2] == "summary"
 kw = dict(series=False) if summary else {}
 # the default step budget (5e6 steps) ends a 1000-s run at ~950 s: raised for all lengths
 sc = braidsim.load_scenario("paper-3.3").with_overrides({"simulation.max_steps": 100_000_000})
+# the bare kernel: CPU inside the compiled integrate calls (the driver calls it once per
+# chunk of the buffers)
+import braidsim.core.driver as driver
+kernel = [0.0]
+compiled = driver.integrate
+def timed(*args):
+    c1 = time.process_time()
+    status = compiled(*args)
+    kernel[0] += time.process_time() - c1
+    return status
+driver.integrate = timed
 braidsim.simulate(sc, 0.01, **kw)
+kernel[0] = 0.0
 c0 = time.process_time()
 r = braidsim.simulate(sc, T, **kw)
 c = time.process_time() - c0
-print(c, len(r.impacts), r.stats["steps"], resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(c, len(r.impacts), r.stats["steps"], rss, kernel[0])
 """
 
 
@@ -638,7 +651,8 @@ def part_memory(sc: Scenario, args: argparse.Namespace) -> None:
     print(
         f"\n== memory: {SCENARIO} runs of 10, 100, 1000 s in subprocesses (limits: "
         f"{args.timeout:g} s, {args.mem_limit_gb:g} GB address space); CPU of the simulate call "
-        "(after a 0.01-s warm-up run), CPU of the whole child, peak RSS of the child; "
+        "(after a 0.01-s warm-up run) and of the compiled kernel inside it, CPU of the whole "
+        "child, peak RSS of the child; "
         "simulation.max_steps raised to 1e8 (the default 5e6 ends a 1000-s run at ~950 s)"
     )
     for T in (10.0, 100.0, 1000.0):
@@ -654,10 +668,11 @@ def part_memory(sc: Scenario, args: argparse.Namespace) -> None:
             if fail:
                 print(f"   {T:6g} s, {what:42s}: {fail} (peak RSS {rss:.0f} MB, {cpu:.1f} s CPU)")
                 continue
-            c, nimp, steps, _ = text.split()
+            c, nimp, steps, _, kern = text.split()
             print(
-                f"   {T:6g} s, {what:42s}: simulate {float(c):8.2f} s CPU, child {cpu:8.2f} s CPU, "
-                f"peak RSS {rss:8.0f} MB ({nimp} episodes, {steps} steps)"
+                f"   {T:6g} s, {what:42s}: simulate {float(c):8.2f} s CPU "
+                f"({float(c) / float(kern):.2f}x its compiled kernel, {float(kern):.2f} s), "
+                f"child {cpu:8.2f} s CPU, peak RSS {rss:8.0f} MB ({nimp} episodes, {steps} steps)"
             )
 
 
