@@ -24,8 +24,16 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from numba import njit, types
-from numba.core.typing.templates import infer, infer_global, make_overload_template
-from numba.extending import overload
+from numba.core import cgutils
+from numba.core.imputils import impl_ret_borrowed, lower_getattr_generic
+from numba.core.typing.templates import (
+    AttributeTemplate,
+    infer,
+    infer_getattr,
+    infer_global,
+    make_overload_template,
+)
+from numba.extending import intrinsic, models, overload, register_model
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -94,6 +102,80 @@ def _overload_inlined(stub: Callable[..., Any], typer: Callable[..., Any]) -> No
     infer_global(stub, types.Function(template))
 
 
+class RecordRef(types.Type):
+    """A record (a ``NamedTuple`` of the core) passed by reference: a pointer to it.
+
+    numba passes a record to a function it calls as one argument per field, and an array
+    field as seven or nine (the carrier with its tables: about 65 values at every call of
+    every helper, at every step). A reference is one pointer; reading ``ref.field`` loads that
+    field alone, so code written for the record reads a reference unchanged, and a generic
+    function dispatches on the record type behind it. Made by :func:`by_ref`.
+    """
+
+    def __init__(self, record: Any) -> None:
+        self.record: Any = record  # the numba type of the record
+        super().__init__(name=f"RecordRef({record})")
+
+    @property
+    def key(self) -> Any:
+        return self.record
+
+
+@register_model(RecordRef)
+class _RecordRefModel(models.PrimitiveModel):
+    def __init__(self, dmm: Any, fe_type: RecordRef) -> None:
+        be_type = dmm.lookup(fe_type.record).get_data_type().as_pointer()
+        super().__init__(dmm, fe_type, be_type)
+
+
+@infer_getattr
+class _RecordRefFields(AttributeTemplate):
+    key = RecordRef
+
+    def generic_resolve(self, ref: Any, attr: str) -> Any:  # type: ignore[override]
+        rec = ref.record
+        if attr in rec.fields:
+            return rec.types[rec.fields.index(attr)]
+        return None
+
+
+@lower_getattr_generic(RecordRef)
+def _record_ref_field(context: Any, builder: Any, typ: Any, ptr: Any, attr: str) -> Any:
+    rec = typ.record
+    i = rec.fields.index(attr)
+    fty = rec.types[i]
+    val = context.data_model_manager[fty].load_from_data_pointer(
+        builder, cgutils.gep_inbounds(builder, ptr, 0, i)
+    )
+    return impl_ret_borrowed(context, builder, fty, val)
+
+
+def _by_ref(typingctx: Any, record: Any) -> Any:
+    """``by_ref(record)`` in compiled code: a :class:`RecordRef` to ``record``, valid while
+    the calling function runs (the record is copied once into its stack frame; its arrays
+    are borrowed, their reference counts untouched)."""
+    if not isinstance(record, types.BaseNamedTuple):
+        return None
+
+    def codegen(context: Any, builder: Any, sig: Any, args: Any) -> Any:
+        dm = context.data_model_manager[record]
+        slot = cgutils.alloca_once(builder, dm.get_data_type())
+        builder.store(dm.as_data(builder, args[0]), slot)
+        return slot
+
+    return RecordRef(record)(record), codegen
+
+
+by_ref: Any = intrinsic(_by_ref)
+
+
+def record_class(numba_type: Any) -> Any:
+    """The Python class of a record type, or of the record behind a :class:`RecordRef`."""
+    if isinstance(numba_type, RecordRef):
+        numba_type = numba_type.record
+    return getattr(numba_type, "instance_class", None)
+
+
 class GenericFunction:
     """The registry of a generic function: its implementation for each record class of its
     first argument. Compiled code calls the stub; ``py(...)`` calls it from Python."""
@@ -111,7 +193,7 @@ class GenericFunction:
         args = ", ".join(self.params)
         src = (
             f"def typer({args}):\n"
-            f"    fn = impls.get(getattr({self.params[0]}, 'instance_class', None))\n"
+            f"    fn = impls.get(record_class({self.params[0]}))\n"
             f"    if fn is None or inline:\n"
             f"        return fn\n"
             f"    def impl({args}):\n"
@@ -120,7 +202,11 @@ class GenericFunction:
         )
         # impls: the Python functions when inlined, their compiled functions when called
         self._overloads: dict[type, Any] = {}
-        namespace: dict[str, Any] = {"impls": self._overloads, "inline": inline}
+        namespace: dict[str, Any] = {
+            "impls": self._overloads,
+            "inline": inline,
+            "record_class": record_class,
+        }
         exec(src, namespace)  # a fixed template over the stub's parameter names
         if inline:
             _overload_inlined(stub, namespace["typer"])
@@ -165,10 +251,11 @@ def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> A
 
     The implementations are inlined into their callers (numba IR inlining) unless
     ``inline=False``: numba passes a record to a function it calls as one argument per
-    field (the carrier's are about 60 with its tables), which cost more than the work of
+    field (the carrier's are about 65 with its tables), which cost more than the work of
     the small functions here. Measured on paper-3.3: 193 ns per right-hand-side evaluation
     with calls, 134 ns inlined (an inlined implementation is typed, never compiled alone:
-    see :func:`_overload_inlined`).
+    see :func:`_overload_inlined`). The solver's own helpers, which are called, get the
+    model as a :class:`RecordRef` (:func:`by_ref`) instead.
 
     Returns the stub itself (compiled code resolves calls to it by name), carrying
     ``register``, ``implementation`` and ``py`` of its :class:`GenericFunction`."""
