@@ -14,6 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
+from braidsim.core.generic import by_ref, helper
 from braidsim.core.interfaces import (
     apply_transfer,
     derivatives,
@@ -83,6 +84,25 @@ EPISODE_RESERVE = 4  # impact-table rows one step can open at most
 EVENT_ROWS = 16  # series rows one step writes at most besides its samples
 
 
+@helper
+def rhs(model, t, y, modes, v0s, n, out):
+    """:func:`~braidsim.core.interfaces.derivatives` as a call, for the places that need it
+    once per event (compiled once, not inlined at each)."""
+    derivatives(model, t, y, modes, v0s, n, out)
+
+
+@helper
+def _transfer(model, t, y):
+    """:func:`~braidsim.core.interfaces.apply_transfer` as a call (rare: not inlined)."""
+    return apply_transfer(model, t, y)
+
+
+@helper
+def _onset_step(model, pair, v0):
+    """:func:`~braidsim.core.interfaces.pair_onset_step` as a call (once per contact)."""
+    return pair_onset_step(model, pair, v0)
+
+
 @njit(cache=True, error_model="numpy")
 def _energy(y, idx, n):
     """The dissipated-energy quadrature at ``idx`` (NaN when the run does not integrate it)."""
@@ -148,13 +168,15 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
 
 # nogil: the loop touches no Python object, so runs of a batch overlap on threads
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS):
-    """Integrate ``model`` from the restart record to ``opts.t_end``; returns a status.
+def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS):
+    """Integrate the model ``record`` from the restart record to ``opts.t_end``; returns a
+    status.
 
     Parameters
     ----------
-    model : record
-        A model of :mod:`braidsim.core.models`.
+    record : model record
+        A model of :mod:`braidsim.core.models`. The functions called here read it through a
+        :class:`~braidsim.core.generic.RecordRef` (one pointer, not one argument per field).
     opts : SolverOptions
     y : array
         The state (length 2 n_coords, plus with ``opts.energy`` the first
@@ -184,6 +206,9 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
         Forward sensitivities to carry (:mod:`braidsim.core.solver.tangent`); ``None``
         compiles them out.
     """
+    # every function below reads the model through one pointer: numba would pass the
+    # record to each call field by field, ~65 values for the carrier (see RecordRef)
+    model = by_ref(record)
     n_coords, n_pairs, n_quads = model_size(model)
     n_dof2 = 2 * n_coords
     n = n_dof2
@@ -300,7 +325,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
     # that step's error scales as h^(n+1), not h^5 (0: no contact step pending)
     onset_q = r.onset_q
 
-    derivatives(model, t, y, modes, v0s, n, K[0])
+    rhs(model, t, y, modes, v0s, n, K[0])
     pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
     st.rhs_evaluations += 1
     if SENS is not None:
@@ -326,7 +351,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                     y_minus[i] = y[i]
                 for i in range(n_dof2):
                     f_minus[i] = K[0, i]
-            reset = apply_transfer(model, t, y)
+            reset = _transfer(model, t, y)
             for pair in range(reset):
                 ie = open_ep[pair]
                 if ie >= 0:
@@ -344,10 +369,10 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
             nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_TRANSFER, rec)
             if SENS is not None:
                 # the tangents jump with the state (the new contacts need them)
-                derivatives(model, t, y, modes, v0s, n, K[0])
+                rhs(model, t, y, modes, v0s, n, K[0])
                 transfer_jump(model, SENS, itr - 1, t, y_minus, f_minus, K[0], n_dof2, ss, sw)
             nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, reset, n, SENS)
-            derivatives(model, t, y, modes, v0s, n, K[0])
+            rhs(model, t, y, modes, v0s, n, K[0])
             pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
             st.rhs_evaluations += 1
             if SENS is not None:
@@ -576,7 +601,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                 nrow = write_row(model, rows, nrow, t_ev, y, modes, v0s, n, KIND_ONSET, rec)
                 # start the contact with a step of a fraction of its duration estimated from
                 # the elastic closed form, and rescale a rejected first step by its own law
-                h_on, onset_q = pair_onset_step(model, pair, vlat)
+                h_on, onset_q = _onset_step(model, pair, vlat)
                 h = min(h, h_on)
             else:
                 # exit
@@ -600,7 +625,7 @@ def integrate(model, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XS
                 same_time_events = 0
             last_event_t = t_ev
             t = t_ev
-            derivatives(model, t, y, modes, v0s, n, K[0])
+            rhs(model, t, y, modes, v0s, n, K[0])
             pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
             st.rhs_evaluations += 1
             if SENS is not None:
