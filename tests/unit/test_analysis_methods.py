@@ -9,7 +9,7 @@ import pytest
 from scipy.linalg import expm
 
 from braidsim.analysis.bifurcation import refine_transition, transitions
-from braidsim.analysis.lyapunov import benettin
+from braidsim.analysis.lyapunov import LyapunovEstimate, benettin
 from braidsim.analysis.reference import (
     LOGISTIC_FIRST_DOUBLING,
     LOGISTIC_SECOND_DOUBLING,
@@ -75,6 +75,30 @@ def test_lorenz_largest_exponent() -> None:
     )
     assert est.exponent == pytest.approx(LORENZ_LARGEST_EXPONENT, rel=0.02)
     assert est.running.size == 2000 and est.times[-1] == pytest.approx(1000.0)
+    # the estimate's statistical error accounts for its distance from the known value
+    se = est.standard_error()
+    assert 0.0 < se < 0.02 * LORENZ_LARGEST_EXPONENT
+    assert abs(est.exponent - LORENZ_LARGEST_EXPONENT) < 4 * se
+
+
+def test_standard_error_of_independent_stretches_is_sigma_over_root_n() -> None:
+    """Batch means on independent log-stretches of standard deviation s per interval tau:
+    the standard error of the exponent is s / (tau sqrt(N)); 100 blocks estimate it to
+    about 7 % (one standard deviation)."""
+    rng = np.random.default_rng(7)
+    tau, n, s = 0.1, 200_000, 0.3
+    ls = 0.5 * tau + s * rng.standard_normal(n)
+    times = tau * np.arange(1, n + 1)
+    est = LyapunovEstimate(
+        exponent=float(ls.sum() / (n * tau)),
+        times=times,
+        running=np.cumsum(ls) / times,
+        log_stretch=ls,
+        interval=tau,
+        d0=1e-8,
+    )
+    assert est.standard_error(blocks=100) == pytest.approx(s / (tau * math.sqrt(n)), rel=0.25)
+    assert math.isnan(est.standard_error(blocks=1))
 
 
 @pytest.mark.parametrize(

@@ -94,6 +94,20 @@ class LyapunovEstimate:
         r = self.running[int(n * (1.0 - tail)) :]
         return float(np.ptp(r)) if r.size else math.nan
 
+    def standard_error(self, blocks: int = 10) -> float:
+        """Standard error of :attr:`exponent` by batch means: the intervals cut into
+        ``blocks`` consecutive blocks of equal length, the exponent of each block, their
+        standard deviation over sqrt(blocks) (Flyvbjerg & Petersen, J. Chem. Phys. 91, 461
+        (1989), doi:10.1063/1.457480). Irregular impact motion needs thousands of forcing
+        periods for a few per cent: on paper-3.3 at h_a = 0.18 mm, 1,000 periods give
+        52-58 1/s with a standard error of 1.4-1.8 1/s."""
+        n = self.log_stretch.size // blocks
+        if blocks < 2 or n == 0:
+            return math.nan
+        per_block = self.log_stretch[: n * blocks].reshape(blocks, n).sum(axis=1)
+        rates = per_block / (n * self.interval)
+        return float(np.std(rates, ddof=1) / math.sqrt(blocks))
+
     def to_dict(self, curve: bool = True) -> dict[str, Any]:
         """JSON-ready form."""
         out: dict[str, Any] = {
