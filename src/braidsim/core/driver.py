@@ -126,11 +126,26 @@ class RawRun:
         return float(self.restart[0]["t"])
 
 
+_SIZES: dict[type, tuple[int, int, int]] = {}
+
+
+def model_sizes(model: Any) -> tuple[int, int, int]:
+    """(n_coords, n_pairs, n_quads) of ``model``
+    (:func:`~braidsim.core.interfaces.model_size`), kept per record class: they are constants
+    of the class, and a call of the compiled function from Python (numba types the whole
+    record at each call) cost ~5 us, nine times per run."""
+    cls = type(model)
+    if cls not in _SIZES:
+        n_coords, n_pairs, n_quads = model_size.py(model)
+        _SIZES[cls] = (int(n_coords), int(n_pairs), int(n_quads))
+    return _SIZES[cls]
+
+
 def state_size(model: Any, energy: bool, quadratures: int = -1) -> int:
     """Length of the state vector of ``model``: 2 n_coords, plus with ``energy`` the first
     ``quadratures`` of its n_quads energy quadratures (-1: all; see
     :class:`~braidsim.core.layout.SolverOptions`)."""
-    n_coords, _, n_quads = model_size.py(model)
+    n_coords, _, n_quads = model_sizes(model)
     if not energy:
         return 2 * n_coords
     return 2 * n_coords + (n_quads if quadratures < 0 else min(quadratures, n_quads))
@@ -140,7 +155,7 @@ def quadrature_prefix(model: Any, which: str) -> int:
     """The number of leading quadratures that hold ``which``: ``"dissipation"`` (the energy
     each contact pair dissipates) or ``"friction"`` (those and the friction work along each
     coordinate)."""
-    n_coords, n_pairs, _ = model_size.py(model)
+    n_coords, n_pairs, _ = model_sizes(model)
     if which == "dissipation":
         return int(n_pairs)
     if which == "friction":
@@ -192,7 +207,7 @@ def run(
         with ``tangents.series`` the series must be kept, ``series=True``).
     """
     prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
-    if opts.quadratures not in (-1, model_size.py(model)[2], *prefixes):
+    if opts.quadratures not in (-1, model_sizes(model)[2], *prefixes):
         # the models write their quadratures in these blocks only
         raise ValueError(
             f"quadratures: {opts.quadratures}; allowed -1, {prefixes[0]} or {prefixes[1]}"

@@ -129,7 +129,8 @@ def wall_accel_bound(ex):
 
 @generic
 def model_size(model):
-    """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures.
+    """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures;
+    constants of the record class (the driver keeps them per class).
 
     The quadratures are ordered so that a run can integrate a prefix of them: first the
     energy each pair's contact law dissipates, in pair order (:func:`dissipation_index`),
