@@ -36,7 +36,7 @@ def sweep(
     json_: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
 ) -> None:
     """Run a parameter study: every run of SPEC into the zarr store --out (resumable)."""
-    from braidsim.cli.common import Interrupted
+    from braidsim.cli.common import Interrupted, signal_decides
     from braidsim.io import check_output_target
     from braidsim.sweep import SweepError, export_netcdf, load_spec, run_sweep
 
@@ -46,15 +46,16 @@ def sweep(
     resume_hint = f"the chunks done are kept in {out}; finish with --resume"
     flush_notices()
     try:
-        summary = run_sweep(
-            s,
-            out,
-            resume=resume,
-            processes=processes,
-            workers=workers,
-            scheduler=scheduler,
-            progress=not no_progress,
-        )
+        with signal_decides():
+            summary = run_sweep(
+                s,
+                out,
+                resume=resume,
+                processes=processes,
+                workers=workers,
+                scheduler=scheduler,
+                progress=not no_progress,
+            )
     except SweepError as exc:
         fail(f"sweep failed: {exc}; {resume_hint}", 1)
         return
