@@ -131,3 +131,50 @@ def test_neimark_sacker_of_the_linear_oscillator() -> None:
     )
     assert len(c.p1) >= 3 and c.p2[-1] == pytest.approx(1.5)
     assert max(abs(x) for x in c.p1) < 1e-8
+
+
+class _TwoFamilies:
+    """A stand-in for the grazing plane (scaled coordinates = parameters): this family's
+    grazing lies on the line q1 = 0.5; a coexisting family's, 0.3 to its right, is what the
+    search finds on the long lines of a long step (span > 0.3)."""
+
+    s1 = s2 = 1.0
+
+    def __init__(self, *args) -> None:
+        self.calls = 0
+
+    def lam(self, q):
+        return float(q[0]), float(q[1])
+
+    def locate(self, q, n, first, span):
+        self.calls += 1
+        q1 = 0.8 if span > 0.3 else 0.5
+        return np.array([q1, q[1]]), 0.0, None
+
+
+def test_a_grazing_curve_is_not_ended_by_another_familys_grazing_out_of_range(monkeypatch):
+    """The point a long step finds on the other family lies beyond the range of the first
+    parameter: it is a jump (far off the prediction), so the step is shortened and this
+    family's curve goes on; it must not end the curve as 'left the range'."""
+    from dataclasses import dataclass
+    from types import SimpleNamespace
+
+    from braidsim.continuation import twopar
+
+    @dataclass
+    class Side:
+        values: dict
+        profile: object
+
+    monkeypatch.setattr(twopar, "_GrazingPlane", _TwoFamilies)
+    monkeypatch.setattr(twopar, "grazing_name", lambda sp, side=None: "grazing")
+    side = Side({"a": 0.45, "b": 0.1}, SimpleNamespace(approach=math.nan))
+    sp = SimpleNamespace(orbit=None, value=0.5, type="grazing", period=1, detail="", other=None)
+    curve = twopar._trace_grazing(
+        None, sp, side, "a", "b", (0.0, 0.7, 0.0, 1.0), 1.0,
+        hmax=0.2, hmin=1e-3, window=0.01, npts=100, method="fd", tol=1e-9, on_point=None,
+    )  # fmt: skip
+    assert curve.stop == "left the range of b at 1"
+    assert np.allclose(curve.p1, 0.5)
+    assert curve.p2[-1] > 0.85
+    assert all(0.0 <= b <= 1.0 for b in curve.p2)

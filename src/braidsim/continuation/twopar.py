@@ -957,6 +957,19 @@ def _trace_grazing(
                 break
             continue
         qn, dist, _ = found
+        chord = qn - qs[-1]
+        t_new = chord / float(np.linalg.norm(chord))
+        turns_back = len(qs) > 1 and float(t_new @ t) < -0.5
+        off = float(np.linalg.norm(qn - qp))
+        if len(qs) > 1 and not turns_back and off > 0.2 * h and h > 4 * hmin:
+            # found far off the predicted point: the grazing of a coexisting family (near a
+            # fold both lie close together), or a bend taken too fast; a shorter step
+            # (measured on the (clearance, speed) map: 0.002 of the step on the curve,
+            # 0.26-0.63 where it jumped to the other family's grazing). Not on the first
+            # step, whose direction is a guess (along the second parameter). Tested before
+            # the range: the other family's grazing outside it must not end this curve.
+            h *= 0.5
+            continue
         a, b = plane.lam(qn)
         out1 = not (lo1 <= a <= hi1)
         out2 = not (lo2 <= b <= hi2)
@@ -981,18 +994,6 @@ def _trace_grazing(
                     curve.add(ae, be, fe[1], on_point, fe[2])
             curve.stop = f"left the range of {key2 if out2 else key1} at {edge:.6g}"
             break
-        chord = qn - qs[-1]
-        t_new = chord / float(np.linalg.norm(chord))
-        turns_back = len(qs) > 1 and float(t_new @ t) < -0.5
-        off = float(np.linalg.norm(qn - qp))
-        if len(qs) > 1 and not turns_back and off > 0.2 * h and h > 4 * hmin:
-            # found far off the predicted point: the grazing of a coexisting family (near a
-            # fold both lie close together), or a bend taken too fast; a shorter step
-            # (measured on the (clearance, speed) map: 0.002 of the step on the curve,
-            # 0.26-0.63 where it jumped to the other family's grazing). Not on the first
-            # step, whose direction is a guess (along the second parameter).
-            h *= 0.5
-            continue
         if turns_back:
             # the curve would turn by more than 120 degrees in one step: the family ended
             # at a fold just past the last point and the new point lies on the way back
