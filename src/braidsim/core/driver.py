@@ -127,6 +127,7 @@ class RawRun:
 
 
 _SIZES: dict[type, tuple[int, int, int]] = {}
+_DISSIPATION: dict[tuple[type, int], int] = {}
 
 
 def model_sizes(model: Any) -> tuple[int, int, int]:
@@ -139,6 +140,16 @@ def model_sizes(model: Any) -> tuple[int, int, int]:
         n_coords, n_pairs, n_quads = model_size.py(model)
         _SIZES[cls] = (int(n_coords), int(n_pairs), int(n_quads))
     return _SIZES[cls]
+
+
+def dissipation_slot(model: Any, pair: int) -> int:
+    """Index of pair ``pair``'s dissipated energy in the state vector
+    (:func:`~braidsim.core.interfaces.dissipation_index`), kept per record class and pair
+    like :func:`model_sizes`."""
+    key = (type(model), pair)
+    if key not in _DISSIPATION:
+        _DISSIPATION[key] = int(dissipation_index.py(model, pair))
+    return _DISSIPATION[key]
 
 
 def state_size(model: Any, energy: bool, quadratures: int = -1) -> int:
@@ -370,7 +381,7 @@ def _close_open(episodes: np.ndarray, RS: np.ndarray, y: np.ndarray, model: Any,
         if idx.size == 0:
             continue
         i = idx[-1]
-        k = int(dissipation_index.py(model, pair))
+        k = dissipation_slot(model, pair)
         energy = float(y[k]) if k < n else float("nan")
         episodes["t_end"][i] = t
         episodes["dissipated_energy"][i] = energy - episodes["dissipated_energy"][i]

@@ -194,7 +194,8 @@ def apply_transfer(model, t, y):
 
 @generic
 def dissipation_index(model, pair):
-    """Index in the state vector of the energy dissipated by pair ``pair``'s contact law."""
+    """Index in the state vector of the energy dissipated by pair ``pair``'s contact law; a
+    constant of the record class (the driver keeps it per class)."""
     raise NotImplementedError
 
 
