@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from braidsim.core import gaps_along
 from braidsim.core import layout as L
-from braidsim.core import pair_gaps
 from braidsim.core import run as core_run
 from braidsim.errors import SimulationError
 
@@ -161,9 +161,7 @@ def min_gaps(prep: Any, series: np.ndarray | None, n_state: int) -> np.ndarray:
         return out
     pairs = 1 if prep.n_coords == 1 else 2
     for p in range(pairs):
-        g = np.array(
-            [pair_gaps.py(prep.record, p, row[0], row[1 : 1 + n_state])[:2] for row in series]
-        )
+        g = gaps_along(prep.record, p, series[:, 0], series[:, 1 : 1 + n_state])[:, :2]
         out[p] = g.min(axis=0)
     return out
 

@@ -52,7 +52,7 @@ import numpy as np
 
 from braidsim.continuation.fdmap import FloatSeq, FlowMap, advance, fd_flow_map
 from braidsim.continuation.system import ModelSystem, ScenarioSystem
-from braidsim.core import derivatives, pair_gaps
+from braidsim.core import derivatives, gaps_along, pair_gaps
 from braidsim.errors import InputError, SimulationError
 
 METHODS = ("auto", "exact", "fd")
@@ -320,12 +320,7 @@ def profile(
     maxd = float(ep["max_depth"].max()) if ep.size else 0.0
     pairs = 1 if prep.n_coords == 1 else 2
     # gaps and their rates at every row
-    G = np.array(
-        [
-            [pair_gaps.py(prep.record, p, ti, yi) for p in range(pairs)]
-            for ti, yi in zip(t, Y, strict=True)
-        ]
-    )
+    G = np.stack([gaps_along(prep.record, p, t, Y) for p in range(pairs)], axis=1)
     # contact state of every row (0 free, else the wall), per pair
     M = np.zeros((t.size, pairs), dtype=int)
     for a, b, pair, wall, _ in intervals:

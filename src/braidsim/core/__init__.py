@@ -46,7 +46,7 @@ from braidsim.core.physics import (
     TrackHarmonics,
 )
 from braidsim.core.physics.excitation import horn_gear_state
-from braidsim.core.solver.pairs import contact_quantities
+from braidsim.core.solver.pairs import contact_quantities, gaps_along
 
 # numba's IR inlining of the generic functions (braidsim.core.generic) trips a pedantic
 # internal SSA check that numba itself describes as such; the compiled code is unaffected
@@ -69,6 +69,7 @@ __all__ = [
     "TrackHarmonics",
     "contact_quantities",
     "derivatives",
+    "gaps_along",
     "horn_gear_state",
     "layout",
     "pair_gaps",
