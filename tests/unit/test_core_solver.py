@@ -275,9 +275,9 @@ def test_gaps_along_rows_are_the_per_row_gaps_to_the_bit(dof: str) -> None:
     Y = rng.normal(0.0, 1e-4, (64, n))
     pairs = 2 if model.two_dof else 1
     for p in range(pairs):
-        G = gaps_along(rec, p, t, Y)
+        G = np.column_stack(gaps_along(rec, p, t, Y.T))
         rows = np.array([pair_gaps.py(rec, p, ti, yi) for ti, yi in zip(t, Y, strict=True)])
         assert G.shape == (64, 3)
         assert np.array_equal(G, rows)
     h = np.array([wall_motion.py(rec.track, ti)[0] for ti in t])
-    assert np.allclose(gaps_along(rec, 0, t, Y)[:, 0], Y[:, 0] - h, rtol=0, atol=1e-18)
+    assert np.allclose(gaps_along(rec, 0, t, Y.T)[0], Y[:, 0] - h, rtol=0, atol=1e-18)

@@ -161,8 +161,8 @@ def min_gaps(prep: Any, series: np.ndarray | None, n_state: int) -> np.ndarray:
         return out
     pairs = 1 if prep.n_coords == 1 else 2
     for p in range(pairs):
-        g = gaps_along(prep.record, p, series[:, 0], series[:, 1 : 1 + n_state])[:, :2]
-        out[p] = g.min(axis=0)
+        g_in, g_out, _ = gaps_along(prep.record, p, series[:, 0], series[:, 1 : 1 + n_state].T)
+        out[p] = g_in.min(), g_out.min()
     return out
 
 

@@ -320,7 +320,7 @@ def profile(
     maxd = float(ep["max_depth"].max()) if ep.size else 0.0
     pairs = 1 if prep.n_coords == 1 else 2
     # gaps and their rates at every row
-    G = np.stack([gaps_along(prep.record, p, t, Y) for p in range(pairs)], axis=1)
+    G = np.stack([np.column_stack(gaps_along(prep.record, p, t, Y.T)) for p in range(pairs)], 1)
     # contact state of every row (0 free, else the wall), per pair
     M = np.zeros((t.size, pairs), dtype=int)
     for a, b, pair, wall, _ in intervals:

@@ -110,25 +110,30 @@ def _forces_along(model, pair, ts, Y, mode, v0, out):
 
 @njit(cache=True, error_model="numpy")
 def _gaps_along(model, pair, ts, Y, out):
+    y = np.empty(Y.shape[0])
     for k in range(ts.shape[0]):
-        g_in, g_out, rate = pair_gaps(model, pair, ts[k], Y[k])
-        out[k, 0] = g_in
-        out[k, 1] = g_out
-        out[k, 2] = rate
+        for i in range(Y.shape[0]):
+            y[i] = Y[i, k]
+        g_in, g_out, rate = pair_gaps(model, pair, ts[k], y)
+        out[0, k] = g_in
+        out[1, k] = g_out
+        out[2, k] = rate
 
 
-def gaps_along(model: Any, pair: int, t: np.ndarray, Y: np.ndarray) -> np.ndarray:
-    """(len(t), 3): the gaps of ``pair`` to its inner and outer wall and the rate of the
-    first, d g_in/dt, at the times ``t`` with the states ``Y`` (one row a time), by the
-    model's :func:`~braidsim.core.interfaces.pair_gaps`.
+def gaps_along(
+    model: Any, pair: int, t: np.ndarray, Y: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(g_in, g_out, d g_in/dt) of ``pair``: the gaps to its inner and outer wall and the
+    rate of the first, at the times ``t`` with the states ``Y`` (one column a time, as
+    :func:`contact_quantities`), by the model's :func:`~braidsim.core.interfaces.pair_gaps`.
 
-    One compiled call for all rows: a call of ``pair_gaps.py`` from Python costs ~5 us per
-    row (numba types the whole record to pick the machine code)."""
+    One compiled call for all times: a call of ``pair_gaps.py`` from Python costs ~5 us per
+    time (numba types the whole record to pick the machine code)."""
     ts = np.ascontiguousarray(np.atleast_1d(t), dtype=float)
-    Ya = np.ascontiguousarray(np.asarray(Y, dtype=float).reshape(ts.size, -1))
-    out = np.empty((ts.size, 3))
+    Ya = np.ascontiguousarray(np.asarray(Y, dtype=float).reshape(-1, ts.size))
+    out = np.empty((3, ts.size))
     _gaps_along(model, int(pair), ts, Ya, out)
-    return out
+    return out[0], out[1], out[2]
 
 
 def contact_quantities(
