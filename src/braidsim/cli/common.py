@@ -167,7 +167,7 @@ def signal_decides() -> Iterator[None]:
     line and exit code."""
     try:
         yield
-    except (typer.Exit, typer.Abort, Interrupted):
+    except (typer.Exit, typer.Abort):  # the command's own ending (click's are Exceptions)
         raise
     except Exception:
         if not _RECEIVED:

@@ -126,30 +126,30 @@ class RawRun:
         return float(self.restart[0]["t"])
 
 
-_SIZES: dict[type, tuple[int, int, int]] = {}
-_DISSIPATION: dict[tuple[type, int], int] = {}
+_PER_CLASS: dict[tuple[Any, ...], Any] = {}
+
+
+def _per_class(fn: Any, model: Any, *args: int) -> Any:
+    """``fn.py(model, *args)`` of a generic function whose value is a constant of the record
+    class, kept per class and arguments: a call of the compiled function from Python costs
+    ~5 us (numba types the whole record), and a run asked up to ten times."""
+    key = (fn, type(model), args)
+    if key not in _PER_CLASS:
+        _PER_CLASS[key] = fn.py(model, *args)
+    return _PER_CLASS[key]
 
 
 def model_sizes(model: Any) -> tuple[int, int, int]:
     """(n_coords, n_pairs, n_quads) of ``model``
-    (:func:`~braidsim.core.interfaces.model_size`), kept per record class: they are constants
-    of the class, and a call of the compiled function from Python (numba types the whole
-    record at each call) cost ~5 us, nine times per run."""
-    cls = type(model)
-    if cls not in _SIZES:
-        n_coords, n_pairs, n_quads = model_size.py(model)
-        _SIZES[cls] = (int(n_coords), int(n_pairs), int(n_quads))
-    return _SIZES[cls]
+    (:func:`~braidsim.core.interfaces.model_size`, kept per record class)."""
+    n_coords, n_pairs, n_quads = _per_class(model_size, model)
+    return int(n_coords), int(n_pairs), int(n_quads)
 
 
 def dissipation_slot(model: Any, pair: int) -> int:
     """Index of pair ``pair``'s dissipated energy in the state vector
-    (:func:`~braidsim.core.interfaces.dissipation_index`), kept per record class and pair
-    like :func:`model_sizes`."""
-    key = (type(model), pair)
-    if key not in _DISSIPATION:
-        _DISSIPATION[key] = int(dissipation_index.py(model, pair))
-    return _DISSIPATION[key]
+    (:func:`~braidsim.core.interfaces.dissipation_index`, kept per record class and pair)."""
+    return int(_per_class(dissipation_index, model, pair))
 
 
 def state_size(model: Any, energy: bool, quadratures: int = -1) -> int:
