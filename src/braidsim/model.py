@@ -257,6 +257,7 @@ def build_model(
         max_step=default_max_step(sc) if hmax is None else hmax,
         max_steps=_step_budget(sc, dur),
         t_end=dur,
+        implicit_rest=sc["simulation.resting_contacts"] == "implicit",
     )
 
     transfers = set(sc["transfer.times"])

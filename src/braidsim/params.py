@@ -290,6 +290,16 @@ SCHEMA_LIST: list[ParamSpec] = [
     ),
     _positive("simulation.sample_interval", "s", 1e-5, "spacing of the sampled time series [s]"),
     ParamSpec(
+        "simulation.resting_contacts",
+        "choice",
+        "",
+        "auto",
+        "integrator of a contact at rest (its fast mode holding the explicit step): implicit "
+        "(L-stable Radau IIA until its next event), explicit (Dormand-Prince throughout), or "
+        "auto (implicit in the continuation's finite-difference flow maps, explicit elsewhere)",
+        choices=("auto", "implicit", "explicit"),
+    ),
+    ParamSpec(
         "simulation.max_steps",
         "int",
         "",

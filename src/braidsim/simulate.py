@@ -84,10 +84,11 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, flo
 
 def stats_dict(raw: RawRun) -> dict[str, Any]:
     """The solver's statistics by name (``steps``, ``rejected_steps``, ``events``,
-    ``rhs_evaluations``, ``transfers``, ``min_step``, ``max_step``)."""
+    ``rhs_evaluations``, ``implicit_steps``, ``transfers``, ``min_step``, ``max_step``)."""
     rec = raw.stats[0]
     out: dict[str, Any] = {
-        name: int(rec[name]) for name in ("steps", "rejected_steps", "events", "rhs_evaluations")
+        name: int(rec[name])
+        for name in ("steps", "rejected_steps", "events", "rhs_evaluations", "implicit_steps")
     }
     out["transfers"] = int(rec["transfers"])
     out["min_step"] = float(rec["min_step"]) if math.isfinite(rec["min_step"]) else None

@@ -249,12 +249,16 @@ def run(
     SENS = None
     if tangents is not None:
         SENS = _sensitivity_work(tangents, EP, rows, TR, keep, sink, opts)
+    # the implicit step of resting contacts, where asked and no tangents are carried
+    IMP = None
+    if opts.implicit_rest and SENS is None:
+        IMP = L.implicit_work(n, 2 * model_sizes(model)[0])
     sens_chunks: list[np.ndarray] = []
     sens_closed: list[np.ndarray] = []
     written = 0
     while True:
         status = integrate(
-            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS
+            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP
         )
         r = RS[0]
         final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)

@@ -75,6 +75,11 @@ class SolverOptions(NamedTuple):
         impact table reports: the lean path), then the friction work along each coordinate
         as well (n_pairs + n_coords, what the batch metrics read). The works not integrated
         are not in the state (the series gives them as NaN).
+    implicit_rest : bool
+        Integrate a contact at rest (its fast mode holding the explicit step) with the
+        L-stable Radau IIA step (:mod:`braidsim.core.solver.radau`) until its next event;
+        False (the default) keeps Dormand-Prince throughout, and compiles no implicit step.
+        Runs with sensitivities always use Dormand-Prince.
     """
 
     rtol: float
@@ -86,6 +91,58 @@ class SolverOptions(NamedTuple):
     record_events: bool = True
     energy: bool = True
     quadratures: int = -1
+    implicit_rest: bool = False
+
+
+class ImplicitWork(NamedTuple):
+    """The work arrays of the implicit (Radau IIA) step of resting contacts
+    (:mod:`braidsim.core.solver.radau`), for a state of n components of which m = 2 n_coords
+    are coordinates and speeds; ``None`` in their place compiles the step out.
+
+    Attributes
+    ----------
+    J : array (n, m)
+        df/dy over the coordinates and speeds.
+    LUR, LUC : arrays (m, m), (2 m, 2 m)
+        LU factors of the real system and of the complex one in real form.
+    pivr, pivc : int arrays (m,), (2 m,)
+        Their pivots.
+    Z, W : arrays (3, n)
+        The stages' increments and their transform.
+    B : array (4, n)
+        Newton increments and scratch.
+    V : array (2 m,)
+        Scratch of the complex solve.
+    scale : array (m,)
+        atol + rtol |y| of the Newton and error norms.
+    """
+
+    J: np.ndarray
+    LUR: np.ndarray
+    LUC: np.ndarray
+    pivr: np.ndarray
+    pivc: np.ndarray
+    Z: np.ndarray
+    W: np.ndarray
+    B: np.ndarray
+    V: np.ndarray
+    scale: np.ndarray
+
+
+def implicit_work(n: int, m: int) -> ImplicitWork:
+    """Work arrays of the implicit step for n state components, m coordinates and speeds."""
+    return ImplicitWork(
+        np.empty((n, m)),
+        np.empty((m, m)),
+        np.empty((2 * m, 2 * m)),
+        np.empty(m, dtype=np.int64),
+        np.empty(2 * m, dtype=np.int64),
+        np.empty((3, n)),
+        np.empty((3, n)),
+        np.empty((4, n)),
+        np.empty(2 * m),
+        np.empty(m),
+    )
 
 
 class SensitivityWork(NamedTuple):
@@ -172,6 +229,7 @@ STATS_DTYPE = np.dtype(
         ("transfers", "f8"),
         ("min_step", "f8"),  # [s]
         ("max_step", "f8"),  # [s]
+        ("implicit_steps", "f8"),  # accepted steps of resting contacts (Radau IIA)
     ]
 )
 
@@ -201,6 +259,16 @@ RESTART_DTYPE = np.dtype(
         ("open_1", "f8"),
         ("rows", "f8"),  # rows of the series buffer written
         ("episodes", "f8"),  # rows of the impact table written
+        ("implicit", "f8"),  # 1: the next step is an implicit step (a contact at rest)
+        ("rest_run", "f8"),  # explicit steps in a row held by a contact's fast mode
+        (
+            "explicit_rate",
+            "f8",
+        ),  # [1/s] evaluations per second of the explicit method, at the switch
+        ("implicit_count", "f8"),  # implicit steps since the switch
+        ("implicit_evals", "f8"),  # evaluations of those after the first REST_RAMP
+        ("implicit_time", "f8"),  # [s] the time they covered
+        ("rest_blocked", "f8"),  # 1: the implicit step did not pay; explicit until an event
     ]
 )
 

@@ -17,7 +17,6 @@ from numba import njit
 from braidsim.core.generic import by_ref, helper
 from braidsim.core.interfaces import (
     apply_transfer,
-    derivatives,
     dissipation_index,
     model_size,
     pair_onset_step,
@@ -45,6 +44,7 @@ from braidsim.core.layout import (
     STARTED,
     STIFF_LIMIT,
 )
+from braidsim.core.solver.calls import rhs
 from braidsim.core.solver.dopri5 import (
     dense_coeffs,
     dense_eval,
@@ -54,6 +54,7 @@ from braidsim.core.solver.dopri5 import (
 )
 from braidsim.core.solver.events import N_SUB, locate_event, sample_events
 from braidsim.core.solver.pairs import I_DN, I_PD, NI, gaps, pair_infos
+from braidsim.core.solver.radau import ATTEMPT_OK, implicit_attempt, implicit_to, radau_safety
 from braidsim.core.solver.recorders import (
     close_episode,
     episode_start_values,
@@ -82,13 +83,18 @@ from braidsim.core.solver.tangent import (
 
 EPISODE_RESERVE = 4  # impact-table rows one step can open at most
 EVENT_ROWS = 16  # series rows one step writes at most besides its samples
-
-
-@helper
-def rhs(model, t, y, modes, v0s, n, out):
-    """:func:`~braidsim.core.interfaces.derivatives` as a call, for the places that need it
-    once per event (compiled once, not inlined at each)."""
-    derivatives(model, t, y, modes, v0s, n, out)
+# A contact rests when its fast mode holds the explicit step: h |lambda| (estimated from the
+# last two stages) above REST_HLAMBDA for REST_AFTER accepted steps in a row. An impact's
+# steps resolve its bounce at h |lambda| ~ 0.1; a resting contact's sit at 1-1.6 whatever
+# the tolerance (benchmarks/README.md).
+# The implicit step costs about 15 evaluations against the explicit one's 6. Its steps after
+# the first REST_RAMP (which grow from the explicit size) are counted; from REST_TRIAL steps
+# on, should they have bought less simulated time per evaluation than the explicit method's
+# next step would have, the contact goes back to the explicit method until its next event.
+REST_HLAMBDA = 1.0
+REST_AFTER = 8
+REST_RAMP = 3
+REST_TRIAL = 6
 
 
 @helper
@@ -168,7 +174,9 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
 
 # nogil: the loop touches no Python object, so runs of a batch overlap on threads
 @njit(cache=True, error_model="numpy", nogil=True)
-def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS):
+def integrate(
+    record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS, IMP
+):
     """Integrate the model ``record`` from the restart record to ``opts.t_end``; returns a
     status.
 
@@ -205,6 +213,10 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
     SENS : SensitivityWork or None
         Forward sensitivities to carry (:mod:`braidsim.core.solver.tangent`); ``None``
         compiles them out.
+    IMP : ImplicitWork or None
+        The work arrays of the implicit step of resting contacts
+        (:mod:`braidsim.core.solver.radau`); ``None`` compiles it out (Dormand-Prince
+        throughout).
     """
     # every function below reads the model through one pointer: numba would pass the
     # record to each call field by field, ~65 values for the carrier (see RecordRef)
@@ -238,6 +250,8 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
     IX = np.zeros(NI)
     K = np.empty((7, n))
     Ke = np.empty((7, n))
+    jac_fresh = False  # the implicit step's Jacobian belongs to the current (t, y)
+    newton_iters = 0
     RC = np.empty((5, n))
     GS = np.empty((4, N_SUB + 1))
     if SENS is not None:
@@ -321,6 +335,13 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
     stiff_run = int(r.stiff_run)
     nonstiff_run = int(r.nonstiff_run)
     err_old = r.err_old
+    implicit = int(r.implicit)
+    rest_run = int(r.rest_run)
+    explicit_rate = r.explicit_rate
+    implicit_count = int(r.implicit_count)
+    implicit_evals = r.implicit_evals
+    implicit_time = r.implicit_time
+    rest_blocked = int(r.rest_blocked)
     # error exponent of the first step of a contact: the force grows as s^n after onset, so
     # that step's error scales as h^(n+1), not h^5 (0: no contact step pending)
     onset_q = r.onset_q
@@ -352,6 +373,10 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
                 for i in range(n_dof2):
                     f_minus[i] = K[0, i]
             reset = _transfer(model, t, y)
+            implicit = 0  # the implicit phase ends with the contacts the transfer moves
+            rest_run = 0
+            rest_blocked = 0
+            jac_fresh = False
             for pair in range(reset):
                 ie = open_ep[pair]
                 if ie >= 0:
@@ -398,10 +423,31 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
         if not hits_stop and h < 4e-16 * max(1.0, abs(t)) * 8:
             status = ST_STEP_COLLAPSE
             break
-        rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
-        st.rhs_evaluations += 6
-        nsteps += 1
-        err = error_norm(y, y1, h, K, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity)
+        evals_before = st.rhs_evaluations
+        took_implicit = False
+        if IMP is not None:
+            if implicit:
+                took_implicit = True
+                nsteps += 1
+                code, err, newton_iters, nfev = implicit_attempt(
+                    model, t, y, h, K, modes, v0s, n, n_dof2, opts, jac_fresh, IMP, y1, RC
+                )
+                st.rhs_evaluations += nfev
+                jac_fresh = True
+                if code != ATTEMPT_OK:
+                    # the collocation equations did not converge (or a system is singular):
+                    # a shorter step
+                    if h < 1e-14 * max(1.0, t):
+                        status = ST_STEP_COLLAPSE
+                        break
+                    h *= 0.5
+                    st.rejected_steps += 1
+                    continue
+        if not took_implicit:
+            rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
+            err = error_norm(y, y1, h, K, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity)
+            st.rhs_evaluations += 6
+            nsteps += 1
         if onset_q > 0.0:
             # the first step of a contact: its estimate misses the tau^n onset (on paper-3.3
             # this makes the peak forces about five times more accurate at the same cost)
@@ -420,6 +466,8 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
         if err > 1.0:
             if onset_q > 0.0:
                 fac = max(0.02, 0.9 * err ** (-1.0 / onset_q))
+            elif took_implicit:
+                fac = max(0.2, radau_safety(newton_iters) * err ** (-0.25))
             else:
                 fac = max(0.2, 0.9 * err ** (-0.2))
             h *= fac
@@ -438,12 +486,16 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
         # stiffness detection (Hairer & Wanner's test in DOPRI5): h |lambda| estimated from the
         # last two stages; a long run of steps on the stability boundary means the explicit
         # method is crawling
-        stnum = 0.0
-        stden = 0.0
-        for i in range(n_dof2):
-            stnum += (K[6, i] - K[5, i]) ** 2
-            stden += (y1[i] - yt[i]) ** 2
-        if stden > 0.0 and h * math.sqrt(stnum / stden) > 3.25:
+        h_lambda = 0.0
+        if not took_implicit:
+            stnum = 0.0
+            stden = 0.0
+            for i in range(n_dof2):
+                stnum += (K[6, i] - K[5, i]) ** 2
+                stden += (y1[i] - yt[i]) ** 2
+            if stden > 0.0:
+                h_lambda = h * math.sqrt(stnum / stden)
+        if h_lambda > 3.25:
             stiff_run += 1
             nonstiff_run = 0
             if stiff_run >= STIFF_LIMIT:
@@ -453,16 +505,28 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
             nonstiff_run += 1
             if nonstiff_run >= 6:  # as in DOPRI5: six non-stiff steps clear the suspicion
                 stiff_run = 0
-        # PI step-size control (Hairer, Norsett & Wanner I, Sect. II.4; DOPRI5 with beta = 0.04)
+        if IMP is not None and not took_implicit and not rest_blocked:
+            # a contact at rest: hand it to the implicit step from the next step on
+            if h_lambda > REST_HLAMBDA and (modes[0] != 0 or modes[1] != 0):
+                rest_run += 1
+            else:
+                rest_run = 0
         if err == 0.0:
             fac = 5.0
+        elif took_implicit:
+            # the estimate is of order 3 (RADAU5's controller, without its predictive part,
+            # which would need the last step to be carried across a restart)
+            fac = min(10.0, max(0.2, radau_safety(newton_iters) * err ** (-0.25)))
         else:
+            # PI step-size control (Hairer, Norsett & Wanner I, Sect. II.4; DOPRI5 with
+            # beta = 0.04)
             fac = 0.9 * err ** (-0.17) * err_old**0.04
             fac = min(5.0, max(0.2, fac))
         err_old = max(err, 1e-4)
         onset_q = 0.0
         h_next = min(h * fac, hmax)
-        dense_coeffs(y, y1, h, K, RC, n)
+        if not took_implicit:
+            dense_coeffs(y, y1, h, K, RC, n)
         pair_infos(model, n_pairs, t + h, y1, K[6], modes, v0s, INF1)
         # ---- events on the interpolant
         theta_ev = 2.0
@@ -481,9 +545,15 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
                 he = 1e-16 * max(1.0, t)
             for i in range(n):
                 Ke[0, i] = K[0, i]
-            rk_step(model, t, y, he, Ke, modes, v0s, n, yt, ye)
-            st.rhs_evaluations += 6
-            dense_coeffs(y, ye, he, Ke, RC, n)
+            if took_implicit:
+                if IMP is not None:
+                    st.rhs_evaluations += implicit_to(
+                        model, t, y, he, theta_ev, K, Ke, modes, v0s, n, n_dof2, opts, IMP, ye, RC
+                    )
+            else:
+                rk_step(model, t, y, he, Ke, modes, v0s, n, yt, ye)
+                dense_coeffs(y, ye, he, Ke, RC, n)
+                st.rhs_evaluations += 6
             pair_infos(model, n_pairs, t + he, ye, Ke[6], modes, v0s, INF1)
             h_taken = he
         else:
@@ -523,6 +593,16 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
             rec,
         )
         st.steps += 1
+        if took_implicit:
+            st.implicit_steps += 1
+            implicit_count += 1
+            if implicit_count > REST_RAMP:
+                implicit_evals += st.rhs_evaluations - evals_before
+                implicit_time += h_taken
+            if implicit_count >= REST_TRIAL and implicit_evals > explicit_rate * implicit_time:
+                implicit = 0
+                rest_blocked = 1
+        jac_fresh = False
         st.min_step = min(st.min_step, h_taken)
         if SENS is not None:
             # the tangents over the step taken (recomputed when it ended at an event), then
@@ -625,6 +705,10 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
                 same_time_events = 0
             last_event_t = t_ev
             t = t_ev
+            implicit = 0
+            rest_run = 0
+            rest_blocked = 0
+            jac_fresh = False
             rhs(model, t, y, modes, v0s, n, K[0])
             pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
             st.rhs_evaluations += 1
@@ -653,10 +737,25 @@ def integrate(record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, X
             K[0, i] = K[6, i]
         INF0, INF1 = INF1, INF0
         h = h_next
+        if rest_run >= REST_AFTER:
+            implicit = 1
+            implicit_count = 0
+            implicit_evals = 0.0
+            implicit_time = 0.0
+            # what the explicit method would spend per second from here: its next step
+            explicit_rate = 6.0 / h
+            rest_run = 0
     # ---- where the run stands
     r.t = t
     r.h = h
     r.err_old = err_old
+    r.implicit = implicit
+    r.rest_run = rest_run
+    r.explicit_rate = explicit_rate
+    r.implicit_count = implicit_count
+    r.implicit_evals = implicit_evals
+    r.implicit_time = implicit_time
+    r.rest_blocked = rest_blocked
     r.onset_q = onset_q
     r.stiff_run = stiff_run
     r.nonstiff_run = nonstiff_run
