@@ -293,11 +293,11 @@ SCHEMA_LIST: list[ParamSpec] = [
         "simulation.resting_contacts",
         "choice",
         "",
-        "auto",
-        "integrator of a contact at rest (its fast mode holding the explicit step): implicit "
-        "(L-stable Radau IIA until its next event), explicit (Dormand-Prince throughout), or "
-        "auto (implicit in the continuation's finite-difference flow maps, explicit elsewhere)",
-        choices=("auto", "implicit", "explicit"),
+        "explicit",
+        "integrator of a contact at rest (its fast mode holding the explicit step): explicit "
+        "(Dormand-Prince throughout) or implicit (L-stable Radau IIA until its next event; "
+        "compiled on first use)",
+        choices=("explicit", "implicit"),
     ),
     ParamSpec(
         "simulation.max_steps",

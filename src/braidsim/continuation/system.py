@@ -211,10 +211,7 @@ class ScenarioSystem:
             )
         model = build_model(sc, 1.0)
         n_coords = 2 if sc["simulation.dof"] == "xy" else 1
-        # the flow maps integrate resting orbits again and again: the implicit step of
-        # resting contacts pays there (it is compiled out of the runs with tangents)
-        opts = model.options._replace(implicit_rest=sc["simulation.resting_contacts"] != "explicit")
-        prep = Prepared(model.record, opts, w, n_coords, tp, float(sc["transfer.first"]))
+        prep = Prepared(model.record, model.options, w, n_coords, tp, float(sc["transfer.first"]))
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[ck] = prep
@@ -313,7 +310,6 @@ class ModelSystem:
             max_step=T / 64.0 if self.max_step is None else self.max_step,
             max_steps=10_000_000,
             t_end=1.0,
-            implicit_rest=True,
         )
         n_coords = state_size(rec, False) // 2
         return Prepared(rec, opts, w, n_coords)
