@@ -81,6 +81,8 @@ class Model:
     track, slot : PairModel
     duration : float
         [s]
+    implicit_rest : bool
+        Integrate resting contacts with the implicit step (``simulation.resting_contacts``).
     """
 
     scenario: Scenario
@@ -91,6 +93,7 @@ class Model:
     track: PairModel
     slot: PairModel
     duration: float
+    implicit_rest: bool = False
 
     @property
     def horn_gear(self) -> HornGear:
@@ -257,7 +260,6 @@ def build_model(
         max_step=default_max_step(sc) if hmax is None else hmax,
         max_steps=_step_budget(sc, dur),
         t_end=dur,
-        implicit_rest=sc["simulation.resting_contacts"] == "implicit",
     )
 
     transfers = set(sc["transfer.times"])
@@ -278,4 +280,5 @@ def build_model(
         y0[2] = sc["initial.y"]
         omega_start, _ = horn_gear_state(record.horn_gear, 0.0)
         y0[3] = sc["initial.vy"] + sc["carrier.turning_radius"] * omega_start
-    return Model(sc, record, options, y0, tr, track, slot, dur)
+    implicit = sc["simulation.resting_contacts"] == "implicit"
+    return Model(sc, record, options, y0, tr, track, slot, dur, implicit)

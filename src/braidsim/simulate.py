@@ -174,6 +174,7 @@ def run_model(
         series=series,
         restart=restart,
         tangents=tangents,
+        implicit=model.implicit_rest,
     )
     if raw.status == L.ST_GRAZING:
         from braidsim.sensitivity import sensitivity_error

@@ -57,9 +57,8 @@ def _pressed(implicit: bool, **kw: Any) -> RawRun:
         max_step=1e-2,
         max_steps=10**7,
         t_end=T_END,
-        implicit_rest=implicit,
     )
-    return run(model, opts, np.array([GAP, V0, 0.0, 0.0, 0.0]), **kw)
+    return run(model, opts, np.array([GAP, V0, 0.0, 0.0, 0.0]), implicit=implicit, **kw)
 
 
 def test_the_collocation_polynomial_is_the_one_of_the_stages() -> None:
@@ -152,3 +151,25 @@ def test_runs_where_no_contact_rests_are_those_of_the_explicit_solver(name: str)
     assert b.stats["implicit_steps"] == 0
     for col in ("t", "peak_force", "max_depth", "rebound_velocity"):
         np.testing.assert_array_equal(a.impacts[col].to_numpy(), b.impacts[col].to_numpy())
+
+
+def test_the_continuation_passes_the_choice_to_its_flow_maps() -> None:
+    """``simulation.resting_contacts`` reaches the finite-difference flow map's runs (and
+    only when asked): one forcing period of paper-3.3's resting orbit (h_a 0.05 mm, 4 pi
+    rad/s) ends in the same state either way, to the tolerances."""
+    from braidsim.continuation import ScenarioSystem, seed_orbit
+    from braidsim.continuation.fdmap import advance
+
+    ha = {"track.vibration_amplitude": 0.05e-3}
+    base = load_scenario("paper-3.3")
+    orbit = seed_orbit(ScenarioSystem(base), ha, 1, method="fd")
+    ends = {}
+    for choice in ("explicit", "implicit"):
+        system = ScenarioSystem(base.with_overrides({"simulation.resting_contacts": choice}))
+        prep = system.prepare(ha)
+        assert prep.implicit is (choice == "implicit")
+        seg = advance(prep, 0.0, prep.period, orbit.z[0], orbit.cuts[0].modes, (1e-4, math.nan))
+        ends[choice] = seg.y1
+    # x to 1e-7, x' to the scenario's velocity tolerance (1e-9 m/s)
+    assert ends["implicit"][0] == pytest.approx(ends["explicit"][0], rel=1e-7)
+    assert ends["implicit"][1] == pytest.approx(ends["explicit"][1], abs=1e-9)

@@ -95,6 +95,7 @@ def advance(
         series=sample_times is not None,
         xsq=False,
         restart=rs,
+        implicit=prep.implicit,
     )
     if raw.status != L.ST_OK:
         raise SimulationError(

@@ -72,6 +72,9 @@ class Prepared:
         Coordinates (1: x; 2: x and y); the map's state has 2 n_coords entries.
     transfer_period : float
         Period of the transfers [s] (0: none), and ``transfer_first`` [s] the first one.
+    implicit : bool
+        Integrate resting contacts with the implicit step (``simulation.resting_contacts``;
+        the finite-difference flow maps only: the exact ones carry tangents).
     """
 
     record: Any
@@ -80,6 +83,7 @@ class Prepared:
     n_coords: int
     transfer_period: float = 0.0
     transfer_first: float = 0.0
+    implicit: bool = False
 
     @property
     def period(self) -> float:
@@ -211,7 +215,15 @@ class ScenarioSystem:
             )
         model = build_model(sc, 1.0)
         n_coords = 2 if sc["simulation.dof"] == "xy" else 1
-        prep = Prepared(model.record, model.options, w, n_coords, tp, float(sc["transfer.first"]))
+        prep = Prepared(
+            model.record,
+            model.options,
+            w,
+            n_coords,
+            tp,
+            float(sc["transfer.first"]),
+            model.implicit_rest,
+        )
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[ck] = prep

@@ -75,11 +75,6 @@ class SolverOptions(NamedTuple):
         impact table reports: the lean path), then the friction work along each coordinate
         as well (n_pairs + n_coords, what the batch metrics read). The works not integrated
         are not in the state (the series gives them as NaN).
-    implicit_rest : bool
-        Integrate a contact at rest (its fast mode holding the explicit step) with the
-        L-stable Radau IIA step (:mod:`braidsim.core.solver.radau`) until its next event;
-        False (the default) keeps Dormand-Prince throughout, and compiles no implicit step.
-        Runs with sensitivities always use Dormand-Prince.
     """
 
     rtol: float
@@ -91,7 +86,6 @@ class SolverOptions(NamedTuple):
     record_events: bool = True
     energy: bool = True
     quadratures: int = -1
-    implicit_rest: bool = False
 
 
 class ImplicitWork(NamedTuple):
