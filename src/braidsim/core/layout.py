@@ -255,10 +255,7 @@ RESTART_DTYPE = np.dtype(
         ("episodes", "f8"),  # rows of the impact table written
         ("implicit", "f8"),  # 1: the next step is an implicit step (a contact at rest)
         ("rest_run", "f8"),  # explicit steps in a row held by a contact's fast mode
-        (
-            "explicit_rate",
-            "f8",
-        ),  # [1/s] evaluations per second of the explicit method, at the switch
+        ("explicit_rate", "f8"),  # [1/s] the explicit method's evaluations per s at the switch
         ("implicit_count", "f8"),  # implicit steps since the switch
         ("implicit_evals", "f8"),  # evaluations of those after the first REST_RAMP
         ("implicit_time", "f8"),  # [s] the time they covered

@@ -272,6 +272,21 @@ def _error(model, t, y, h, K, y1, modes, v0s, n, m, J, LUR, pivr, Z, B, scale):
 
 
 @helper
+def _scale(y, z, m, opts, scale):
+    """scale = atol + rtol max(|y|, |z|) over the coordinates and speeds (z = y: the start's
+    alone), the weights of the Newton and error norms."""
+    for i in range(m):
+        atol = opts.atol_position if i % 2 == 0 else opts.atol_velocity
+        scale[i] = atol + opts.rtol * max(abs(y[i]), abs(z[i]))
+
+
+@helper
+def _newton_tol(rtol):
+    """RADAU5's tolerance of the Newton iterations in the scaled norm."""
+    return max(10.0 * 2.220446049250313e-16 / rtol, min(0.03, math.sqrt(rtol)))
+
+
+@helper
 def _norm(v, scale, m):
     acc = 0.0
     for i in range(m):
@@ -330,20 +345,34 @@ def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, 
         nfev += m
     if not _factor(J, h, m, LUR, pivr, LUC, pivc):
         return ATTEMPT_SINGULAR, math.inf, 0, nfev
-    for i in range(m):
-        atol = opts.atol_position if i % 2 == 0 else opts.atol_velocity
-        scale[i] = atol + opts.rtol * abs(y[i])
-    tol = max(10.0 * 2.220446049250313e-16 / opts.rtol, min(0.03, math.sqrt(opts.rtol)))
+    _scale(y, y, m, opts, scale)
     iters, ne = _newton(
-        model, t, y, h, K, modes, v0s, n, m, J, LUR, pivr, LUC, pivc, Z, W, B, V, scale, tol
+        model,
+        t,
+        y,
+        h,
+        K,
+        modes,
+        v0s,
+        n,
+        m,
+        J,
+        LUR,
+        pivr,
+        LUC,
+        pivc,
+        Z,
+        W,
+        B,
+        V,
+        scale,
+        _newton_tol(opts.rtol),
     )
     nfev += ne
     if iters < 0:
         return ATTEMPT_NO_CONVERGENCE, math.inf, iters, nfev
     _finish(y, Z, n, y1, RC)
-    for i in range(m):
-        atol = opts.atol_position if i % 2 == 0 else opts.atol_velocity
-        scale[i] = atol + opts.rtol * max(abs(y[i]), abs(y1[i]))
+    _scale(y, y1, m, opts, scale)
     err, ne = _error(model, t, y, h, K, y1, modes, v0s, n, m, J, LUR, pivr, Z, B, scale)
     rhs(model, t + h, y1, modes, v0s, n, K[6])
     return ATTEMPT_OK, err, iters, nfev + ne + 1
@@ -360,9 +389,27 @@ def implicit_to(model, t, y, he, theta, K, Ke, modes, v0s, n, m, opts, IMP, ye, 
     nfev = 0
     iters = -1
     if _factor(J, he, m, LUR, pivr, LUC, pivc):
-        tol = max(10.0 * 2.220446049250313e-16 / opts.rtol, min(0.03, math.sqrt(opts.rtol)))
         iters, nfev = _newton(
-            model, t, y, he, Ke, modes, v0s, n, m, J, LUR, pivr, LUC, pivc, Z, W, B, V, scale, tol
+            model,
+            t,
+            y,
+            he,
+            Ke,
+            modes,
+            v0s,
+            n,
+            m,
+            J,
+            LUR,
+            pivr,
+            LUC,
+            pivc,
+            Z,
+            W,
+            B,
+            V,
+            scale,
+            _newton_tol(opts.rtol),
         )
     if iters >= 0:
         _finish(y, Z, n, ye, RC)
