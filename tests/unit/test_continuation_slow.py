@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -265,3 +266,30 @@ def test_period_doubling_curve_ends_where_its_orbit_grazes_the_outer_wall() -> N
     assert abs(end.multipliers[0] + 1) < 1e-6
     # the curve is the doubling all along: at most the corrector's noise in det(M + I)
     assert max(abs(r) for r in c.residuals) < 1e-5
+
+
+def test_lift_off_curve_of_the_paper_example_reaches_the_edge_of_its_range() -> None:
+    """`examples/continuation_paper.toml` with the implicit step for resting contacts: the
+    lift-off curve followed in omega ends with a point on the range's edge, 5 pi rad/s, at
+    the h_a where a branch over h_a at 5 pi lifts off. (That point was lost: the search
+    along the edge started from the last point's h_a, and Newton's method carried the
+    resting orbit from orbits next to the lift-off onto the coexisting bouncing one.)"""
+    import math
+    from pathlib import Path
+
+    from braidsim.continuation.study import load_spec, run_study
+
+    om = "horn_gear.angular_velocity"
+    ex = Path(__file__).resolve().parents[2] / "examples" / "continuation_paper.toml"
+    spec = load_spec(ex)
+    over = {"simulation.resting_contacts": "implicit"}
+    spec = replace(spec, scenario=spec.scenario.with_overrides(over))
+    (c,) = run_study(spec).curves
+    assert c.name == "lift-off" and c.stop == f"left the range of {om} at {5 * math.pi:.6g}"
+    assert len(c.p1) == 3 and c.p2[-1] == pytest.approx(5 * math.pi, rel=1e-12)
+    system = ScenarioSystem(braidsim.load_scenario("paper-3.3", overrides={**over, om: c.p2[-1]}))
+    rest = seed_orbit(system, {HA: 0.05e-3}, 1, method="fd")
+    br = continue_orbit(system, rest, HA, 0.15e-3, method="fd", switch=False, max_points=40)
+    (g, *_) = [s for s in br.special if s.type == "grazing"]
+    print("edge:", c.p1[-1], "branch:", g.value)
+    assert c.p1[-1] == pytest.approx(g.value, rel=1e-6)  # (measured: 3e-9)

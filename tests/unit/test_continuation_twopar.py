@@ -142,6 +142,7 @@ class _TwoFamilies:
 
     def __init__(self, *args) -> None:
         self.calls = 0
+        self.known: list = []
 
     def lam(self, q):
         return float(q[0]), float(q[1])
