@@ -66,14 +66,13 @@ GRAZING_REACH = 0.05
 up to this fraction of the branch step beyond the last orbit found (the family's corrector
 gives up just before a stiff contact lifts off)."""
 BRACKET_TOL = 1e-6
-"""Newton tolerance of the orbits that close a grazing's bracket: they tell on which side
-of it a parameter value lies and how far from it (their distance to grazing, extrapolated to
-zero). Next to a stiff contact's lift-off the flow map's own noise reaches 1e-9 to 1e-7 of
-the scaled residual (the damped contact's force sits at zero for part of the cycle), and
-Newton's method at the continuation's tolerance failed there short of the grazing: on
-paper-3.3 at 4.5 pi rad/s 0.37 % short of where plain runs put the lift-off (1e-7 still
-0.33 % short). At 5 pi rad/s it moved the lift-off by 3.5e-7 of itself, towards a run at
-rtol 1e-12 (0.141109848 -> 0.141109898 mm; 0.141109914 mm at rtol 1e-12)."""
+"""Newton tolerance of a grazing's bisection where, at the continuation's tolerance, its
+bracket closed well short of the family's extrapolated zero: the orbits of the bracket only
+tell on which side of the grazing a parameter value lies and how far from it. Next to a
+stiff contact's lift-off the flow map's own noise reaches 1e-9 to 1e-7 of the scaled
+residual (the damped contact's force sits at zero for part of the cycle), and Newton's
+method at 1e-8 fails there erratically: on paper-3.3 at 4.5 pi rad/s the bracket closed
+0.37 % short of where plain runs put the lift-off (at 1e-7 still 0.33 % short)."""
 LOCATE_RTOL = 1e-9
 """Bracket width, relative to the continuation's parameter scale |to - from|, to which
 fold, period-doubling and Neimark-Sacker points are located."""
@@ -632,13 +631,53 @@ class Continuer:
         bracket closes on where *that* family grazes (a family of the other structure may
         overlap it: hysteresis at a grazing)."""
         sig_a = signature(oa)
-        la, lb = oa.values[self.key], ob.values[self.key]
-        best_a: Orbit = oa
-        best_b: Orbit | None = ob
+        lo, hi = oa.values[self.key], ob.values[self.key]
         hist = [oa]
+        la, lb, best_a, best_b = self._bisect(sig_a, lo, hi, oa, ob, hist, None)
+
+        def zero() -> float | None:
+            # the distance to grazing is linear in the parameter near a regular grazing: the
+            # secant of the last two orbits' approach distances finds its zero when the
+            # corrector gave up before the bracket closed (a stiff contact near lift-off)
+            return grazing_zero([(o.values[self.key], o.profile.approach) for o in hist])
+
+        lg = zero()
+        reach = GRAZING_REACH * abs(hi - lo)
+        if (
+            lg is not None
+            and (lg - la) * (lb - la) > 0
+            and abs(lg - la) > max(reach, abs(lb - la))
+            and (hi - lg) * (hi - lo) > 0
+        ):
+            # the bracket closed well short of the family's zero, which lies before the
+            # other structure's orbit: Newton's method at the continuation's tolerance failed
+            # on the map's own noise (see BRACKET_TOL); the family carried on at that one
+            la, lb, best_a, best_b = self._bisect(sig_a, la, hi, best_a, best_b, hist, BRACKET_TOL)
+            lg = zero()
+        self.grazing_value = float(la)
+        if lg is not None and min(la, lb) <= lg <= max(la, lb):
+            self.grazing_value = float(lg)
+        elif lg is not None and (lg - la) * (lb - la) > 0 and abs(lg - la) <= reach:
+            # the family ends just short of its zero (Newton's iterates fall onto the other
+            # structure next to a stiff contact's lift-off): extrapolated, as past_grazing does
+            self.grazing_value = float(lg)
+        return best_a, best_b
+
+    def _bisect(
+        self,
+        sig_a: tuple[Any, ...],
+        la: float,
+        lb: float,
+        best_a: Orbit,
+        best_b: Orbit | None,
+        hist: list[Orbit],
+        tol: float | None,
+    ) -> tuple[float, float, Orbit, Orbit | None]:
+        """Bisection of :meth:`_locate_grazing` from the bracket (la, lb); the orbits of
+        ``sig_a`` found are appended to ``hist``. Returns the bracket and its end orbits."""
         for _ in range(40):
             lam = 0.5 * (la + lb)
-            o = self._carry(best_a, lam, sig_a, hist[-2] if len(hist) > 1 else None, BRACKET_TOL)
+            o = self._carry(best_a, lam, sig_a, hist[-2] if len(hist) > 1 else None, tol)
             if o is not None and signature(o) == sig_a:
                 la, best_a = lam, o
                 hist.append(o)
@@ -648,22 +687,7 @@ class Continuer:
                     best_b = o
             if abs(lb - la) < 1e-7 * self.pscale:
                 break
-        self.grazing_value = float(la)
-        # the distance to grazing is linear in the parameter near a regular grazing: the
-        # secant of the last two orbits' approach distances finds its zero when the corrector
-        # gave up before the bracket closed (a stiff contact near lift-off)
-        lg = grazing_zero([(o.values[self.key], o.profile.approach) for o in hist])
-        if lg is not None and min(la, lb) <= lg <= max(la, lb):
-            self.grazing_value = float(lg)
-        elif (
-            lg is not None
-            and (lg - la) * (lb - la) > 0
-            and abs(lg - la) <= GRAZING_REACH * abs(ob.values[self.key] - oa.values[self.key])
-        ):
-            # the family ends just short of its zero (Newton's iterates fall onto the other
-            # structure next to a stiff contact's lift-off): extrapolated, as past_grazing does
-            self.grazing_value = float(lg)
-        return best_a, best_b
+        return la, lb, best_a, best_b
 
     def _carry(
         self,
