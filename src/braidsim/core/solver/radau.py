@@ -66,6 +66,7 @@ SQRT_EPS = 1.4901161193847656e-08
 ATTEMPT_OK = 0
 ATTEMPT_NO_CONVERGENCE = -1  # the collocation equations did not converge: retry shorter
 ATTEMPT_SINGULAR = -2  # a linear system is singular
+NEWTON_SINGULAR = -2  # :func:`_collocate`'s iterations where a linear system is singular
 
 
 @helper
@@ -313,6 +314,39 @@ def _finish(y, Z, n, y1, RC):
 
 
 @helper
+def _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP):
+    """The factors for step size h, then the collocation equations of the step from (t, y)
+    solved by :func:`_newton` (norm weights in ``IMP.scale``). Returns (iterations,
+    evaluations): iterations NEWTON_SINGULAR where a system is singular, otherwise as
+    :func:`_newton`'s."""
+    J, LUR, pivr, LUC, pivc = IMP.J, IMP.LUR, IMP.pivr, IMP.LUC, IMP.pivc
+    if not _factor(J, h, m, LUR, pivr, LUC, pivc):
+        return NEWTON_SINGULAR, 0
+    return _newton(
+        model,
+        t,
+        y,
+        h,
+        K,
+        modes,
+        v0s,
+        n,
+        m,
+        J,
+        LUR,
+        pivr,
+        LUC,
+        pivc,
+        IMP.Z,
+        IMP.W,
+        IMP.B,
+        IMP.V,
+        IMP.scale,
+        _newton_tol(opts.rtol),
+    )
+
+
+@helper
 def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, y1, RC):
     """One attempt of a Radau IIA step of size h from (t, y), K[0] = f(t, y).
 
@@ -322,8 +356,8 @@ def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, 
     explicit method's FSAL stage). Returns (ATTEMPT_*, error norm, Newton iterations,
     evaluations).
     """
-    J, LUR, pivr, LUC, pivc = IMP.J, IMP.LUR, IMP.pivr, IMP.LUC, IMP.pivc
-    Z, W, B, V, scale = IMP.Z, IMP.W, IMP.B, IMP.V, IMP.scale
+    J, LUR, pivr = IMP.J, IMP.LUR, IMP.pivr
+    Z, B, scale = IMP.Z, IMP.B, IMP.scale
     nfev = 0
     if not jac_fresh:
         _jacobian(
@@ -343,31 +377,10 @@ def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, 
             B[0],
         )
         nfev += m
-    if not _factor(J, h, m, LUR, pivr, LUC, pivc):
-        return ATTEMPT_SINGULAR, math.inf, 0, nfev
     _scale(y, y, m, opts, scale)
-    iters, ne = _newton(
-        model,
-        t,
-        y,
-        h,
-        K,
-        modes,
-        v0s,
-        n,
-        m,
-        J,
-        LUR,
-        pivr,
-        LUC,
-        pivc,
-        Z,
-        W,
-        B,
-        V,
-        scale,
-        _newton_tol(opts.rtol),
-    )
+    iters, ne = _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP)
+    if iters == NEWTON_SINGULAR:
+        return ATTEMPT_SINGULAR, math.inf, 0, nfev
     nfev += ne
     if iters < 0:
         return ATTEMPT_NO_CONVERGENCE, math.inf, iters, nfev
@@ -384,35 +397,9 @@ def implicit_to(model, t, y, he, theta, K, Ke, modes, v0s, n, m, opts, IMP, ye, 
     fills ye, RC and Ke[6] = f(t + he, ye) (Ke[0] = K[0]). Should the equations over the
     shorter step not converge, the state at the event is the collocation polynomial's (order
     3 there instead of 5), restricted to [0, theta]. Returns the evaluations."""
-    J, LUR, pivr, LUC, pivc = IMP.J, IMP.LUR, IMP.pivr, IMP.LUC, IMP.pivc
-    Z, W, B, V, scale = IMP.Z, IMP.W, IMP.B, IMP.V, IMP.scale
-    nfev = 0
-    iters = -1
-    if _factor(J, he, m, LUR, pivr, LUC, pivc):
-        iters, nfev = _newton(
-            model,
-            t,
-            y,
-            he,
-            Ke,
-            modes,
-            v0s,
-            n,
-            m,
-            J,
-            LUR,
-            pivr,
-            LUC,
-            pivc,
-            Z,
-            W,
-            B,
-            V,
-            scale,
-            _newton_tol(opts.rtol),
-        )
+    iters, nfev = _collocate(model, t, y, he, Ke, modes, v0s, n, m, opts, IMP)
     if iters >= 0:
-        _finish(y, Z, n, ye, RC)
+        _finish(y, IMP.Z, n, ye, RC)
     else:
         radau_restrict(RC, theta, n, ye)
     rhs(model, t + he, ye, modes, v0s, n, Ke[6])
