@@ -226,6 +226,26 @@ def test_an_inlined_implementation_is_typed_for_its_callers_and_never_compiled_a
         twice(Broken(1.0), 2.0)
 
 
+def test_a_helper_called_from_python_says_so() -> None:
+    """A helper is compiled without the wrapper that would let Python call it: a call from
+    Python raises a TypeError that names it, and the same helper works from compiled code."""
+    import numba
+
+    from braidsim.core.generic import helper
+
+    @helper
+    def halve(x):
+        return 0.5 * x
+
+    @numba.njit
+    def caller(x):
+        return halve(x)
+
+    assert caller(3.0) == 1.5
+    with pytest.raises(TypeError, match="halve is compiled to be called from the solver"):
+        halve(3.0)
+
+
 def test_a_record_passed_by_reference_reads_as_the_record() -> None:
     """A record handed to a called helper by reference (one pointer, not one argument per
     field) gives the same values as the record itself: scalars, a bool, a nested record, 1-D

@@ -14,6 +14,7 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
+from numba import njit
 
 from braidsim import contact
 from braidsim.core import ImpactOscillator, PowerLawContact, derivatives, run, state_size
@@ -23,6 +24,19 @@ from braidsim.core.solver.pairs import I_DFC, I_DN, I_FC, I_FK, I_N, I_P, I_PD, 
 from braidsim.model import build_model
 from braidsim.params import load_scenario
 from braidsim.simulate import simulate
+
+# the solver's helpers are compiled to be called from compiled code, as the solver calls them
+
+
+@njit
+def _step_and_interpolant(rec, t, y, h, K, modes, v0s, n, yt, y1, RC):
+    rk_step(rec, t, y, h, K, modes, v0s, n, yt, y1)
+    dense_coeffs(y, y1, h, K, RC, n)
+
+
+@njit
+def _pair_info(rec, pair, t, y, f, mode, v0, out):
+    pair_info(rec, pair, t, y, f, mode, v0, out)
 
 
 def _one_contact_step() -> tuple[object, np.ndarray, float, float, np.ndarray, int]:
@@ -43,8 +57,7 @@ def _one_contact_step() -> tuple[object, np.ndarray, float, float, np.ndarray, i
     K = np.empty((7, n))
     derivatives.py(rec, t, y, modes, v0s, n, K[0])
     yt, y1, RC = np.empty(n), np.empty(n), np.empty((5, n))
-    rk_step(rec, t, y, h, K, modes, v0s, n, yt, y1)
-    dense_coeffs(y, y1, h, K, RC, n)
+    _step_and_interpolant(rec, t, y, h, K, modes, v0s, n, yt, y1, RC)
     return rec, K, t, h, RC, n
 
 
@@ -75,7 +88,7 @@ def test_pair_summary_slopes_are_the_time_derivatives_of_the_forces() -> None:
         for th, out in ((theta, info), (theta + e, ip), (theta - e, im)):
             dense_eval(th, RC, ys, n)
             dense_deriv(th, h, RC, yd, 2)
-            pair_info(rec, 0, t + th * h, ys, yd, -1, v0, out)
+            _pair_info(rec, 0, t + th * h, ys, yd, -1, v0, out)
         dt = 2 * e * h
         assert info[I_P] > 0.0
         assert info[I_N] == pytest.approx(info[I_FK] + info[I_FC], rel=1e-14)

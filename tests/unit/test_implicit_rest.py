@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from numba import njit
 
 from braidsim.core import ImpactOscillator, KelvinVoigtContact, RawRun, run
 from braidsim.core import layout as L
@@ -25,6 +26,27 @@ from braidsim.simulate import simulate
 M, KC, CC = 1.0, 1e6, 1e5  # mass [kg], wall stiffness [N/m] and damping [N s/m]
 F, OMEGA = 10.0, 2.0  # pressing force amplitude [N] and its angular frequency [rad/s]
 GAP, V0, T_END = 1e-3, 1e-4, 0.3  # the wall at x = GAP; the body on it moving in at V0
+
+
+# the solver's helpers are compiled to be called from compiled code, as the solver calls them
+@njit
+def _finish(y, Z, n, y1, RC):
+    radau._finish(y, Z, n, y1, RC)
+
+
+@njit
+def _factor(J, h, m, LUR, pivr, LUC, pivc):
+    return radau._factor(J, h, m, LUR, pivr, LUC, pivc)
+
+
+@njit
+def _solve_real(J, LUR, pivr, h, n, m, b):
+    radau._solve_real(J, LUR, pivr, h, n, m, b)
+
+
+@njit
+def _solve_complex(J, LUC, pivc, h, n, m, br, bi, v):
+    radau._solve_complex(J, LUC, pivc, h, n, m, br, bi, v)
 
 
 def _closed_form(t: float) -> tuple[float, float]:
@@ -69,7 +91,7 @@ def test_the_collocation_polynomial_is_the_one_of_the_stages() -> None:
     Z = rng.normal(size=(3, n))
     y1 = np.empty(n)
     RC = np.empty((5, n))
-    radau._finish(y, Z, n, y1, RC)
+    _finish(y, Z, n, y1, RC)
     np.testing.assert_allclose(y1, y + Z[2], rtol=1e-15)
     for c, z in ((radau.RC1, Z[0]), (radau.RC2, Z[1]), (1.0, Z[2])):
         th1 = 1.0 - c
@@ -88,16 +110,16 @@ def test_the_newton_systems_are_solved_exactly(m: int) -> None:
     J[0, 0] = 1e-9
     h = 1e-4
     W = L.implicit_work(n, m)
-    assert radau._factor(J, h, m, W.LUR, W.pivr, W.LUC, W.pivc)
+    assert _factor(J, h, m, W.LUR, W.pivr, W.LUC, W.pivc)
     Jf = np.zeros((n, n))
     Jf[:, :m] = J
     br, bi = rng.normal(size=n), rng.normal(size=n)
     x = br.copy()
-    radau._solve_real(J, W.LUR, W.pivr, h, n, m, x)
+    _solve_real(J, W.LUR, W.pivr, h, n, m, x)
     ref = np.linalg.solve(radau.MU_REAL / h * np.eye(n) - Jf, br)
     np.testing.assert_allclose(x, ref, rtol=1e-12)
     xr, xi = br.copy(), bi.copy()
-    radau._solve_complex(J, W.LUC, W.pivc, h, n, m, xr, xi, W.V)
+    _solve_complex(J, W.LUC, W.pivc, h, n, m, xr, xi, W.V)
     mu = complex(radau.MU_RE, radau.MU_IM) / h
     ref_c = np.linalg.solve(mu * np.eye(n) - Jf, br + 1j * bi)
     np.testing.assert_allclose(xr + 1j * xi, ref_c, rtol=1e-12)

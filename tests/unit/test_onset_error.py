@@ -7,11 +7,18 @@ import math
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy.integrate._ivp.rk import RK45
 
 from braidsim.core import ImpactOscillator, PowerLawContact, run
 from braidsim.core import layout as L
-from braidsim.core.solver.dopri5 import onset_error_ratio
+from braidsim.core.solver.dopri5 import onset_error_ratio as _compiled_ratio
+
+
+@njit
+def onset_error_ratio(q: float) -> float:
+    """The solver's helper, called as the solver calls it: from compiled code."""
+    return _compiled_ratio(q)
 
 
 def _ratio_from_scipy_tableau(n: float) -> float:
