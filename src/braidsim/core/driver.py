@@ -295,8 +295,9 @@ def run(
         if status == L.ST_EPISODES_FULL:
             _flush_episodes(EP, RS, closed, None if SENS is None else (SENS.ESENS, sens_closed))
     episodes = np.concatenate(closed)
-    # in order of onset (a contact open across a flush was written after later ones)
-    by_onset = np.argsort(episodes["t"], kind="stable")
+    # in order of onset (a contact open across a flush was written after later ones), and
+    # of pair where two begin at once (at the start: the order an uninterrupted run opens them)
+    by_onset = np.lexsort((episodes["pair"], episodes["t"]))
     episodes = episodes[by_onset]
     _close_open(episodes, RS, y, model, n)
     series_rows = None
