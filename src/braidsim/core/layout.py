@@ -109,6 +109,10 @@ class ImplicitWork(NamedTuple):
         Scratch of the complex solve.
     scale : array (m,)
         atol + rtol |y| of the Newton and error norms.
+    Q : array (3, n)
+        The collocation polynomial y + Q_1 theta + Q_2 theta^2 + Q_3 theta^3 of the last
+        accepted implicit step, whose extrapolation starts the next step's Newton iterations
+        (valid while the restart record's ``implicit_prev_h`` is not 0).
     """
 
     J: np.ndarray
@@ -121,6 +125,7 @@ class ImplicitWork(NamedTuple):
     B: np.ndarray
     V: np.ndarray
     scale: np.ndarray
+    Q: np.ndarray
 
 
 def implicit_work(n: int, m: int) -> ImplicitWork:
@@ -136,6 +141,7 @@ def implicit_work(n: int, m: int) -> ImplicitWork:
         np.empty((4, n)),
         np.empty(2 * m),
         np.empty(m),
+        np.zeros((3, n)),
     )
 
 
@@ -260,6 +266,7 @@ RESTART_DTYPE = np.dtype(
         ("implicit_evals", "f8"),  # evaluations of those after the first REST_RAMP
         ("implicit_time", "f8"),  # [s] the time they covered
         ("rest_blocked", "f8"),  # 1: the implicit step did not pay; explicit until an event
+        ("implicit_prev_h", "f8"),  # [s] the last step, when implicit (its polynomial in Q)
     ]
 )
 

@@ -54,7 +54,13 @@ from braidsim.core.solver.dopri5 import (
 )
 from braidsim.core.solver.events import N_SUB, locate_event, sample_events
 from braidsim.core.solver.pairs import I_DN, I_PD, NI, gaps, pair_infos
-from braidsim.core.solver.radau import ATTEMPT_OK, implicit_attempt, implicit_to, radau_safety
+from braidsim.core.solver.radau import (
+    ATTEMPT_OK,
+    implicit_attempt,
+    implicit_to,
+    keep_polynomial,
+    radau_safety,
+)
 from braidsim.core.solver.recorders import (
     close_episode,
     episode_start_values,
@@ -434,7 +440,21 @@ def integrate(
                 took_implicit = True
                 nsteps += 1
                 code, err, newton_iters, nfev = implicit_attempt(
-                    model, t, y, h, K, modes, v0s, n, n_dof2, opts, jac_fresh, IMP, y1, RC
+                    model,
+                    t,
+                    y,
+                    h,
+                    K,
+                    modes,
+                    v0s,
+                    n,
+                    n_dof2,
+                    opts,
+                    jac_fresh,
+                    IMP,
+                    y1,
+                    RC,
+                    r.implicit_prev_h,
                 )
                 st.rhs_evaluations += nfev
                 jac_fresh = True
@@ -611,6 +631,11 @@ def integrate(
         st.steps += 1
         if IMP is not None:
             jac_fresh = False
+            # a whole implicit step's polynomial starts the next one's Newton iterations
+            r.implicit_prev_h = 0.0
+            if took_implicit and j_ev < 0:
+                keep_polynomial(RC, n, IMP.Q)
+                r.implicit_prev_h = h
             if took_implicit:
                 st.implicit_steps += 1
                 r.implicit_count += 1

@@ -193,18 +193,36 @@ def _solve_complex(J, LUC, pivc, h, n, m, br, bi, v):
 
 
 @helper
-def _newton(model, t, y, h, K, modes, v0s, n, m, J, LUR, pivr, LUC, pivc, Z, W, B, V, scale, tol):
+def _newton(
+    model, t, y, h, K, modes, v0s, n, m, J, LUR, pivr, LUC, pivc, Z, W, B, V, scale, tol, Q, hq
+):
     """Solve the collocation equations of the step of size h from (t, y) (K[0] = f(t, y);
-    the factors for this h) by simplified Newton iterations from Z_i = c_i h f(t, y); the
-    stage derivatives go to K[1..3]. Returns (iterations, evaluations); iterations < 0 when
-    they did not converge. On success Z holds the stages' increments."""
+    the factors for this h) by simplified Newton iterations; the stage derivatives go to
+    K[1..3]. Returns (iterations, evaluations); iterations < 0 when they did not converge.
+    On success Z holds the stages' increments.
+
+    The iterations start, as RADAU5's, from the collocation polynomial of the previous step
+    (of size ``hq``, coefficients Q; this step starts at its end) extrapolated to this step's
+    nodes: with s = c_i h / hq, Z_i = s (Q_1 + (2 + s) Q_2 + (3 + 3 s + s^2) Q_3), that is
+    P(1 + s) - P(1) written without the difference. Without one (``hq`` = 0: the first
+    implicit step after the explicit method, an event or a new run), from Z_i = c_i h f(t, y).
+    The predictive test below gives up on iterations that cannot converge within
+    NEWTON_MAXITER; from the crude start its first increment is ~1e4 tolerances, and a
+    carrier resting on the outer wall of paper-3.3 had most of its steps rejected so, though
+    the iterations converged (rates 0.05-0.23)."""
     mr = MU_REAL / h
     a = MU_RE / h
     b = MU_IM / h
     for i in range(n):
-        Z[0, i] = RC1 * h * K[0, i]
-        Z[1, i] = RC2 * h * K[0, i]
-        Z[2, i] = h * K[0, i]
+        if hq > 0.0:
+            for s in range(3):
+                cs = RC1 if s == 0 else (RC2 if s == 1 else 1.0)
+                x = cs * h / hq
+                Z[s, i] = x * (Q[0, i] + (2.0 + x) * Q[1, i] + (3.0 + x * (3.0 + x)) * Q[2, i])
+        else:
+            Z[0, i] = RC1 * h * K[0, i]
+            Z[1, i] = RC2 * h * K[0, i]
+            Z[2, i] = h * K[0, i]
         W[0, i] = TI11 * Z[0, i] + TI12 * Z[1, i] + TI13 * Z[2, i]
         W[1, i] = TI21 * Z[0, i] + TI22 * Z[1, i] + TI23 * Z[2, i]
         W[2, i] = TI31 * Z[0, i] + TI32 * Z[1, i] + TI33 * Z[2, i]
@@ -314,9 +332,10 @@ def _finish(y, Z, n, y1, RC):
 
 
 @helper
-def _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP):
+def _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP, hq):
     """The factors for step size h, then the collocation equations of the step from (t, y)
-    solved by :func:`_newton` (norm weights in ``IMP.scale``). Returns (iterations,
+    solved by :func:`_newton` (norm weights in ``IMP.scale``; started from the polynomial
+    ``IMP.Q`` of a previous step of size ``hq``, if not 0). Returns (iterations,
     evaluations): iterations NEWTON_SINGULAR where a system is singular, otherwise as
     :func:`_newton`'s."""
     J, LUR, pivr, LUC, pivc = IMP.J, IMP.LUR, IMP.pivr, IMP.LUC, IMP.pivc
@@ -343,15 +362,18 @@ def _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP):
         IMP.V,
         IMP.scale,
         _newton_tol(opts.rtol),
+        IMP.Q,
+        hq,
     )
 
 
 @helper
-def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, y1, RC):
+def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, y1, RC, hq):
     """One attempt of a Radau IIA step of size h from (t, y), K[0] = f(t, y).
 
     Takes the Jacobian at (t, y) unless ``jac_fresh`` (an attempt from the same point was
-    rejected), factors, solves the collocation equations; on success fills y1, the dense
+    rejected), factors, solves the collocation equations (from the previous implicit step's
+    polynomial ``IMP.Q`` when ``hq``, its size, is not 0); on success fills y1, the dense
     coefficients RC and K[6] = f(t + h, y1) (the next step's first derivative, as the
     explicit method's FSAL stage). Returns (ATTEMPT_*, error norm, Newton iterations,
     evaluations).
@@ -378,7 +400,7 @@ def implicit_attempt(model, t, y, h, K, modes, v0s, n, m, opts, jac_fresh, IMP, 
         )
         nfev += m
     _scale(y, y, m, opts, scale)
-    iters, ne = _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP)
+    iters, ne = _collocate(model, t, y, h, K, modes, v0s, n, m, opts, IMP, hq)
     if iters == NEWTON_SINGULAR:
         return ATTEMPT_SINGULAR, math.inf, 0, nfev
     nfev += ne
@@ -397,13 +419,24 @@ def implicit_to(model, t, y, he, theta, K, Ke, modes, v0s, n, m, opts, IMP, ye, 
     fills ye, RC and Ke[6] = f(t + he, ye) (Ke[0] = K[0]). Should the equations over the
     shorter step not converge, the state at the event is the collocation polynomial's (order
     3 there instead of 5), restricted to [0, theta]. Returns the evaluations."""
-    iters, nfev = _collocate(model, t, y, he, Ke, modes, v0s, n, m, opts, IMP)
+    iters, nfev = _collocate(model, t, y, he, Ke, modes, v0s, n, m, opts, IMP, 0.0)
     if iters >= 0:
         _finish(y, IMP.Z, n, ye, RC)
     else:
         radau_restrict(RC, theta, n, ye)
     rhs(model, t + he, ye, modes, v0s, n, Ke[6])
     return nfev + 1
+
+
+@helper
+def keep_polynomial(RC, n, Q):
+    """Q = the coefficients of the collocation polynomial of the step whose dense
+    coefficients RC :func:`_finish` wrote (q3 = -r3, q2 = r3 - r2, q1 = r1 + r2): the next
+    implicit step's Newton start."""
+    for i in range(n):
+        Q[0, i] = RC[1, i] + RC[2, i]
+        Q[1, i] = RC[3, i] - RC[2, i]
+        Q[2, i] = -RC[3, i]
 
 
 @helper
