@@ -353,8 +353,26 @@ def get_law(name: str) -> ContactLaw:
 GEOMETRIES = ("concave", "convex", "flat")
 
 
+def _check(
+    name: str, value: float, low: float, high: float = math.inf, low_open: bool = True
+) -> float:
+    """``value`` as a float when low < value (or <=, ``low_open=False``) and value < high;
+    an :class:`InputError` naming ``name`` and the allowed range otherwise (the public
+    functions of this module are called from the API with numbers the scenario checks do
+    not see)."""
+    v = float(value)
+    ok = (v > low if low_open else v >= low) and v < high and math.isfinite(v)
+    if not ok:
+        rel = ">" if low_open else ">="
+        upper = f" and < {high:g}" if math.isfinite(high) else ""
+        raise InputError(f"{name}: {value!r} is out of range; allowed {rel} {low:g}{upper}")
+    return v
+
+
 def effective_modulus(e1: float, nu1: float, e2: float, nu2: float) -> float:
-    """E* = ((1 - nu1^2)/E1 + (1 - nu2^2)/E2)^-1 [Pa] (Eq. 4)."""
+    """E* = ((1 - nu1^2)/E1 + (1 - nu2^2)/E2)^-1 [Pa] (Eq. 4); E > 0, -1 < nu < 0.5."""
+    e1, e2 = _check("e1", e1, 0.0), _check("e2", e2, 0.0)
+    nu1, nu2 = _check("nu1", nu1, -1.0, 0.5), _check("nu2", nu2, -1.0, 0.5)
     return 1.0 / ((1.0 - nu1**2) / e1 + (1.0 - nu2**2) / e2)
 
 
@@ -365,6 +383,9 @@ def effective_radius(r1: float, r2: float, geometry: str) -> float:
     track), R = (1/r1 - 1/r2)^-1. ``convex``: two convex bodies, R = (1/r1 + 1/r2)^-1.
     ``flat``: a body of radius r1 on a plane, R = r1 (r2 is not used).
     """
+    r1 = _check("r1", r1, 0.0)
+    if geometry in ("convex", "concave") and not float(r2) > 0.0:  # (+inf: a plane)
+        raise InputError(f"r2: {r2!r} is out of range; allowed > 0 (inf for a plane)")
     if geometry == "flat":
         return r1
     if geometry == "convex":
@@ -424,13 +445,20 @@ def hertz_impact_closed_form(
 
 
 def resting_depth(load: float, stiffness: float, exponent: float) -> float:
-    """Static penetration under a constant load: (F / K)^(1/n) [m]."""
+    """Static penetration under a constant load: (F / K)^(1/n) [m]; F >= 0, K > 0, n > 0."""
+    load = _check("load", load, 0.0, low_open=False)
+    stiffness = _check("stiffness", stiffness, 0.0)
+    exponent = _check("exponent", exponent, 0.0)
     return float((load / stiffness) ** (1.0 / exponent))
 
 
 def damping_factors(c_r: float) -> dict[str, float]:
-    """D(c_r) of every law, keyed by name."""
-    return {name: law.damping_factor(c_r) for name, law in _LAWS.items()}
+    """D(c_r) of every law, keyed by name; 0 < c_r <= 1 (the scenario's range of a
+    restitution coefficient)."""
+    c = _check("c_r", c_r, 0.0)
+    if c > 1.0:
+        raise InputError(f"c_r: {c_r!r} is out of range; allowed > 0 and <= 1")
+    return {name: law.damping_factor(c) for name, law in _LAWS.items()}
 
 
 def restitution_table(c_values: np.ndarray) -> dict[str, np.ndarray]:

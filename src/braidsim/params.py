@@ -22,9 +22,9 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from braidsim.contact import GEOMETRIES, law_names
+from braidsim.contact import GEOMETRIES, get_law, law_names
 from braidsim.errors import InputError
-from braidsim.units import to_si
+from braidsim.units import force_per_length_power, to_si
 
 PI = math.pi
 
@@ -417,8 +417,35 @@ def convert(spec: ParamSpec, value: Any) -> Any:
         ) from None
 
 
+def _is_stiffness(key: str) -> bool:
+    """Whether ``key`` is a contact stiffness, whose unit N/m^n depends on the exponent n."""
+    return key.startswith("contact.") and key.endswith(".stiffness")
+
+
+class _StiffnessIn(float):
+    """A contact stiffness read from a string with a unit, in SI (N/m^n), carrying the n of
+    that unit until :func:`_resolve_stiffness` checks it against the pair's exponent."""
+
+    exponent: float
+
+
 def _convert(spec: ParamSpec, value: Any) -> Any:
     key = spec.key
+    if spec.kind == "float" and _is_stiffness(key) and isinstance(value, str):
+        n = force_per_length_power(key, value)
+        if n is not None:
+            out = _StiffnessIn(spec.check_number(to_si(key, value, f"N/m**{n!r}")))
+            out.exponent = n
+            return out
+        try:
+            return spec.check_number(to_si(key, value, ""))
+        except InputError as exc:
+            if "wrong unit" not in str(exc):
+                raise
+            raise InputError(
+                f"{key}: {value!r} has the wrong unit; expected a quantity in N/m^n, n the "
+                "pair's force exponent (e.g. '1e9 N/m^1.5')"
+            ) from None
     if spec.kind == "float":
         return spec.check_number(to_si(key, value, spec.unit))
     if spec.kind == "int":
@@ -525,6 +552,7 @@ class Scenario:
                 raise _unknown(key)
             raw[key] = convert(SCHEMA[key], value)
             explicit.add(key)
+        _resolve_stiffness(raw)
         _check_consistency(raw)
         return Scenario(
             name or self.name,
@@ -545,6 +573,27 @@ class Scenario:
             return v
 
         return {k: plain(v) for k, v in self.values.items()}
+
+
+def _resolve_stiffness(values: dict[str, Any]) -> None:
+    """Check a contact stiffness written with a unit against its pair, in place: its unit is
+    N/m^n with n the pair's exponent (``contact.PAIR.exponent``, or the law's own), so
+    ``"1e9 N/m^1.5"`` is accepted only where n = 1.5; any other power of length is refused
+    naming the key and the unit expected. The value becomes a plain float."""
+    for pair in ("track", "slot"):
+        key = f"contact.{pair}.stiffness"
+        value = values[key]
+        if not isinstance(value, _StiffnessIn):
+            continue
+        n = values[f"contact.{pair}.exponent"]
+        if n is None:
+            n = get_law(values[f"contact.{pair}.model"]).default_exponent
+        if abs(value.exponent - float(n)) > 1e-12 * float(n):
+            raise InputError(
+                f"{key}: a quantity in N/m^{value.exponent:g} has the wrong unit; expected "
+                f"N/m^{float(n):g} (n = {float(n):g}, the {pair} pair's exponent)"
+            )
+        values[key] = float(value)
 
 
 def _check_consistency(values: Mapping[str, Any]) -> None:
@@ -665,6 +714,7 @@ def load_scenario(
             raise _unknown(key)
         values[key] = convert(SCHEMA[key], value)
         explicit.add(key)
+    _resolve_stiffness(values)
     base = Scenario(
         name,
         MappingProxyType(values),

@@ -17,6 +17,7 @@ from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
 from braidsim.result import Result, State
+from braidsim.units import to_si
 
 
 def _windows(
@@ -193,11 +194,11 @@ SERIES_MEMORY = 64 * 2**20
 
 def simulate(
     scenario: Scenario | str | Path | Mapping[str, Any],
-    duration: float | None = None,
+    duration: float | str | None = None,
     *,
     overrides: Mapping[str, Any] | None = None,
     windows: Sequence[tuple[float, float]] | None = None,
-    sample_interval: float | None = None,
+    sample_interval: float | str | None = None,
     sample_times: Sequence[float] | np.ndarray | None = None,
     record_events: bool = True,
     start: State | None = None,
@@ -211,15 +212,17 @@ def simulate(
     ----------
     scenario : Scenario, str, Path or mapping
         A loaded scenario, a built-in name, a TOML path, or ``{dotted key: value}``.
-    duration : float, optional
-        Simulated time [s]; default ``simulation.duration``.
+    duration : float or str, optional
+        Simulated time [s] (or a string with a unit, ``"0.1 s"``); default
+        ``simulation.duration``.
     overrides : mapping, optional
         Extra ``{key: value}`` applied on top of the scenario.
     windows : sequence of (t0, t1), optional
         Extra time windows [s] over which the exact ranges of depth and forces are kept
         (window 0 is always the whole run).
-    sample_interval : float, optional
-        Spacing of the sampled series [s]; default ``simulation.sample_interval``;
+    sample_interval : float or str, optional
+        Spacing of the sampled series [s] (or a string with a unit); default
+        ``simulation.sample_interval``;
         0 keeps only the event rows.
     sample_times : array, optional
         Explicit sample times [s] (replaces ``sample_interval``).
@@ -253,8 +256,17 @@ def simulate(
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if overrides:
         sc = sc.with_overrides(overrides)
-    if duration is not None and not (math.isfinite(duration) and duration > 0):
-        raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
+    if duration is not None:
+        duration = to_si("duration", duration, "s")  # a number in s or a string with a unit
+        if not (math.isfinite(duration) and duration > 0):
+            raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
+    if sample_interval is not None:
+        sample_interval = to_si("sample_interval", sample_interval, "s")
+    if start is not None and not isinstance(start, State):
+        raise InputError(
+            f"start: expected the State of an earlier run (Result.final_state), got "
+            f"{type(start).__name__}"
+        )
     t_start = 0.0 if start is None else float(start.t)
     keys = tuple(sensitivities or ())
     if isinstance(sensitivities, str):

@@ -314,6 +314,45 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
     return _checked(key, value, unit, mag, out), False
 
 
+def force_per_length_power(key: str, value: str) -> float | None:
+    """The exponent n when the unit of the quantity string ``value`` is a force per length
+    to the power n (``"1e9 N/m^1.5"``: 1.5; ``"3 kN/mm"``: 1.0), None for any other unit
+    or no unit: the unit of a contact stiffness K [N/m^n] says which n it was written for.
+
+    Raises
+    ------
+    InputError
+        The unit part does not parse (as :func:`to_si` would say).
+    """
+    m = _NUMBER.match(value.strip())
+    rest = value.strip()[m.end() :].strip() if m is not None else value.strip()
+    if not rest:
+        return None
+    import pint
+
+    try:
+        q: Any = registry().parse_expression(_check_unit_text(key, value, rest))
+    except InputError:
+        raise
+    except Exception as exc:  # pint raises several exception types for unknown names
+        raise InputError(
+            f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
+        ) from None
+    dims = dict(q.dimensionality) if isinstance(q, pint.Quantity) else {}
+    if (
+        dims.get("[mass]") != 1
+        or dims.get("[time]") != -2
+        or set(dims)
+        - {
+            "[mass]",
+            "[time]",
+            "[length]",
+        }
+    ):
+        return None
+    return 1.0 - float(dims.get("[length]", 0))  # type: ignore[arg-type]
+
+
 def _checked(key: str, value: str, unit: str, mag: float, out: float) -> float:
     """``out``, the quantity ``value`` (magnitude ``mag``) in ``unit``, unless a finite
     magnitude became infinite or NaN in the conversion (an :class:`InputError`)."""

@@ -10,6 +10,7 @@ import pytest
 from scipy import integrate
 
 from braidsim import contact
+from braidsim.errors import InputError
 
 C = 5.0 / 9.0
 
@@ -102,3 +103,30 @@ def test_hertz_closed_form_duration_factor() -> None:
     # Johnson (1985): T = 2.94 p_m / v0 for n = 3/2
     cf = contact.hertz_impact_closed_form(1.0, 1e10, 1.5, 1.0)
     assert cf["contact_duration"] * 1.0 / cf["max_depth"] == pytest.approx(2.9432, rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    ("call", "name"),
+    [
+        (lambda: contact.hertz_stiffness(-2e9, 0.3, 0.02, 2e11, 0.3, 0.065, "concave"), "e1"),
+        (lambda: contact.hertz_stiffness(2e9, 0.6, 0.02, 2e11, 0.3, 0.065, "concave"), "nu1"),
+        (lambda: contact.hertz_stiffness(2e9, 0.3, 0.0, 2e11, 0.3, 0.065, "flat"), "r1"),
+        (lambda: contact.effective_radius(0.02, -1.0, "convex"), "r2"),
+        (lambda: contact.resting_depth(-1.0, 1e9, 1.5), "load"),
+        (lambda: contact.resting_depth(1.0, 0.0, 1.5), "stiffness"),
+        (lambda: contact.damping_factors(0.0), "c_r"),
+        (lambda: contact.damping_factors(2.0), "c_r"),
+    ],
+)
+def test_the_public_formulas_refuse_out_of_range_arguments_by_name(call, name: str) -> None:
+    """One InputError naming the argument and its range, not a ZeroDivisionError, a complex
+    number or a negative damping factor."""
+    with pytest.raises(InputError) as err:
+        call()
+    msg = str(err.value)
+    assert msg.startswith(f"{name}: ") and "allowed" in msg and "\n" not in msg
+
+
+def test_a_plane_is_an_infinite_radius() -> None:
+    assert contact.effective_radius(0.02, math.inf, "convex") == pytest.approx(0.02)
+    assert contact.resting_depth(0.0, 1e9, 1.5) == 0.0

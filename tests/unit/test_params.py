@@ -75,6 +75,11 @@ def test_overrides_and_extends(tmp_path) -> None:
         ({"contact.track.model": "hunt_crosley"}, "did you mean 'hunt_crossley'"),
         ({"friction.law": "coulomb"}, "allowed one of"),
         ({"materials.track.radius": "10 mm"}, "materials.track.radius"),
+        (
+            {"contact.track.stiffness": "1e9 N/m"},
+            "expected N/m^1.5 (n = 1.5, the track pair's exponent)",
+        ),
+        ({"contact.slot.stiffness": "-1e9 N/m^1.5"}, "allowed > 0"),
     ],
 )
 def test_bad_values_name_the_parameter(overrides: dict, fragment: str) -> None:
@@ -85,6 +90,25 @@ def test_bad_values_name_the_parameter(overrides: dict, fragment: str) -> None:
     assert fragment in msg
     key = next(iter(overrides))
     assert key.split(".")[0] in msg
+
+
+def test_a_stiffness_with_its_unit_takes_the_pairs_exponent(tmp_path) -> None:
+    """K in N/m^n, n the pair's exponent: the law's (Hertz-type 1.5) or the key's; read from
+    the API, a scenario file and its overrides alike."""
+    base = "paper-3.1"
+    sc = load_scenario(base, {"contact.track.stiffness": "1e3 N/mm^1.5"})
+    assert sc["contact.track.stiffness"] == pytest.approx(1e3 * 1e3**1.5, rel=1e-12)
+    sc = load_scenario(
+        base, {"contact.slot.exponent": 1.2, "contact.slot.stiffness": "2e8 N/m^1.2"}
+    )
+    assert sc["contact.slot.stiffness"] == pytest.approx(2e8, rel=1e-12)
+    f = tmp_path / "k.toml"
+    f.write_text(f'extends = "{base}"\n[contact.track]\nstiffness = "5e9 N/m^1.5"\n')
+    assert load_scenario(f)["contact.track.stiffness"] == pytest.approx(5e9, rel=1e-12)
+    with pytest.raises(InputError, match=r"expected N/m\^1\.2"):
+        load_scenario(
+            base, {"contact.track.exponent": 1.2, "contact.track.stiffness": "1e9 N/m^1.5"}
+        )
 
 
 def test_malformed_toml(tmp_path) -> None:
@@ -104,3 +128,18 @@ def test_unknown_key_in_file(tmp_path) -> None:
     f.write_text('[track]\nclearence = "3 mm"\n')
     with pytest.raises(InputError, match=r"did you mean 'track\.clearance'"):
         load_scenario(f)
+
+
+def test_simulate_reads_a_duration_with_its_unit_and_refuses_a_foreign_start() -> None:
+    """The API takes unit strings where the scenario does (``duration="0.1 s"``), and a
+    wrong type for ``start`` is one InputError naming it."""
+    from braidsim import simulate
+
+    sc = load_scenario("paper-3.3")
+    a = simulate(sc, "2 ms", series=False)
+    b = simulate(sc, 2e-3, series=False)
+    assert a.final["t"] == b.final["t"] == pytest.approx(2e-3)
+    with pytest.raises(InputError, match=r"^duration: .*wrong unit"):
+        simulate(sc, "2 mm", series=False)
+    with pytest.raises(InputError, match=r"^start: expected the State"):
+        simulate(sc, 1e-3, start="foo", series=False)  # type: ignore[arg-type]
