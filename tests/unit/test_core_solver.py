@@ -179,6 +179,18 @@ def test_energy_balance_of_the_forced_oscillator() -> None:
     assert e1 == pytest.approx(e0 - diss - visc + work, abs=1e-9 * max(1.0, work))
 
 
+def test_a_carrier_at_rest_on_a_still_wall_runs_on_at_the_stability_boundary() -> None:
+    """paper-3.1 (no vibration) comes to rest on the inner wall after 0.12 s; the explicit
+    step then sits on the stability boundary of the contact at about the maximum step,
+    which is no crawl: 150 s run to the end (it stopped as stiff at 132.8 s), at the static
+    depth (F / K)^(1/n) of the constant load."""
+    model = build_model(load_scenario("paper-3.1"), 150.0)
+    raw = run(model.record, model.options, model.y0, series=False)
+    assert raw.status == L.ST_OK and raw.t == 150.0
+    depth = contact.resting_depth(model.constant_load, model.track.stiffness, model.track.exponent)
+    assert -raw.y[0] == pytest.approx(depth, rel=1e-7)
+
+
 # ---- the driver ---------------------------------------------------------------------------
 
 

@@ -142,6 +142,27 @@ def test_a_pressed_overdamped_contact_follows_its_closed_form() -> None:
     assert imp["rhs_evaluations"] < exp["rhs_evaluations"] / 5
 
 
+def test_an_explicit_step_held_far_below_the_maximum_step_stops_as_stiff() -> None:
+    """The pressed wall (its force varying a hundred times slower, so that it presses for
+    minutes) with Dormand-Prince over 4 s: its steps sit on the stability boundary of the
+    fast mode (h ~ 3e-5 s, 1/300 of the 1e-2 s maximum step), and the run stops after
+    STIFF_LIMIT of them, before 4 s."""
+    model = ImpactOscillator(
+        M, 0.0, 0.0, F, OMEGA / 100, 0.0, math.inf, GAP, KelvinVoigtContact(KC, CC, True)
+    )
+    opts = L.SolverOptions(
+        rtol=1e-8,
+        atol_position=1e-14,
+        atol_velocity=1e-10,
+        max_step=1e-2,
+        max_steps=10**7,
+        t_end=4.0,
+    )
+    raw = run(model, opts, np.array([GAP, V0, 0.0, 0.0, 0.0]))
+    assert raw.status == L.ST_STIFF
+    assert 1.0 < raw.t < 4.0
+
+
 def test_the_energy_quadratures_balance_through_the_implicit_steps() -> None:
     """m v^2/2 + k p^2/2 = m V0^2/2 + forcing work - energy the dashpot dissipated."""
     raw = _pressed(True)

@@ -43,6 +43,7 @@ from braidsim.core.layout import (
     ST_ZENO,
     STARTED,
     STIFF_LIMIT,
+    STIFF_STEP_FRACTION,
 )
 from braidsim.core.solver.calls import rhs
 from braidsim.core.solver.dopri5 import (
@@ -244,6 +245,7 @@ def integrate(
     rec = opts.record_events
     t_end = opts.t_end
     hmax = opts.max_step
+    stiff_below = STIFF_STEP_FRACTION * hmax
     st = STATS[0]
     r = RS[0]
     y1 = np.empty(n)
@@ -511,8 +513,8 @@ def integrate(
                 continue
             err = max(err, err_s)
         # stiffness detection (Hairer & Wanner's test in DOPRI5): h |lambda| estimated from the
-        # last two stages; a long run of steps on the stability boundary means the explicit
-        # method is crawling
+        # last two stages; a long run of steps on the stability boundary, and far below the
+        # maximum step, means the explicit method is crawling
         stnum = 0.0
         stden = 0.0
         for i in range(n_dof2):
@@ -521,7 +523,7 @@ def integrate(
         if IMP is not None:
             if took_implicit:
                 stden = 0.0  # (an implicit step has no such stages: counted as non-stiff)
-        if stden > 0.0 and h * math.sqrt(stnum / stden) > 3.25:
+        if stden > 0.0 and h * math.sqrt(stnum / stden) > 3.25 and h < stiff_below:
             stiff_run += 1
             nonstiff_run = 0
             if stiff_run >= STIFF_LIMIT:
