@@ -297,9 +297,15 @@ def scenarios(
             return
         from rich.console import Console
         from rich.markup import escape
-        from rich.table import Table
+        from rich.table import Column, Table
 
-        tab = Table("key", "unit", "default", "allowed", "meaning")
+        # the key whole on one line, whatever the terminal's width (it is what --set takes),
+        # and the other columns folded rather than cut short
+        width = max(len(r["key"]) for r in rows)
+        tab = Table(
+            Column("key", no_wrap=True, min_width=width),
+            *(Column(h, overflow="fold") for h in ("unit", "default", "allowed", "meaning")),
+        )
         for r in rows:
             tab.add_row(
                 *(escape(str(c)) for c in (r["key"], r["unit"], r["default"], r["allowed"])),
