@@ -41,10 +41,17 @@ def sweep(
     from braidsim.sweep import SweepError, export_netcdf, load_spec, run_sweep
 
     s = load_spec(spec)
+    check_output_target(out, "--out", directory=True)
     if netcdf is not None:
         check_output_target(netcdf, "--netcdf", directory=False, suffixes=(".nc",))
-    resume_hint = f"the chunks done are kept in {out}; finish with --resume"
     flush_notices()
+
+    def resume_hint() -> str:
+        # the store is created whole or not at all: without it there is nothing to resume
+        if out.exists():
+            return f"the chunks done are kept in {out}; finish with --resume"
+        return f"no store was written at {out}"
+
     try:
         with signal_decides():
             summary = run_sweep(
@@ -57,18 +64,18 @@ def sweep(
                 progress=not no_progress,
             )
     except SweepError as exc:
-        fail(f"sweep failed: {exc}; {resume_hint}", 1)
+        fail(f"sweep failed: {exc}; {resume_hint()}", 1)
         return
     except Interrupted as exc:
-        fail(f"interrupted by {exc.args[0]}; {resume_hint}", 128 + exc.signum)
+        fail(f"interrupted by {exc.args[0]}; {resume_hint()}", 128 + exc.signum)
         return
     except KeyboardInterrupt:
-        fail(f"interrupted by SIGINT; {resume_hint}", 130)
+        fail(f"interrupted by SIGINT; {resume_hint()}", 130)
         return
     except OSError as exc:
         from braidsim.cli.common import _os_error_text
 
-        fail(f"{_os_error_text(exc)}; {resume_hint}", 1)
+        fail(f"{_os_error_text(exc)}; {resume_hint()}", 1)
         return
     if netcdf is not None:
         summary["netcdf"] = str(export_netcdf(out, netcdf))
@@ -101,10 +108,17 @@ def sweep_plot(
     ] = None,
     sel: Annotated[
         list[str] | None,
-        typer.Option("--sel", help="AXIS=VALUE fixing another dimension (nearest)."),
+        typer.Option(
+            "--sel",
+            help="AXIS=VALUE fixing another dimension (nearest grid value, within its range; "
+            "a bare number is in the axis's SI unit).",
+        ),
     ] = None,
     unit: Annotated[
-        list[str] | None, typer.Option("--unit", help="NAME=UNIT display unit, e.g. h_a=mm.")
+        list[str] | None,
+        typer.Option(
+            "--unit", help="NAME=UNIT display unit of an axis, the metric or a --sel, e.g. h_a=mm."
+        ),
     ] = None,
     log: Annotated[bool, typer.Option("--log", help="Logarithmic colour scale / y axis.")] = False,
     json_: Annotated[bool, typer.Option("--json", help="Print a JSON summary.")] = False,
@@ -123,13 +137,24 @@ def sweep_plot(
             outd[k.strip()] = v.strip()
         return outd
 
+    from braidsim.cli.common import quantity_option
     from braidsim.io import check_output_target
+    from braidsim.sweep.store import runs_not_done
 
     check_output_target(out, "--out", directory=False, suffixes=(".png", ".pdf", ".svg"))
     ds = open_sweep(store)
-    fig = plot_sweep(
-        ds, metric, x, y, sel=pairs(sel, "--sel"), units=pairs(unit, "--unit"), log=log
-    )
+    # the cells of chunks not done hold the fill values, which read as failed runs
+    missing = runs_not_done(store)
+    if missing:
+        raise InputError(
+            f"STORE: {store} is not finished: {missing} of {int(ds.attrs['n_runs'])} runs have "
+            f"not run yet; finish it with `braidsim sweep SPEC --out {store} --resume`, then plot"
+        )
+    sels: dict[str, object] = dict(pairs(sel, "--sel"))
+    for dim, value in sels.items():
+        if dim in ds.dims and ds[dim].dtype.kind == "f":  # a grid axis in its SI unit
+            sels[dim] = quantity_option(f"--sel {dim}", value, ds[dim].attrs.get("units", ""))
+    fig = plot_sweep(ds, metric, x, y, sel=sels, units=pairs(unit, "--unit"), log=log)
     path = save(fig, out)
     if json_:
         print_json({"figure": str(path), "metric": metric, "x": x, "y": y})

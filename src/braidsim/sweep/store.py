@@ -409,6 +409,27 @@ def done_chunks(path: str | Path, strict: bool = False) -> np.ndarray:
         return out
 
 
+def runs_not_done(path: str | Path) -> int:
+    """How many runs of a store lie in chunks not done yet (0 once the sweep is finished)."""
+    g = check_store(path)
+    done = done_chunks(path, strict=True)
+    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
+    shape = g["failure"].shape[: len(chunk_shape)]
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    n = 0
+    for c in np.flatnonzero(~done):
+        idx = np.unravel_index(int(c), grid)
+        n += int(
+            np.prod(
+                [
+                    min((int(i) + 1) * k, s) - int(i) * k
+                    for i, k, s in zip(idx, chunk_shape, shape, strict=True)
+                ]
+            )
+        )
+    return n
+
+
 def _data_arrays(group: Any) -> list[str]:
     """The arrays chunked like the work (metrics, failure, series), as the store lists them."""
     return [str(n) for n in group.attrs.get("arrays", [])]
