@@ -1,9 +1,10 @@
 """One impact of a free mass on a fixed wall (``braidsim impact``).
 
 The carrier model is reused with every load switched off (no yarn tension, no centrifugal
-load, no gravity, so no friction) and a clearance so wide that the far wall is never reached:
-the mass starts on the inner wall moving into it at speed V, the contact law of
-``contact.track`` acts, and the run ends once the mass has left the wall.
+load, no gravity, so no friction) and a clearance so wide that the far wall is never reached
+(1 m, or twice the distance the mass can travel in the run): the mass starts on the inner
+wall moving into it at speed V, the contact law of ``contact.track`` acts, and the run ends
+once the mass has left the wall.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 from typing import Any
 
 from braidsim import contact
-from braidsim.errors import InputError
+from braidsim.errors import InputError, SimulationError
 from braidsim.params import load_scenario
 from braidsim.simulate import simulate
 
@@ -88,13 +89,20 @@ def single_impact(
     elastic = contact.hertz_impact_closed_form(sc["carrier.mass"], pm.stiffness, pm.exponent, v)
     # the contact lasts at most the elastic duration / e; run 3x the elastic duration
     duration = 3.0 * elastic["contact_duration"] / max(pm.effective_restitution, 0.05)
-    res = simulate(
-        sc, duration=duration, sample_interval=0.0, overrides={"simulation.max_step": duration / 50}
-    )
+    # the far wall must stay out of reach: the mass leaves at most at speed V, and at
+    # 1e5 m/s (Hertz) it crossed a 1 m gap and struck the far wall within the run
+    run_overrides = {"simulation.max_step": duration / 50}
+    if 2.0 * v * duration > sc["track.clearance"]:
+        run_overrides["track.clearance"] = 2.0 * v * duration
+    res = simulate(sc, duration=duration, sample_interval=0.0, overrides=run_overrides)
     imp = res.impacts
     if len(imp) != 1 or bool(imp["ongoing"].iloc[0]):
-        raise InputError(
-            "impact: the mass did not leave the wall; check the restitution and stiffness"
+        raise SimulationError(
+            f"impact: the mass had not left the wall at the end of the run, t = {duration:.3g} s "
+            f"(3x the elastic contact duration / max(e, 0.05), e = "
+            f"{pm.effective_restitution:.3g}); raise --restitution: a contact this dissipative "
+            "outlasts the run",
+            duration,
         )
     row = imp.iloc[0]
     m = sc["carrier.mass"]

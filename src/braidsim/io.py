@@ -70,7 +70,9 @@ def check_output_target(
 
     Checks that ``path`` is not an existing entry of the other kind (a file where a directory
     is written, or the reverse), that its nearest existing ancestor is a writable directory
-    (not a file, not read-only), and, for files, that the name ends with one of ``suffixes``.
+    (not a file, not read-only: a file can be created and removed there), and, for files,
+    that the name ends with one of ``suffixes``. Missing folders above ``path`` are allowed:
+    the writers create them.
 
     Raises
     ------
@@ -107,6 +109,20 @@ def check_output_target(
             f"{option}: {str(parent)!r} is not writable (read-only or not ours), so "
             f"{str(p)!r} cannot be written; allowed a writable location"
         )
+    # os.access answers from the mode bits, and for root it says yes almost everywhere:
+    # /proc, a read-only mount or a full disk would only fail at the end of the work, under
+    # a temporary's name. Creating a file where the output (or its missing folders) will
+    # be made is the test that matches the write.
+    try:
+        fd, probe = tempfile.mkstemp(prefix=_prefix(p), suffix=".probe", dir=parent)
+    except OSError as exc:
+        why = exc.strerror or exc.__class__.__name__
+        raise InputError(
+            f"{option}: {str(p)!r} cannot be written: creating a file in {str(parent)!r} "
+            f"fails ({why}); allowed a writable location"
+        ) from None
+    os.close(fd)
+    Path(probe).unlink(missing_ok=True)
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:

@@ -22,6 +22,7 @@ DEFAULTS: dict[str, tuple[float, str, str]] = {
     "bytes": (50e9, "bytes", "size of a sweep store on disk"),
     "memory": (4e9, "bytes", "memory of one chunk of work or of an animation"),
     "frames": (10_000, "frames", "frames of an animation"),
+    "transfers": (1_000_000, "transfers", "transfer times of one run (transfer.period)"),
 }
 
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from braidsim import contact
+from braidsim import contact, limits
 from braidsim.core import (
     CarrierX,
     CarrierXY,
@@ -163,6 +163,34 @@ def default_max_step(sc: Scenario) -> float:
     return hmax
 
 
+def _transfer_times(sc: Scenario, t_start: float, dur: float) -> np.ndarray:
+    """The transfers in (t_start, t_start + dur) [s], sorted and distinct: those of
+    ``transfer.times`` and every ``transfer.first + k transfer.period`` (k = 0, 1, ...).
+
+    Raises
+    ------
+    InputError
+        The period would make more transfers than the ``transfers`` limit allows.
+    """
+    end = t_start + dur
+    times = [t for t in sc["transfer.times"] if t_start < t < end]
+    period = sc["transfer.period"]
+    first = sc["transfer.first"]
+    if period > 0.0 and first < end:
+        # counted before any is made: a period of 1 ns over 0.1 s is 1e8 times, which
+        # grew memory until the process was killed
+        limits.check(
+            "transfers",
+            (end - max(first, t_start)) / period,
+            f"transfer.period = {period:g} s over {dur:g} s of run",
+        )
+        k0 = max(0, math.floor((t_start - first) / period))
+        k1 = math.ceil((end - first) / period) + 1
+        periodic = first + np.arange(k0, k1, dtype=float) * period
+        times.extend(periodic[(periodic > t_start) & (periodic < end)].tolist())
+    return np.unique(np.asarray(times, dtype=float))
+
+
 STEPS_PER_SECOND = 50_000
 """Default step budget per simulated second (measured at the default tolerances, steps and
 rejected steps: paper-3.3 about 5,300, paper-3.4a 7,500, paper-3.4b 26,000), so that a long
@@ -262,14 +290,7 @@ def build_model(
         t_end=dur,
     )
 
-    transfers = set(sc["transfer.times"])
-    period = sc["transfer.period"]
-    if period > 0.0:
-        k = 0
-        while sc["transfer.first"] + k * period < t_start + dur:
-            transfers.add(sc["transfer.first"] + k * period)
-            k += 1
-    tr = np.array(sorted(t for t in transfers if t_start < t < t_start + dur), dtype=float)
+    tr = _transfer_times(sc, t_start, dur)
 
     y0 = np.zeros(state_size(record, energy=True))
     y0[0] = sc["initial.x"]

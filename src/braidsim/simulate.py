@@ -9,6 +9,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from braidsim import limits
 from braidsim.core import CARRIER_COLUMNS, RawRun, state_size
 from braidsim.core import layout as L
 from braidsim.core import run as core_run
@@ -65,15 +66,40 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, flo
     if status == L.ST_NONFINITE:
         return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
     if status == L.ST_MAX_STEPS:
+        budget = model.options.max_steps
+        head = (
+            f"step budget simulation.max_steps = {budget} exhausted at t = {t:.9g} s "
+            f"(smallest step {stats['min_step']:.3g} s)"
+        )
+        hmax = model.options.max_step
+        needed = model.duration / hmax
+        if needed <= budget:
+            return f"{head}; {hint}, or raise simulation.max_steps"
+        # even at its largest step the run needs more steps than the budget: no stiffness
+        # is to blame, and the hint above would send the user the wrong way
+        cover = f"{needed:.3g} steps of {hmax:.3g} s to cover {model.duration:g} s"
+        if sc["simulation.max_step"] is not None:
+            return (
+                f"{head}; simulation.max_step limits the step: {cover}; raise "
+                "simulation.max_step (or leave it unset), or raise simulation.max_steps"
+            )
+        if "simulation.max_steps" in sc.explicit:
+            return (
+                f"{head}; even at the largest step allowed the run needs {cover}; raise "
+                "simulation.max_steps"
+            )
         return (
-            f"step budget simulation.max_steps = {model.options.max_steps} exhausted "
-            f"at t = {t:.9g} s "
-            f"(smallest step {stats['min_step']:.3g} s); {hint}, or raise simulation.max_steps"
+            f"{head}; the default simulation.max_step, 1/8 of the shortest excitation period, "
+            f"limits the step: {cover}; lower the fastest excitation frequency, set a larger "
+            "simulation.max_step (resolving that excitation coarsely), or raise "
+            "simulation.max_steps"
         )
     if status == L.ST_STIFF:
+        below = L.STIFF_STEP_FRACTION * model.options.max_step
         return (
-            f"the equations became stiff at t = {t:.9g} s (step {stats['min_step']:.3g} s held "
-            f"by stability for {L.STIFF_LIMIT} steps); {hint}"
+            f"the equations became stiff at t = {t:.9g} s (the step held by stability below "
+            f"{below:.3g} s, 1/{1 / L.STIFF_STEP_FRACTION:.0f} of the maximum step, for "
+            f"{L.STIFF_LIMIT} steps; smallest step {stats['min_step']:.3g} s); {hint}"
         )
     if status == L.ST_ZENO:
         return (
@@ -296,13 +322,22 @@ def simulate(
         dt = sc["simulation.sample_interval"] if sample_interval is None else float(sample_interval)
         if dt < 0 or not math.isfinite(dt):
             raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
-        n = math.floor((T - t_start) / dt + 1e-9) + 1 if dt > 0 else 0
+        span = (T - t_start) / dt if dt > 0 else 0.0
+        if not math.isfinite(span):  # a subnormal interval: no count to widen or refuse
+            raise InputError(
+                f"sample_interval: {dt!r} s is out of range for a run of {T - t_start:g} s; "
+                f"allowed >= {(T - t_start) * 1e-300:.3g} s"
+            )
+        n = math.floor(span + 1e-9) + 1 if dt > 0 else 0
         row_bytes = 8 * len(CARRIER_COLUMNS)
         if series is True and max_series_bytes is not None and n * row_bytes > max_series_bytes:
             # keep every k-th sample: the widest interval that fits the budget
             k = math.ceil(n * row_bytes / max_series_bytes)
             dt *= k
             n = math.floor((T - t_start) / dt + 1e-9) + 1
+        # a streamed series or one without a budget is not widened, but its sample times
+        # are one array: refuse it before it is made
+        limits.check("memory", 8.0 * n, f"sample_interval = {dt:g} s over {T - t_start:g} s")
         st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
         dt_used = dt
     W = _windows(t_start, T, windows)

@@ -2,7 +2,9 @@
 
 Each case is a command line with placeholders: ``{fx}`` the folder of bad input files
 (:mod:`fixtures`), ``{o}`` a fresh output folder that must be unchanged afterwards (it holds
-``a_file``, a regular file), ``{store}`` a finished sweep store, ``{ro}`` a read-only folder.
+``a_file``, a regular file), ``{store}`` a finished sweep store, ``{ro}`` a read-only folder,
+``{nw}`` a folder where no file can be created although its mode bits allow it for root
+(``/proc``: ``os.access`` says yes to root there).
 The expected exit codes and the names the error line must contain (a parameter or a path)
 come with each case. :func:`harness.check_refused` states the promise.
 """
@@ -82,6 +84,18 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("set-steps-float", [*R, "--set", "simulation.max_steps=2.5"], BAD, ("simulation.max_steps",)),
     ("set-steps-str", [*R, "--set", "simulation.max_steps=many"], BAD, ("simulation.max_steps",)),
     (
+        "set-transfer-period-tiny",
+        [*R, "--duration", "0.1 s", "--set", "transfer.period=1e-9 s"],
+        BAD,
+        ("transfer.period",),
+    ),
+    (
+        "set-sample-interval-subnormal",
+        [*R, "--set", "simulation.sample_interval=5e-324 s"],
+        BAD,
+        ("sample_interval",),
+    ),
+    (
         "set-profile-scalars",
         [*R, "--set", "horn_gear.speed_profile={times=1, speeds=2}"],
         BAD,
@@ -142,6 +156,7 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("run-out-under-file", [*R, "--out", "{o}/a_file/sub"], BAD, ("a_file",)),
     ("run-out-nonempty", [*R, "--out", "{fx}"], BAD, ("--out",)),
     ("run-out-ro", [*R, "--out", "{ro}/out"], BAD, ("{ro}",)),
+    ("run-out-nw", [*R, "--out", "{nw}/out"], BAD, ("--out", "{nw}/out")),
     ("run-unknown-option", [*R, "--nope"], BAD, ("--nope", "No such option")),
     ("run-missing-arg", ["run"], BAD, ("SCENARIO", "scenario", "Missing")),
     # ---------------------------------------------------------------- impact
@@ -173,6 +188,7 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("rest-out-file", ["restitution", "--out", "{o}/a_file"], BAD, ("a_file",)),
     ("rest-out-under-file", ["restitution", "--out", "{o}/a_file/x"], BAD, ("a_file",)),
     ("rest-out-ro", ["restitution", "--out", "{ro}/x"], BAD, ("{ro}",)),
+    ("rest-out-nw", ["restitution", "--out", "{nw}/x"], BAD, ("--out", "{nw}/x")),
     # ---------------------------------------------------------------- bifurcation
     *[
         (f"bif-{i}", ["bifurcation", "paper-3.3", *args], BAD, names)
@@ -290,6 +306,12 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("analyze-empty-dir", ["analyze", "{fx}/run_empty"], BAD, ("summary.json",)),
     ("analyze-duration-unit", ["analyze", S, "--duration", "1 m"], BAD, ("--duration",)),
     ("analyze-transient-unit", ["analyze", S, "--transient", "1 kg"], BAD, ("--transient",)),
+    (
+        "analyze-samples-huge",
+        ["analyze", S, "--duration", "1 s", "--set", "track.vibration_frequency=1e9 rad/s"],
+        BAD,
+        ("duration",),
+    ),
     ("analyze-out-file", ["analyze", S, "--out", "{o}/a_file"], BAD, ("a_file",)),
     ("analyze-out-ro", ["analyze", S, "--out", "{ro}/x"], BAD, ("{ro}",)),
     # ---------------------------------------------------------------- sweep
@@ -376,6 +398,12 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         ("a_file",),
     ),
     ("sweep-out-ro", ["sweep", "{fx}/good_sweep.toml", "--out", "{ro}/s"], BAD, ("{ro}",)),
+    (
+        "sweep-out-nw",
+        ["sweep", "{fx}/good_sweep.toml", "--out", "{nw}/s.zarr"],
+        BAD,
+        ("--out", "{nw}/s.zarr"),
+    ),
     ("sweep-out-exists", ["sweep", "{fx}/good_sweep.toml", "--out", "{fx}"], BAD, ("--resume",)),
     (
         "sweep-resume-notstore",
@@ -433,6 +461,12 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         ["sweep", "{fx}/good_sweep.toml", "--out", "{o}/s", "--netcdf", "{o}/x.txt"],
         BAD,
         ("--netcdf",),
+    ),
+    (
+        "sweep-netcdf-nw",
+        ["sweep", "{fx}/good_sweep.toml", "--out", "{o}/s", "--netcdf", "{nw}/x.nc"],
+        BAD,
+        ("--netcdf", "{nw}/x.nc"),
     ),
     (
         "sweep-netcdf-dir",
@@ -585,6 +619,12 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         ("{ro}",),
     ),
     (
+        "plot-out-nw",
+        ["sweep-plot", "{store}", "--metric", "regime", "--x", "h_a", "--out", "{nw}/p.png"],
+        BAD,
+        ("--out", "{nw}/p.png"),
+    ),
+    (
         "plot-not-store",
         ["sweep-plot", "{fx}", "--metric", "regime", "--x", "h_a", "--out", "{o}/p.png"],
         BAD,
@@ -709,10 +749,12 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         ("a_file",),
     ),
     ("design-out-ro", ["design", "examples/design16.toml", "--out", "{ro}/d"], BAD, ("{ro}",)),
+    ("design-out-nw", ["design", "examples/design16.toml", "--out", "{nw}/d"], BAD, ("{nw}/d",)),
     # ---------------------------------------------------------------- paper
     ("paper-out-file", ["paper", "--out", "{o}/a_file"], BAD, ("a_file",)),
     ("paper-out-under-file", ["paper", "--out", "{o}/a_file/p"], BAD, ("a_file",)),
     ("paper-out-ro", ["paper", "--out", "{ro}/p"], BAD, ("{ro}",)),
+    ("paper-out-nw", ["paper", "--out", "{nw}/p"], BAD, ("{nw}/p",)),
     ("paper-out-nonempty", ["paper", "--out", "{fx}"], BAD, ("--out",)),
     # ---------------------------------------------------------------- top level
     ("top-unknown-verb", ["nope"], BAD, ("nope", "No such command")),
@@ -799,12 +841,15 @@ def test_cli_case(case_id, argv, codes, names, fx, store, corrupt, tmp_path) -> 
     ro = _readonly_dir(tmp_path)
     if any("{ro}" in a for a in argv) and ro is None:
         pytest.skip("no read-only folder available to this user")
+    if any("{nw}" in a for a in argv) and not Path("/proc/self").is_dir():
+        pytest.skip("needs Linux /proc")
     subs = {
         "{fx}": str(fx),
         "{o}": str(out),
         "{store}": str(store),
         "{corrupt}": str(corrupt),
         "{ro}": str(ro),
+        "{nw}": "/proc",
     }
 
     def sub(text: str) -> str:

@@ -103,6 +103,71 @@ def test_numerical_failure_exit_1(capsys) -> None:
     assert len(err.strip().splitlines()) == 1
 
 
+def test_transfer_period_over_the_limit_is_refused_up_front(capsys, monkeypatch) -> None:
+    """A period that makes more transfer times than the limit is refused before they are
+    made (1 ns over 0.1 s grew memory until the process was killed); the limit is raisable."""
+    monkeypatch.setenv("BRAIDSIM_MAX_TRANSFERS", "50")
+    argv = ["run", "paper-3.2", "--duration", "0.1 s", "--set", "transfer.period=1 ms", "--json"]
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 2 and out == ""
+    assert "transfer.period" in err and "BRAIDSIM_MAX_TRANSFERS" in err and "100 transfers" in err
+    assert len(err.strip().splitlines()) == 1
+    monkeypatch.setenv("BRAIDSIM_MAX_TRANSFERS", "1000")
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    assert json.loads(out)["stats"]["transfers"] == 99
+
+
+def test_sample_arrays_over_the_memory_limit_are_refused_before_they_are_made(
+    monkeypatch,
+) -> None:
+    """The per-period sample times that are not thinned (analyze's phase-locked grid, a
+    streamed series) are checked against the memory limit before they are allocated."""
+    import braidsim
+    from braidsim.analysis.report import sample_grid
+    from braidsim.errors import InputError
+
+    monkeypatch.setenv("BRAIDSIM_MAX_MEMORY", "1e6")
+    sc = braidsim.load_scenario("paper-3.1")
+    with pytest.raises(InputError, match=r"duration = 1 s at 256 samples.*BRAIDSIM_MAX_MEMORY"):
+        sample_grid(sc, 1.0, 256)
+    with pytest.raises(InputError, match=r"sample_interval = 1e-08 s.*BRAIDSIM_MAX_MEMORY"):
+        braidsim.simulate(sc, 0.01, sample_interval=1e-8, series=lambda chunk: None)
+    assert sample_grid(sc, 0.1, 256).size == 1537  # within the limit: unchanged
+
+
+def test_step_budget_failure_names_max_step_when_it_is_the_cause(capsys) -> None:
+    """A tiny simulation.max_step exhausts the step budget: the hint says so instead of
+    blaming the damping."""
+    code, _, err = run_cli(
+        capsys,
+        "run",
+        "paper-3.1",
+        "--duration",
+        "0.1 s",
+        "--set",
+        "simulation.max_step=1e-9 s",
+        "--set",
+        "simulation.max_steps=1000",
+    )
+    assert code == 1 and len(err.strip().splitlines()) == 1
+    assert "raise simulation.max_step " in err and "1e+08 steps" in err
+    assert "min_impact_velocity" not in err
+
+
+def test_fast_impact_is_measured_not_refused(capsys) -> None:
+    """At 1e5 m/s the free mass rebounds across the 1 m gap of the free-mass model within
+    the run; the far wall is moved out of reach, and the impact matches the closed form."""
+    code, out, err = run_cli(
+        capsys, "impact", "--model", "hertz", "--velocity", "1e5 m/s", "--json"
+    )
+    assert code == 0, err
+    data = json.loads(out)
+    assert data["effective_restitution"] == pytest.approx(1.0, abs=1e-8)
+    for key in ("max_depth", "max_force", "contact_duration"):
+        assert data[key] == pytest.approx(data["closed_form"][key], rel=1e-6)
+
+
 def test_impact_json(capsys) -> None:
     code, out, _ = run_cli(
         capsys,

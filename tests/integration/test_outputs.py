@@ -288,6 +288,49 @@ def test_run_out_refuses_an_unrelated_folder(capsys, tmp_path) -> None:
     assert (d / "series.csv").is_file() and (d / "series.nc").is_file()
 
 
+def test_out_creates_missing_folders_only_when_it_writes(capsys, tmp_path) -> None:
+    """docs/guarantees.md: folders missing above --out are made like ``mkdir -p``, and a
+    refused command makes none."""
+    d = tmp_path / "a" / "b" / "run"
+    code, _, err = run_cli(
+        capsys,
+        "run",
+        "paper-3.2",
+        "--duration",
+        "0.01",
+        "--set",
+        "track.clearance=-1 mm",
+        "--out",
+        str(d),
+    )
+    assert code == 2 and "track.clearance" in err
+    assert not (tmp_path / "a").exists()
+    code, _, err = run_cli(capsys, "run", "paper-3.2", "--duration", "0.01", "--out", str(d))
+    assert code == 0, err
+    assert (d / "summary.json").is_file()
+
+
+def test_sweep_failing_before_its_store_does_not_offer_resume(capsys, tmp_path, monkeypatch):
+    """A sweep whose store could not be created has nothing to resume: the hint says so."""
+    import braidsim.sweep.execute as execute
+
+    def no_store(spec, path):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(execute, "create_store", no_store)
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        'scenario = "paper-3.1"\nduration = "0.004 s"\n[[axes]]\n'
+        'key = "track.vibration_amplitude"\nname = "h_a"\nvalues = ["0.05 mm"]\n'
+    )
+    out = tmp_path / "s.zarr"
+    code, _, err = run_cli(
+        capsys, "sweep", str(spec), "--out", str(out), "--processes", "1", "--no-progress"
+    )
+    assert code == 1 and "No space left" in err
+    assert "--resume" not in err and "no store was written" in err
+
+
 def test_lyapunov_json_is_short_unless_asked(capsys) -> None:
     argv = ["lyapunov", "paper-3.4b", "--transient-cycles", "2", "--cycles", "20", "--json"]
     code, short, err = run_cli(capsys, *argv)

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from braidsim import limits
 from braidsim.analysis.impacts import (
     EnergyBalance,
     ImpactStatistics,
@@ -35,6 +36,7 @@ from braidsim.analysis.regimes import (
     strobe_times,
 )
 from braidsim.analysis.spectra import Spectrum, run_spectra
+from braidsim.core import CARRIER_COLUMNS
 from braidsim.errors import InputError
 from braidsim.params import Scenario
 
@@ -120,6 +122,15 @@ def sample_grid(sc: Scenario, duration: float, per_cycle: int) -> np.ndarray:
     if w > 0.0:
         offset = (-float(sc["track.vibration_phase"]) / w) % T
     offset = offset % dt
+    count = (duration - offset) / dt + 1
+    # every sample becomes a row of the series kept in memory (explicit sample times are
+    # never thinned): a long --duration or a fast vibration would fill the memory
+    limits.check(
+        "memory",
+        count * 8 * (len(CARRIER_COLUMNS) + 1),
+        f"duration = {duration:g} s at {per_cycle} samples per period of {T:.3g} s "
+        f"({count:.3g} samples)",
+    )
     n = math.floor((duration - offset) / dt + 1e-9) + 1
     return offset + dt * np.arange(n)
 
