@@ -32,6 +32,7 @@ R = ["run", S]
 CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     # ---------------------------------------------------------------- run: scenario files
     ("run-latin1", ["run", "{fx}/latin1.toml"], BAD, ("latin1.toml", "UTF-8")),
+    ("run-csv-without-out", ["run", "paper-3.1", "--csv"], BAD, ("--csv", "--out")),
     ("run-utf16", ["run", "{fx}/utf16.toml"], BAD, ("utf16.toml",)),
     ("run-binary", ["run", "{fx}/binary.toml"], BAD, ("binary.toml",)),
     ("run-deep-array", ["run", "{fx}/deep_array.toml"], BAD, ("deep_array.toml",)),

@@ -8,6 +8,7 @@ from typing import Annotated, Any
 import typer
 
 from braidsim.cli.common import app, guarded, parse_sets, print_json, quantity_option
+from braidsim.errors import InputError
 
 
 @app.command()
@@ -51,6 +52,8 @@ def run(
         from braidsim.io import check_output_directory
 
         check_output_directory(out, "run")  # refuse before the run, not after
+    elif csv:
+        raise InputError("--csv: writes series.csv into the --out folder; give --out DIR")
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
     dur = None if duration is None else quantity_option("--duration", duration, "s")
     win = (
