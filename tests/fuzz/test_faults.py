@@ -251,15 +251,23 @@ def test_second_writer_is_refused_while_the_first_runs(spec_path, reference, tmp
     assert files(store) == files(reference)
 
 
-@pytest.mark.parametrize("fsize", [2000, 12000])
+@pytest.mark.parametrize("fsize", [2000, 40000])
 def test_full_disk_is_one_line_with_the_path_and_the_store_resumes(fsize, spec_path, tmp_path):
     """A file-size limit (RLIMIT_FSIZE) makes writes fail as on a full disk (EFBIG): at 2 kB
-    the store's metadata cannot be written (no store is left), at 12 kB the first series
-    chunk (22 kB) cannot (the store is kept and resumes to the uninterrupted bytes)."""
+    the store's metadata cannot be written (no store is left, and none is offered to
+    resume), at 40 kB the first series chunk (about 68 kB: four runs of 3,000 samples)
+    cannot, while the store's files made at its creation (the 22-kB time coordinate the
+    largest) can: the store is kept and resumes to the uninterrupted bytes. (At 12 kB, which
+    this test used before, the time coordinate itself failed, no store was kept, and the
+    message offered a --resume of nothing.)"""
     import resource
 
     big = spec_path.parent / "big_series.toml"
-    big.write_text(textwrap.dedent(SPEC).replace("num = 200", "num = 3000"))
+    big.write_text(
+        textwrap.dedent(SPEC)
+        .replace("num = 200", "num = 3000")
+        .replace("chunk_size = 1", "chunk_size = 4")
+    )
     ref = spec_path.parent / "big_ref.zarr"
     if not ref.exists():
         run_sweep(load_spec(big), ref, processes=1, progress=False)
@@ -282,8 +290,9 @@ def test_full_disk_is_one_line_with_the_path_and_the_store_resumes(fsize, spec_p
     if fsize < 5000:
         assert not store.exists()
         assert [p.name for p in tmp_path.iterdir()] == []  # no hidden temporary either
+        assert "--resume" not in err and "no store was written" in err
         return
-    assert "--resume" in err
+    assert store.exists() and "--resume" in err
     run_sweep(load_spec(big), store, resume=True, processes=1, progress=False)
     assert files(store) == files(ref)
 
