@@ -68,9 +68,9 @@ def _closed_form(t: float) -> tuple[float, float]:
     return p, v
 
 
-def _pressed(implicit: bool, **kw: Any) -> RawRun:
+def _pressed(implicit: bool, omega: float = OMEGA, t_end: float = T_END, **kw: Any) -> RawRun:
     model = ImpactOscillator(
-        M, 0.0, 0.0, F, OMEGA, 0.0, math.inf, GAP, KelvinVoigtContact(KC, CC, True)
+        M, 0.0, 0.0, F, omega, 0.0, math.inf, GAP, KelvinVoigtContact(KC, CC, True)
     )
     opts = L.SolverOptions(
         rtol=1e-8,
@@ -78,7 +78,7 @@ def _pressed(implicit: bool, **kw: Any) -> RawRun:
         atol_velocity=1e-10,
         max_step=1e-2,
         max_steps=10**7,
-        t_end=T_END,
+        t_end=t_end,
     )
     return run(model, opts, np.array([GAP, V0, 0.0, 0.0, 0.0]), implicit=implicit, **kw)
 
@@ -147,18 +147,7 @@ def test_an_explicit_step_held_far_below_the_maximum_step_stops_as_stiff() -> No
     minutes) with Dormand-Prince over 4 s: its steps sit on the stability boundary of the
     fast mode (h ~ 3e-5 s, 1/300 of the 1e-2 s maximum step), and the run stops after
     STIFF_LIMIT of them, before 4 s."""
-    model = ImpactOscillator(
-        M, 0.0, 0.0, F, OMEGA / 100, 0.0, math.inf, GAP, KelvinVoigtContact(KC, CC, True)
-    )
-    opts = L.SolverOptions(
-        rtol=1e-8,
-        atol_position=1e-14,
-        atol_velocity=1e-10,
-        max_step=1e-2,
-        max_steps=10**7,
-        t_end=4.0,
-    )
-    raw = run(model, opts, np.array([GAP, V0, 0.0, 0.0, 0.0]))
+    raw = _pressed(False, omega=OMEGA / 100, t_end=4.0)
     assert raw.status == L.ST_STIFF
     assert 1.0 < raw.t < 4.0
 
