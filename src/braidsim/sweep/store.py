@@ -413,21 +413,39 @@ def runs_not_done(path: str | Path) -> int:
     """How many runs of a store lie in chunks not done yet (0 once the sweep is finished)."""
     g = check_store(path)
     done = done_chunks(path, strict=True)
-    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
-    shape = g["failure"].shape[: len(chunk_shape)]
-    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    chunk_shape, shape, grid = _chunk_grid(g)
     n = 0
     for c in np.flatnonzero(~done):
-        idx = np.unravel_index(int(c), grid)
         n += int(
-            np.prod(
-                [
-                    min((int(i) + 1) * k, s) - int(i) * k
-                    for i, k, s in zip(idx, chunk_shape, shape, strict=True)
-                ]
-            )
+            np.prod([r.stop - r.start for r in _chunk_region(int(c), chunk_shape, shape, grid)])
         )
     return n
+
+
+def _chunk_grid(g: Any) -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]]:
+    """(chunk shape, shape, chunks along each dimension) of the work of store group ``g``,
+    read from its data arrays (their first dimensions; a series adds its time)."""
+    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
+    names = _data_arrays(g)
+    shape = tuple(g[names[0]].shape[: len(chunk_shape)]) if names else ()
+    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    return chunk_shape, shape, grid
+
+
+def _chunk_region(
+    c: int, chunk_shape: tuple[int, ...], shape: tuple[int, ...], grid: tuple[int, ...]
+) -> tuple[slice, ...]:
+    """Index region (a slice per dimension) of chunk number ``c`` (C order)."""
+    idx = np.unravel_index(c, grid)
+    return tuple(
+        slice(int(i) * k, min((int(i) + 1) * k, n))
+        for i, k, n in zip(idx, chunk_shape, shape, strict=True)
+    )
+
+
+def _chunk_key(c: int, grid: tuple[int, ...]) -> str:
+    """The chunk's file key ("i/j/...") below an array's ``c`` folder."""
+    return "/".join(str(int(i)) for i in np.unravel_index(c, grid))
 
 
 def _data_arrays(group: Any) -> list[str]:
@@ -447,31 +465,25 @@ def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
     if g.attrs.get("format") != STORE_FORMAT:
         return {}
     done = done_chunks(p, strict=strict)
-    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
     names = _data_arrays(g)
     bad: dict[int, str] = {}
     if not names:
         return bad
-    shape = g[names[0]].shape[: len(chunk_shape)]
-    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
-    for c in np.flatnonzero(done):
-        idx = np.unravel_index(int(c), grid)
-        region = tuple(
-            slice(int(i) * k, min((int(i) + 1) * k, s))
-            for i, k, s in zip(idx, chunk_shape, shape, strict=True)
-        )
-        key = "/".join(str(int(i)) for i in idx)
+    chunk_shape, shape, grid = _chunk_grid(g)
+    for c in map(int, np.flatnonzero(done)):
+        region = _chunk_region(c, chunk_shape, shape, grid)
+        key = _chunk_key(c, grid)
         for name in names:
             f = p / name / "c" / key
             if g[name].ndim > len(chunk_shape):
                 f = f / "0"  # the series' time dimension is one chunk
             if not f.is_file():
-                bad[int(c)] = name
+                bad[c] = name
                 break
             try:
                 g[name][region]
             except ValueError:
-                bad[int(c)] = name
+                bad[c] = name
                 break
     return bad
 
@@ -481,13 +493,11 @@ def mark_undone(path: str | Path, chunks: list[int]) -> None:
     and written again."""
     p = Path(path)
     g = _zarr().open_group(str(p), mode="r+")
-    chunk_shape = tuple(int(c) for c in g.attrs["chunk_shape"])
     names = _data_arrays(g)
-    shape = g[names[0]].shape[: len(chunk_shape)] if names else ()
-    grid = tuple(-(-s // c) for s, c in zip(shape, chunk_shape, strict=True))
+    chunk_shape, _, grid = _chunk_grid(g)
     for c in chunks:
         g["_sweep/done"][c] = 0
-        key = "/".join(str(int(i)) for i in np.unravel_index(int(c), grid))
+        key = _chunk_key(c, grid)
         for name in names:
             f = p / name / "c" / key
             if f.is_dir() and g[name].ndim > len(chunk_shape):
