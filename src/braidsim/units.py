@@ -232,19 +232,10 @@ def parse_unit(key: str, text: str) -> Any:
         ) from None
 
 
-def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
-    """Read ``value`` as a quantity in ``unit``; return ``(SI value, was a bare number)``.
-
-    See :func:`to_si`; the second item tells whether no unit was given (a number, or a string
-    holding only a number), which the command line reports for dimensional quantities.
-    """
-    if is_number(value):
-        return _float(key, value), True
-    if not isinstance(value, str):
-        got = "None" if value is None else f"{type(value).__name__} {str(value)[:40]}"
-        raise InputError(
-            f"{key}: expected a number or a quantity string in {unit or 'no unit'}, got {got}"
-        )
+def _split(key: str, value: str, unit: str) -> tuple[float, str]:
+    """The number of the quantity string ``value`` (a ratio of two numbers included, 1 when
+    the string starts with its unit) and the unit text after it ("" for none); ``unit``
+    names the unit expected in the messages."""
     if len(value) > MAX_LENGTH:
         raise InputError(
             f"{key}: the quantity string is {len(value)} characters long; "
@@ -274,6 +265,35 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
             raise InputError(f"{key}: {value!r} divides by zero; allowed a finite value")
         mag = mag / denom
         rest = rest[frac.end() :].strip()
+    return mag, rest
+
+
+def _pint_expression(key: str, value: str, rest: str, unit_text: str) -> Any:
+    """pint's reading of the unit part ``rest`` of ``value``, as :func:`_check_unit_text`
+    wrote it (``unit_text``): a quantity, or a number for a pure ratio."""
+    try:
+        # the text passed the grammar: unit names, small exponents and divisors only
+        return registry().parse_expression(unit_text)
+    except Exception as exc:  # pint raises several exception types for unknown names
+        raise InputError(
+            f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
+        ) from None
+
+
+def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
+    """Read ``value`` as a quantity in ``unit``; return ``(SI value, was a bare number)``.
+
+    See :func:`to_si`; the second item tells whether no unit was given (a number, or a string
+    holding only a number), which the command line reports for dimensional quantities.
+    """
+    if is_number(value):
+        return _float(key, value), True
+    if not isinstance(value, str):
+        got = "None" if value is None else f"{type(value).__name__} {str(value)[:40]}"
+        raise InputError(
+            f"{key}: expected a number or a quantity string in {unit or 'no unit'}, got {got}"
+        )
+    mag, rest = _split(key, value, unit)
     if not rest:
         return mag, True
     unit_text = _check_unit_text(key, value, rest)
@@ -285,13 +305,7 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
     ureg = registry()  # imports pint
     import pint
 
-    try:
-        # the text passed the grammar: unit names, small exponents and divisors only
-        u: Any = ureg.parse_expression(unit_text)
-    except Exception as exc:  # pint raises several exception types for unknown names
-        raise InputError(
-            f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
-        ) from None
+    u = _pint_expression(key, value, rest, unit_text)
     q = mag * (u if isinstance(u, pint.Quantity) else ureg.Quantity(float(u), ""))
     target = ureg.Unit(unit) if unit else ureg.dimensionless
     try:
@@ -315,42 +329,33 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
 
 
 def force_per_length_power(key: str, value: str) -> float | None:
-    """The exponent n when the unit of the quantity string ``value`` is a force per length
-    to the power n (``"1e9 N/m^1.5"``: 1.5; ``"3 kN/mm"``: 1.0), None for any other unit
-    or no unit: the unit of a contact stiffness K [N/m^n] says which n it was written for.
+    """The exponent n of the unit of the quantity string ``value``, a force per length to
+    the power n (``"1e9 N/m^1.5"``: 1.5; ``"3 kN/mm"``: 1.0), or None when it has no unit:
+    the unit of a contact stiffness K [N/m^n] says which n it was written for.
 
     Raises
     ------
     InputError
-        The unit part does not parse (as :func:`to_si` would say).
+        The string does not parse (as :func:`to_si` would say), or its unit is not a force
+        per a power of length.
     """
-    m = _NUMBER.match(value.strip())
-    rest = value.strip()[m.end() :].strip() if m is not None else value.strip()
+    _, rest = _split(key, value, "N/m^n")
     if not rest:
         return None
     import pint
 
-    try:
-        q: Any = registry().parse_expression(_check_unit_text(key, value, rest))
-    except InputError:
-        raise
-    except Exception as exc:  # pint raises several exception types for unknown names
-        raise InputError(
-            f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
-        ) from None
+    q = _pint_expression(key, value, rest, _check_unit_text(key, value, rest))
     dims = dict(q.dimensionality) if isinstance(q, pint.Quantity) else {}
     if (
-        dims.get("[mass]") != 1
-        or dims.get("[time]") != -2
-        or set(dims)
-        - {
-            "[mass]",
-            "[time]",
-            "[length]",
-        }
+        set(dims) <= {"[mass]", "[time]", "[length]"}
+        and dims.get("[mass]") == 1
+        and dims.get("[time]") == -2
     ):
-        return None
-    return 1.0 - float(dims.get("[length]", 0))  # type: ignore[arg-type]
+        return 1.0 - float(dims.get("[length]", 0))  # type: ignore[arg-type]
+    raise InputError(
+        f"{key}: {value!r} has the wrong unit; expected a quantity in N/m^n, n the pair's "
+        "force exponent (e.g. '1e9 N/m^1.5')"
+    )
 
 
 def _checked(key: str, value: str, unit: str, mag: float, out: float) -> float:
