@@ -16,7 +16,8 @@ from braidsim.sweep.store import mark_undone
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sweep_ha_omega.py"
 
-GRID = """
+# the base scenario and the first axis of both stores
+OMEGA = """
 scenario = "paper-3.3"
 duration = "0.02 s"
 
@@ -24,7 +25,11 @@ duration = "0.02 s"
 key = "horn_gear.angular_velocity"
 name = "omega"
 values = ["120 rpm", "240 rpm"]
+"""
 
+GRID = (
+    OMEGA
+    + """
 [[axes]]
 key = "track.vibration_amplitude"
 name = "h_a"
@@ -38,17 +43,12 @@ keep = ["regime", "track_max_approach_speed"]
 [execution]
 chunk_size = 2
 """
+)
 
 # a grid axis and a sampled parameter: dimensions (omega, run)
-SAMPLED = """
-scenario = "paper-3.3"
-duration = "0.02 s"
-
-[[axes]]
-key = "horn_gear.angular_velocity"
-name = "omega"
-values = ["120 rpm", "240 rpm"]
-
+SAMPLED = (
+    OMEGA
+    + """
 [samples]
 method = "latin_hypercube"
 n = 3
@@ -59,6 +59,7 @@ seed = 1
 [metrics]
 keep = ["regime"]
 """
+)
 
 
 def make_store(tmp: Path, text: str, name: str) -> Path:
