@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from braidsim import contact
-from braidsim.errors import InputError
+from braidsim.errors import InputError, SimulationError
 from braidsim.impact import FREE_MASS
 from braidsim.integrate.scipy_backend import simulate_scipy
 from braidsim.params import load_scenario
@@ -180,3 +180,14 @@ def test_scipy_bad_input_is_an_input_error() -> None:
         simulate_scipy("paper-3.1", -1.0)
     with pytest.raises(InputError, match="rtol"):
         simulate_scipy("paper-3.1", 0.01, rtol=0.0)
+
+
+def test_scipy_step_budget_says_what_to_change() -> None:
+    """The reference backend's spent budget gets the compiled solver's message: the time, the
+    smallest step and what to raise."""
+    with pytest.raises(SimulationError) as err:
+        simulate_scipy("paper-3.1", 0.05, overrides={"simulation.max_steps": 50})
+    msg = str(err.value)
+    assert "step budget simulation.max_steps = 50 exhausted at t = " in msg
+    assert "smallest step" in msg and "raise simulation.max_steps" in msg
+    assert 0.0 <= err.value.time < 0.05

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from braidsim.cli import main
-from braidsim.sweep import load_spec, open_sweep, plot_sweep, run_sweep
+from braidsim.errors import StoreError
+from braidsim.sweep import export_netcdf, load_spec, open_sweep, plot_sweep, run_sweep
 from braidsim.sweep.store import mark_undone
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "sweep_ha_omega.py"
@@ -123,6 +124,7 @@ def test_unfinished_store_is_refused_and_its_runs_not_drawn_as_failed(stores, tm
 
     # in Python the store is drawn: the run not done is left out, a failed run is "failed"
     ds = open_sweep(store).load()
+    assert ds.attrs["runs_not_done"] == 1 and open_sweep(stores["grid"]).attrs["runs_not_done"] == 0
     ds["regime"][0, 0] = -1
     ds["failure"][0, 0] = "step size too small at t = 0.01 s"
     fig = plot_sweep(ds, "regime", x="omega", y="h_a")
@@ -130,6 +132,27 @@ def test_unfinished_store_is_refused_and_its_runs_not_drawn_as_failed(stores, tm
     assert np.ma.count_masked(cells) == 1 and bool(cells.mask[2, 1])  # (h_a, omega)
     assert cells[0, 0] == -1 and not cells.mask[0, 0]
     assert "1 runs not run yet" in fig.axes[0].get_title()
+
+
+def test_unfinished_store_is_exported_only_when_asked(stores, tmp_path):
+    """Its fill values would read as failed runs: export_netcdf refuses the store unless
+    partial=True, and the partial file counts the runs missing."""
+    import shutil
+
+    import xarray as xr
+
+    store = tmp_path / "cut.zarr"
+    shutil.copytree(stores["grid"], store)
+    mark_undone(store, [0, 3])  # two runs in the first chunk, one in the last
+    nc = tmp_path / "cut.nc"
+    with pytest.raises(StoreError, match=r"not finished: 3 of 6 runs .* --resume"):
+        export_netcdf(store, nc)
+    assert not nc.exists()
+    export_netcdf(store, nc, partial=True)
+    with xr.open_dataset(nc) as back:
+        assert int(back.attrs["runs_not_done"]) == 3
+        assert int((back["regime"] == -1).sum()) == 3
+    export_netcdf(stores["grid"], tmp_path / "whole.nc")
 
 
 def test_sel_on_the_run_dimension(stores, tmp_path, capsys):

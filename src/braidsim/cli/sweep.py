@@ -139,12 +139,11 @@ def sweep_plot(
 
     from braidsim.cli.common import quantity_option
     from braidsim.io import check_output_target
-    from braidsim.sweep.store import runs_not_done
 
     check_output_target(out, "--out", directory=False, suffixes=(".png", ".pdf", ".svg"))
     ds = open_sweep(store)
     # the cells of chunks not done hold the fill values, which read as failed runs
-    missing = runs_not_done(store)
+    missing = int(ds.attrs["runs_not_done"])
     if missing:
         raise InputError(
             f"STORE: {store} is not finished: {missing} of {int(ds.attrs['n_runs'])} runs have "

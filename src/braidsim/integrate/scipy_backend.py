@@ -313,7 +313,14 @@ class _Run:
         self.v0 = [1.0, 1.0]
         self.open: list[_Episode | None] = [None, None]
         self.episodes: list[_Episode] = []
-        self.stats = {"segments": 0, "steps": 0, "rhs_evaluations": 0, "events": 0, "transfers": 0}
+        self.stats: dict[str, float] = {
+            "segments": 0,
+            "steps": 0,
+            "rhs_evaluations": 0,
+            "events": 0,
+            "transfers": 0,
+            "min_step": math.inf,
+        }
         self.solve_time = 0.0  # wall time spent inside solve_ivp [s]
 
     @property
@@ -501,12 +508,14 @@ class _Run:
             self.stats["segments"] += 1
             self.stats["steps"] += max(sol.t.size - 1, 0)
             self.stats["rhs_evaluations"] += int(sol.nfev)
+            if sol.t.size > 1:
+                self.stats["min_step"] = min(self.stats["min_step"], float(np.diff(sol.t).min()))
             if self.stats["steps"] > self.max_steps:
-                raise SimulationError(
-                    f"step budget simulation.max_steps = {self.max_steps} exhausted "
-                    f"at t = {t:.9g} s",
-                    t,
-                )
+                # the compiled solver's message: the smallest step, and what to change
+                from braidsim.core.layout import ST_MAX_STEPS
+                from braidsim.simulate import failure_message
+
+                raise SimulationError(failure_message(ST_MAX_STEPS, t, self.model, self.stats), t)
             if sol.status < 0:
                 raise SimulationError(
                     f"solve_ivp ({self.method}) failed at t = {sol.t[-1]:.9g} s: {sol.message}",

@@ -540,8 +540,12 @@ class StoreWriter:
 
 
 def open_sweep(path: str | Path) -> xr.Dataset:
-    """The sweep store as an xarray Dataset (lazily loaded; chunks not yet done hold the
-    fill values: NaN, -1 or "")."""
+    """The sweep store as an xarray Dataset, lazily loaded.
+
+    A store whose sweep has not finished can be read while it runs or after an interruption:
+    the chunks not done yet hold the fill values (NaN, -1 or ""), and ``attrs["runs_not_done"]``
+    counts their runs (0 once the sweep is finished), so that such cells are not taken for
+    results. A damaged chunk (missing, or failing its checksum) is refused."""
     import xarray as xr
 
     bad = corrupt_chunks(path, strict=True)
@@ -552,11 +556,17 @@ def open_sweep(path: str | Path) -> xr.Dataset:
             f"({len(bad)} chunk(s) damaged after they were written); recompute them with "
             f"`braidsim sweep SPEC --out {path} --resume`"
         )
-    return xr.open_zarr(str(path), consolidated=False, chunks=None)
+    ds = xr.open_zarr(str(path), consolidated=False, chunks=None)
+    ds.attrs["runs_not_done"] = runs_not_done(path)
+    return ds
 
 
-def export_netcdf(path: str | Path, out: str | Path) -> Path:
+def export_netcdf(path: str | Path, out: str | Path, *, partial: bool = False) -> Path:
     """Write the store as one netCDF-3 file (SciPy engine), whole or not at all.
+
+    A store whose sweep has not finished is refused (its cells not run yet hold fill values
+    that would read as failed runs), unless ``partial=True``: the file then carries the
+    count of those runs in its ``runs_not_done`` attribute, as :func:`open_sweep` gives it.
 
     netCDF-3 has no 64-bit integers, booleans or variable-length strings: int64 metrics are
     stored as int32 (they count steps, far below 2^31), booleans as int8 and strings as
@@ -564,7 +574,15 @@ def export_netcdf(path: str | Path, out: str | Path) -> Path:
     """
     from braidsim.io import atomic_write_with
 
-    ds = open_sweep(path).load()
+    ds = open_sweep(path)
+    missing = int(ds.attrs["runs_not_done"])
+    if missing and not partial:
+        raise StoreError(
+            f"STORE: {path} is not finished: {missing} of {int(ds.attrs['n_runs'])} runs have "
+            f"not run yet; finish it with `braidsim sweep SPEC --out {path} --resume`, then "
+            "export it (or pass partial=True to export the runs done so far)"
+        )
+    ds = ds.load()
 
     def nc_attrs(attrs: Mapping[str, Any]) -> dict[str, Any]:
         # netCDF-3 attributes: numbers, number arrays and (ASCII) text only
