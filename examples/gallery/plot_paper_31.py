@@ -1,8 +1,9 @@
 """
 # Section 3.1 of the paper: impacts without track vibration
 
-The carrier starts in the middle of the track's 3 mm gap at 0.5 m/s, hits the outer wall,
-crosses back, and bounces on the inner wall until it rests there under the constant load
+The carrier starts on the inner wall (x0 = 0) moving outward at 0.5 m/s, crosses the
+track's 3 mm gap, hits the outer wall, crosses back, and bounces on the inner wall until it
+rests there under the constant load
 (yarn tension plus centrifugal force). This is the paper's Figs. 3-6 and the Hunt-Crossley
 row of its Table 1; `braidsim paper` compares every number, this example shows the run.
 """

@@ -30,8 +30,8 @@ PAGES = sorted(DOCS.glob("*.md"))
 
 # command as written -> the same command at a size that runs in seconds
 REDUCED = {
-    "braidsim analyze paper-3.3 --duration 3 --transient 2 --out a33": (
-        "braidsim analyze paper-3.3 --duration 0.3 --transient 0.2 --out a33"
+    'braidsim analyze paper-3.3 --duration "3 s" --transient "2 s" --out a33': (
+        'braidsim analyze paper-3.3 --duration "0.3 s" --transient "0.2 s" --out a33'
     ),
     'braidsim bifurcation paper-3.3 --param track.vibration_amplitude --from "0.02 mm" '
     '--to "0.5 mm" --points 121 --workers 0 --out bif': (
@@ -127,6 +127,8 @@ def workdir(tmp_path: Path) -> Path:
 def _check(cmd: str, cwd: Path) -> None:
     proc = run_braidsim(cmd, cwd)
     assert proc.returncode == 0, f"{cmd}\nexit {proc.returncode}\n{proc.stderr[-3000:]}"
+    # a documented command writes its units: no "taken as ... (SI)" notice
+    assert "braidsim: note:" not in proc.stderr, f"{cmd}\n{proc.stderr[-3000:]}"
     if "--json" in shlex.split(cmd):
         json.loads(proc.stdout)
 

@@ -28,7 +28,7 @@ REDUCTIONS: dict[str, list[str]] = {
     "bifurcation": ["--points", "3", "--transient-cycles", "10", "--cycles", "10"],
     "basins": ["--nx", "2", "--ny", "2", "--transient-cycles", "10", "--cycles", "10"],
     "lyapunov": ["--transient-cycles", "10", "--cycles", "10"],
-    "machine": ["--duration", "0.3", "--frames", "3", "--workers", "1"],
+    "machine": ["--duration", "0.3 s", "--frames", "3", "--workers", "1"],
     "sweep": ["--workers", "1"],
 }
 #: verbs that take minutes even reduced (the whole paper, a design study); `-m slow`
@@ -172,11 +172,13 @@ def run_documented(
 def check_command(
     cmd: DocCommand, workdir: Path, capsys: pytest.CaptureFixture[str], monkeypatch: Any
 ) -> None:
-    """The command exits 0; a ``--json`` command prints one JSON object with the version."""
+    """The command exits 0 with no notice (a documented command writes its units); a
+    ``--json`` command prints one JSON object with the version."""
     import json
 
     code, out, err = run_documented(cmd, workdir, capsys, monkeypatch)
     assert code == 0, f"`{cmd.source}` (line {cmd.line}) exited {code}: {err.strip()}"
+    assert "braidsim: note:" not in err, f"`{cmd.source}` (line {cmd.line}): {err.strip()}"
     if "--json" in cmd.argv:
         assert json.loads(out)["braidsim_version"]
 
@@ -201,7 +203,7 @@ def _param(cmd: DocCommand) -> Any:
 
 def test_readme_has_the_commands_it_should() -> None:
     sources = [c.source for c in COMMANDS]
-    assert any("paper-3.3" in s and "--window 0.5 1.0" in s for s in sources)
+    assert any("paper-3.3" in s and "--window '0.5 s' '1 s'" in s for s in sources)
     assert {c.verb for c in COMMANDS} >= {"run", "paper", "impact", "models", "sweep"}
 
 
