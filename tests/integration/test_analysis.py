@@ -285,6 +285,25 @@ def test_cli_analyze_scenario_and_run_folder(capsys, tmp_path) -> None:
         assert (tmp_path / "a" / name).is_file()
 
 
+def test_cli_analyze_text_names_the_span_of_each_count(capsys) -> None:
+    """The text gives the steady-state window's impacts apart from the whole run's, whose
+    transient (paper-3.3's release and its outer-wall impacts) would read as steady."""
+    code, out, err = run_cli(
+        capsys, "analyze", "paper-3.3", "--duration", "0.6 s", "--transient", "0.3 s"
+    )
+    assert code == 0, err
+    code, js, err = run_cli(
+        capsys, "analyze", "paper-3.3", "--duration", "0.6 s", "--transient", "0.3 s", "--json"
+    )
+    d = json.loads(js)
+    text = " ".join(out.split())  # rich wraps the lines
+    n_win, n_all = d["impacts_in_window"]["count"], d["impacts"]["count"]
+    assert n_win < n_all
+    assert f"impacts, in the window: {n_win} (" in text
+    assert f"impacts, whole run: {n_all} (" in text
+    assert "energy, whole run:" in text
+
+
 def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
     code, out, err = run_cli(
         capsys,

@@ -571,18 +571,23 @@ def _print_analysis(d: dict[str, Any], out: Path | None) -> None:
         f"{d['window'][1]:.4g} s"
     )
     con.print(f"steady-state window: {d['window_rule']}", markup=False)
-    imp = d["impacts"]
-    v = imp["approach_speed"]
-    counts = ", ".join(f"{k} {n}" for k, n in imp["counts"].items()) or "-"
-    con.print(
-        f"impacts: {imp['count']} ({counts})"
-        + (f", approach speed {v['min']:.3g}-{v['max']:.3g} m/s" if v["max"] is not None else "")
-        + f", track contact {100 * imp['contact_fraction']['track']:.3g} % of the time"
-    )
+    # the impacts in the steady-state window first: the whole run adds the transient's
+    for label, imp in (("in the window", d["impacts_in_window"]), ("whole run", d["impacts"])):
+        v = imp["approach_speed"]
+        counts = ", ".join(f"{k} {n}" for k, n in imp["counts"].items()) or "-"
+        con.print(
+            f"impacts, {label}: {imp['count']} ({counts})"
+            + (
+                f", approach speed {v['min']:.3g}-{v['max']:.3g} m/s"
+                if v["max"] is not None
+                else ""
+            )
+            + f", track contact {100 * imp['contact_fraction']['track']:.3g} % of the time"
+        )
     e = d["energy_balance"]
     t = e["totals"]
     con.print(
-        f"energy: contact losses {t['contact_dissipated']:.4g} J, "
+        f"energy, whole run: contact losses {t['contact_dissipated']:.4g} J, "
         f"friction {t['friction_dissipated']:.4g} J, "
         f"wall work {t['track_work'] + t['slot_work']:.4g} J, load work {t['load_work']:.4g} J; "
         f"balance closes to {e['closure']:.2g}"
