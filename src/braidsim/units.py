@@ -27,6 +27,7 @@ stderr whenever a bare number is given for a dimensional quantity
 
 from __future__ import annotations
 
+import difflib
 import functools
 import importlib
 import math
@@ -78,6 +79,29 @@ _SI_FACTORS: dict[tuple[str, str], float] = {
 }
 #: frequencies for a target in rad/s, read as cycles per time: factor to 1/s, times 2 pi
 _FREQUENCY_FACTORS: dict[str, float] = {"Hz": 1.0}
+
+
+#: the units a user of braidsim writes most, offered first when a unit name is not known
+COMMON_UNITS = (
+    "m", "mm", "um", "cm", "km", "s", "ms", "us", "min", "h", "kg", "g", "N", "kN", "MN",
+    "Pa", "kPa", "MPa", "GPa", "rad", "deg", "rpm", "Hz", "kHz", "J", "mJ", "W", "kW",
+    "m/s", "mm/s", "m/s^2", "rad/s", "N/m", "N*m", "meter", "millimeter", "micrometer",
+    "second", "millisecond", "newton", "kilonewton", "pascal", "gigapascal", "radian",
+    "degree", "hertz", "joule", "watt", "kilogram", "gram",
+)  # fmt: skip
+
+
+def unknown_unit_message(exc: Exception, text: str) -> str:
+    """``unknown unit 'rmp'; did you mean 'rpm'?``: the name pint did not know (from its
+    error, else ``text``) and the closest common or known unit, if one is close."""
+    names = getattr(exc, "unit_names", None) or (text,)
+    bad = str(names[0]) if isinstance(names, tuple | list) else str(names)
+    near = difflib.get_close_matches(bad, COMMON_UNITS, n=1, cutoff=0.6)
+    if not near:
+        known = [n for n in dir(registry()) if not n.startswith("_")]
+        near = difflib.get_close_matches(bad, known, n=1, cutoff=0.8)
+    hint = f"did you mean {near[0]!r}?" if near else "allowed e.g. 'mm', 'kN', 'rpm'"
+    return f"unknown unit {bad!r}; {hint}"
 
 
 def _is_time_or_hertz(ureg: pint.UnitRegistry, name: str) -> bool:
@@ -227,9 +251,7 @@ def parse_unit(key: str, text: str) -> Any:
     try:
         return registry().parse_units(unit_text)
     except Exception as exc:  # pint raises several exception types for unknown names
-        raise InputError(
-            f"{key}: unknown unit {text!r} ({exc.__class__.__name__}); allowed e.g. 'mm', 'kN'"
-        ) from None
+        raise InputError(f"{key}: {unknown_unit_message(exc, text)}") from None
 
 
 def _split(key: str, value: str, unit: str) -> tuple[float, str]:
@@ -276,7 +298,7 @@ def _pint_expression(key: str, value: str, rest: str, unit_text: str) -> Any:
         return registry().parse_expression(unit_text)
     except Exception as exc:  # pint raises several exception types for unknown names
         raise InputError(
-            f"{key}: cannot read {value!r}: unknown unit {rest!r} ({exc.__class__.__name__})"
+            f"{key}: cannot read {value!r}: {unknown_unit_message(exc, rest)}"
         ) from None
 
 
@@ -319,10 +341,8 @@ def parse_quantity(key: str, value: object, unit: str) -> tuple[float, bool]:
         else:
             out = float(q.to(target).magnitude)
     except pint.DimensionalityError:
-        want = unit or "no unit"
-        raise InputError(
-            f"{key}: {value!r} has the wrong unit; expected a quantity in {want}"
-        ) from None
+        want = f"a quantity in {unit}" if unit else "a plain number (no unit)"
+        raise InputError(f"{key}: {value!r} has the wrong unit; expected {want}") from None
     except (OverflowError, ZeroDivisionError):
         out = math.inf
     return _checked(key, value, unit, mag, out), False

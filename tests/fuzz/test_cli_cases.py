@@ -548,7 +548,7 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
             "{o}/p.png",
         ],
         BAD,
-        ("--unit",),
+        ("--unit", "not a unit of the same kind; allowed e.g. 'mm', 'um'"),
     ),
     (
         "plot-unit-pow",

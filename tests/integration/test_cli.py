@@ -74,9 +74,12 @@ def test_run_window_and_set(capsys) -> None:
         (["run", "paper-3.1", "--set", "contact.track.model=hunt"], "contact.track.model"),
         (["run", "no-such-scenario"], "scenario"),
         (["run", "paper-3.1", "--duration", "-1"], "duration"),
-        (["impact", "--restitution", "0"], "restitution"),
+        (["impact", "--restitution", "0"], "--restitution: 0 is out of range"),
         (["impact", "--velocity", "-1"], "velocity"),
-        (["impact", "--model", "nope"], "contact.track.model"),
+        (["impact", "--model", "hertzz"], "--model: 'hertzz' is not allowed (did you mean"),
+        (["impact", "--mass", "-1 kg"], "--mass: -1 kg is out of range"),
+        (["impact", "--exponent", "-1"], "--exponent: -1 is out of range"),
+        (["run", "paper-3.1", "--set", "horn_gear.angular_velocity=150 rmp"], "'rpm'?"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) -> None:

@@ -66,6 +66,10 @@ def test_overrides_and_extends(tmp_path) -> None:
     [
         ({"carrier.mas": 1.0}, "did you mean 'carrier.mass'"),
         ({"carrier.mass": "3 mm"}, "wrong unit"),
+        ({"horn_gear.angular_velocity": "150 rmp"}, "unknown unit 'rmp'; did you mean 'rpm'?"),
+        ({"track.clearance": "3 milimeter"}, "did you mean 'millimeter'?"),
+        ({"track.clearance": "3 qqq"}, "unknown unit 'qqq'; allowed e.g. 'mm'"),
+        ({"contact.track.restitution": "0.7 m"}, "expected a plain number (no unit)"),
         ({"carrier.mass": -1.2}, "allowed > 0 kg"),
         ({"carrier.mass": 0}, "allowed > 0 kg"),
         ({"contact.track.restitution": 1.5}, "allowed > 0 and <= 1"),

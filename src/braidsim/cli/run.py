@@ -174,6 +174,17 @@ def _print_summary(summary: dict, out: Path | None) -> None:
         con.print(f"written to {out}")
 
 
+#: the scenario keys through which `impact` checks its options
+_IMPACT_OPTIONS = {
+    "contact.track.model": "--model",
+    "contact.track.restitution": "--restitution",
+    "contact.track.exponent": "--exponent",
+    "contact.track.stiffness": "--stiffness",
+    "carrier.mass": "--mass",
+    "initial.vx": "--velocity",
+}
+
+
 @app.command()
 @guarded
 def impact(
@@ -206,14 +217,22 @@ def impact(
 
         n = exponent if exponent is not None else get_law(model).default_exponent
         k_si = quantity_option("--stiffness", stiffness, f"N/m**{n!r}")
-    res = single_impact(
-        model,
-        num(restitution),
-        quantity_option("--velocity", num(velocity), "m/s"),
-        quantity_option("--mass", num(mass), "kg"),
-        k_si,
-        exponent,
-    )
+    try:
+        res = single_impact(
+            model,
+            num(restitution),
+            quantity_option("--velocity", num(velocity), "m/s"),
+            quantity_option("--mass", num(mass), "kg"),
+            k_si,
+            exponent,
+        )
+    except InputError as exc:
+        # single_impact checks its values as the scenario keys it sets: name the options
+        msg = str(exc)
+        for key, option in _IMPACT_OPTIONS.items():
+            if msg.startswith(f"{key}:"):
+                raise InputError(option + msg[len(key) :]) from None
+        raise
     if json_:
         print_json(res)
         return

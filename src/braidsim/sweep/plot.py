@@ -37,11 +37,27 @@ def _factor(name: str, si_unit: str, unit: str | None) -> tuple[float, str]:
     target = parse_unit(f"--unit {name}", unit)
     try:
         f = float(ureg.Quantity(1.0, si_unit or "dimensionless").to(target).magnitude)
-    except Exception as exc:  # pint raises several types for bad or incompatible units
+    except Exception:  # pint raises several types for incompatible units
         raise InputError(
-            f"--unit: cannot show {name} [{si_unit}] in {unit!r} ({exc.__class__.__name__})"
+            f"--unit: cannot show {name} [{si_unit or 'no unit'}] in {unit!r}, which is not "
+            f"a unit of the same kind; allowed e.g. {_same_kind(si_unit)}"
         ) from None
     return f, unit
+
+
+def _same_kind(si_unit: str) -> str:
+    """Display units a quantity in ``si_unit`` can be shown in, for messages."""
+    examples = {
+        "m": "'mm', 'um'",
+        "s": "'ms', 'min'",
+        "rad/s": "'rpm', 'Hz'",
+        "m/s": "'mm/s'",
+        "N": "'kN'",
+        "J": "'mJ'",
+        "W": "'kW'",
+        "Pa": "'MPa', 'GPa'",
+    }
+    return examples.get(si_unit, f"{si_unit!r}" if si_unit else "'percent'")
 
 
 def _edges(c: np.ndarray, log: bool) -> np.ndarray:
