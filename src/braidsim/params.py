@@ -499,6 +499,13 @@ def _convert(spec: ParamSpec, value: Any) -> Any:
     raise AssertionError(spec.kind)  # pragma: no cover - schema is static
 
 
+def _scenario_from_state(
+    name: str, values: dict[str, Any], description: str, source: str, explicit: frozenset[str]
+) -> Scenario:
+    """A :class:`Scenario` from its pickled state (see ``Scenario.__reduce__``)."""
+    return Scenario(name, MappingProxyType(values), description, source, explicit)
+
+
 @dataclass(frozen=True)
 class Scenario:
     """A validated, frozen set of parameters in SI.
@@ -524,6 +531,14 @@ class Scenario:
             return self.values[key]
         except KeyError:
             raise _unknown(key) from None
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # the read-only view of the values cannot be pickled: pickle (and deepcopy) a plain
+        # copy of them, viewed read-only again on the way back
+        return (
+            _scenario_from_state,
+            (self.name, dict(self.values), self.description, self.source, self.explicit),
+        )
 
     def with_overrides(
         self, overrides: Mapping[str, Any] | None = None, name: str | None = None

@@ -147,3 +147,26 @@ def test_simulate_reads_a_duration_with_its_unit_and_refuses_a_foreign_start() -
         simulate(sc, "2 mm", series=False)
     with pytest.raises(InputError, match=r"^start: expected the State"):
         simulate(sc, 1e-3, start="foo", series=False)  # type: ignore[arg-type]
+
+
+def test_scenarios_and_results_pickle_and_cross_a_process_pool() -> None:
+    """A scenario keeps its values behind a read-only view, which pickle cannot take: it
+    pickles a copy, so scenarios, results and models go through pickle, deepcopy and a pool."""
+    import copy
+    import multiprocessing
+    import pickle
+    from concurrent.futures import ProcessPoolExecutor
+
+    sc = load_scenario("paper-3.1", overrides={"track.clearance": "2 mm"})
+    back = pickle.loads(pickle.dumps(sc))
+    assert back == sc and back.explicit == sc.explicit
+    with pytest.raises(TypeError):  # still read-only
+        back.values["track.clearance"] = 1.0  # type: ignore[index]
+    res = braidsim.simulate(sc, 0.01, series=False)
+    again = pickle.loads(pickle.dumps(res))
+    assert again.impacts.equals(res.impacts) and again.model.scenario == sc
+    assert copy.deepcopy(res).final_state == res.final_state
+    # spawn: a fresh interpreter that receives everything pickled (and no fork warning)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        far = pool.submit(braidsim.simulate, sc, 0.01, series=False).result()
+    assert far.impacts.equals(res.impacts)
