@@ -6,13 +6,15 @@ half-written output behind.
 
 from __future__ import annotations
 
+import math
 import os
 import re
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 
 def _umask() -> int:
@@ -231,3 +233,19 @@ def check_output_directory(path: str | Path, kind: str = "output") -> None:
         f"--out: {str(p)!r} is not empty and is not an earlier braidsim {kind}; "
         "allowed: a new or empty directory, or an earlier output to replace"
     )
+
+
+def json_safe(obj: Any) -> Any:
+    """``obj`` as strict JSON data: NaN and inf become None (null), numpy arrays lists and
+    numpy scalars Python numbers, tuples lists; mappings and sequences are walked through."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [json_safe(v) for v in obj]
+    if getattr(obj, "ndim", 0) and hasattr(obj, "tolist"):  # a numpy array (not 0-d)
+        return json_safe(obj.tolist())
+    if hasattr(obj, "item") and callable(obj.item):  # a numpy scalar or 0-d array
+        return json_safe(obj.item())
+    return obj

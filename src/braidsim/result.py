@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.core.layout import EPISODE_COLUMNS, KIND_NAMES
+from braidsim.errors import InputError
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -306,14 +307,25 @@ class Result:
 
     # ------------------------------------------------------------------ summary
     def summary(self, window: tuple[float, float] | None = None) -> dict[str, Any]:
-        """The JSON object of ``braidsim run --json``, SI units.
+        """The JSON object of ``braidsim run --json``, SI units, as strict JSON data (a value
+        that is not finite, such as the latched speed of a contact present at the start, is
+        None).
 
         It starts with the provenance of :meth:`provenance` (``braidsim_version``,
         ``created``, ``scenario``, ``simulation`` with the start time, the duration actually
         simulated and the backend, and ``parameters``, the resolved scenario). With
         ``window`` the ranges and the impact list cover only [t0, t1].
         """
-        iw = 0 if window is None else self.window_index(*window)
+        iw = 0
+        if window is not None:
+            try:
+                iw = self.window_index(*window)
+            except (KeyError, TypeError, ValueError):
+                have = ", ".join(f"({a:g}, {b:g})" for a, b in self.windows)
+                raise InputError(
+                    f"window: {window!r} s is not one this result has ranges for; allowed one "
+                    f"of {have} (ask for others with simulate(..., windows=[(t0, t1)]))"
+                ) from None
         ep = self.episodes  # read directly: the pandas table would cost its import
         rows = np.arange(len(ep))
         if window is not None:
@@ -341,26 +353,30 @@ class Result:
                 }
             )
         prov = self.provenance()
-        return {
-            "braidsim_version": prov["braidsim_version"],
-            "created": prov["created"],
-            "scenario": prov["scenario"],
-            "simulation": {
-                "t_start": prov["t_start"],
-                "duration": prov["duration"],
-                "backend": prov["backend"],
-            },
-            "parameters": prov["parameters"],
-            "window": [float(self.windows[iw, 0]), float(self.windows[iw, 1])],
-            "x": self.ranges_dict("track", iw),
-            "y": self.ranges_dict("slot", iw),
-            "impacts": impacts,
-            "final": {
-                **{k: float(v) for k, v in self.final.items()},
-                **({"sensitivity": sens.final_dict()} if sens is not None else {}),
-            },
-            "stats": dict(self.stats),
-        }
+        from braidsim.io import json_safe
+
+        return json_safe(
+            {
+                "braidsim_version": prov["braidsim_version"],
+                "created": prov["created"],
+                "scenario": prov["scenario"],
+                "simulation": {
+                    "t_start": prov["t_start"],
+                    "duration": prov["duration"],
+                    "backend": prov["backend"],
+                },
+                "parameters": prov["parameters"],
+                "window": [float(self.windows[iw, 0]), float(self.windows[iw, 1])],
+                "x": self.ranges_dict("track", iw),
+                "y": self.ranges_dict("slot", iw),
+                "impacts": impacts,
+                "final": {
+                    **{k: float(v) for k, v in self.final.items()},
+                    **({"sensitivity": sens.final_dict()} if sens is not None else {}),
+                },
+                "stats": dict(self.stats),
+            }
+        )
 
     # ------------------------------------------------------------------ exports
     def to_xarray(self) -> xr.Dataset:

@@ -170,3 +170,18 @@ def test_scenarios_and_results_pickle_and_cross_a_process_pool() -> None:
     with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
         far = pool.submit(braidsim.simulate, sc, 0.01, series=False).result()
     assert far.impacts.equals(res.impacts)
+
+
+def test_summary_is_strict_json_and_refuses_a_window_it_has_no_ranges_for() -> None:
+    """The latched speed of a contact present at t = 0 is infinite: the summary gives None,
+    as `run --json` does; a window not computed by simulate is an InputError naming those
+    that were."""
+    import json
+
+    res = braidsim.simulate("paper-3.3", 0.02, windows=[(0.005, 0.01)])
+    text = json.dumps(res.summary(), allow_nan=False)
+    assert json.loads(text)["impacts"][0]["latched_velocity"] is None
+    assert res.summary(window=(0.005, 0.01))["window"] == [0.005, 0.01]
+    for bad in ((0.002, 0.004), (0.01, 0.005), "0.01"):
+        with pytest.raises(InputError, match=r"^window: .* allowed one of \(0, 0.02\), "):
+            res.summary(window=bad)  # type: ignore[arg-type]

@@ -37,12 +37,13 @@ def _write_outputs(
     out: Path, kind: str, payload: dict[str, Any], figures: dict[str, Callable[[], Any]]
 ) -> None:
     """Write ``<kind>.json`` and the figures into ``out`` as one atomic directory."""
-    from braidsim.cli.common import _clean
-    from braidsim.io import atomic_directory
+    from braidsim.io import atomic_directory, json_safe
     from braidsim.plotting import save
 
     with atomic_directory(out, kind=f"analysis-{kind}") as tmp:
-        (tmp / f"{kind}.json").write_text(json.dumps(_clean(payload), indent=1), encoding="utf-8")
+        (tmp / f"{kind}.json").write_text(
+            json.dumps(json_safe(payload), indent=1), encoding="utf-8"
+        )
         for name, make in figures.items():
             save(make(), tmp / name)
 

@@ -23,6 +23,7 @@ from typing import Any, TypeVar
 import typer
 
 from braidsim.errors import InputError, SimulationError, StoreError
+from braidsim.io import json_safe
 
 app = typer.Typer(
     name="braidsim",
@@ -58,26 +59,13 @@ def _root(
     """Carrier-track contact dynamics of maypole braiding machines."""
 
 
-def _clean(obj: Any) -> Any:
-    """NaN and inf become null so that the output is strict JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if hasattr(obj, "item") and callable(obj.item):  # numpy scalars
-        return _clean(obj.item())
-    return obj
-
-
 def print_json(obj: Any) -> None:
     """One strict JSON object on stdout, nothing else; it starts with ``braidsim_version``."""
     from braidsim.provenance import version
 
     if isinstance(obj, dict):
         obj = {"braidsim_version": version(), **obj}
-    sys.stdout.write(json.dumps(_clean(obj), allow_nan=False) + "\n")
+    sys.stdout.write(json.dumps(json_safe(obj), allow_nan=False) + "\n")
     sys.stdout.flush()
 
 

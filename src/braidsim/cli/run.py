@@ -84,9 +84,8 @@ def _write_run(res: Any, summary: dict[str, Any], out: Path, csv: bool) -> None:
     """The files of ``run --out``, written as one directory (whole or absent)."""
     import json
 
-    from braidsim.cli.common import _clean
     from braidsim.export import write_series_netcdf
-    from braidsim.io import atomic_directory
+    from braidsim.io import atomic_directory, json_safe
     from braidsim.plotting import run_figures
 
     with atomic_directory(out, kind="run") as tmp:
@@ -96,7 +95,9 @@ def _write_run(res: Any, summary: dict[str, Any], out: Path, csv: bool) -> None:
             (tmp / "impacts.csv").write_text(res.impacts.to_csv(index=False), encoding="utf-8")
         run_figures(res, tmp)
         write_series_netcdf(res, tmp / "series.nc")
-        (tmp / "summary.json").write_text(json.dumps(_clean(summary), indent=1), encoding="utf-8")
+        (tmp / "summary.json").write_text(
+            json.dumps(json_safe(summary), indent=1), encoding="utf-8"
+        )
 
 
 def _print_summary(summary: dict, out: Path | None) -> None:

@@ -1117,7 +1117,7 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
 
 def write_report(res: DesignResult, out: str | Path) -> dict[str, Any]:
     """Write the report directory ``out`` (whole or not at all); return the summary."""
-    from braidsim.machine.report import _clean
+    from braidsim.io import json_safe
     from braidsim.plotting import save
 
     figures: list[str] = []
@@ -1154,7 +1154,7 @@ def write_report(res: DesignResult, out: str | Path) -> dict[str, Any]:
         data = summary(res, files)
         atomic_write_text(tmp / "report.md", markdown(res, data, figures))
         atomic_write_text(
-            tmp / "summary.json", json.dumps(_clean(data), indent=1, allow_nan=False) + "\n"
+            tmp / "summary.json", json.dumps(json_safe(data), indent=1, allow_nan=False) + "\n"
         )
     data["out"] = str(out)
     return data

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from braidsim.io import atomic_directory, atomic_write_text, check_output_directory
+from braidsim.io import atomic_directory, atomic_write_text, check_output_directory, json_safe
 from braidsim.paper import findings as F
 from braidsim.paper.compute import compare, measure, run_spec
 from braidsim.paper.values import PaperItem, PaperValues, load_paper_values
@@ -154,7 +154,7 @@ class PaperReport:
             )
         from braidsim.provenance import utc_now, version
 
-        return _clean(
+        return json_safe(
             {
                 "braidsim_version": version(),
                 "created": utc_now(),
@@ -762,7 +762,7 @@ def write_outputs(
         atomic_write_text(root / "report.md", markdown_report(report)),
         atomic_write_text(root / "report.html", html_report(report, root)),
         atomic_write_text(
-            root / "items.json", json.dumps(_clean(report.to_json()), indent=1, allow_nan=False)
+            root / "items.json", json.dumps(json_safe(report.to_json()), indent=1, allow_nan=False)
         ),
         atomic_write_text(root / "items.csv", items_csv(report)),
         atomic_write_text(root / "table1.csv", table1_csv(rows)),
@@ -772,16 +772,6 @@ def write_outputs(
     if on_step:
         on_step("report files", 1)
     return paths
-
-
-def _clean(obj: Any) -> Any:
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, Mapping):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    return obj
 
 
 def reproduce(out: str | Path, on_step: StepCallback | None = None) -> PaperReport:
