@@ -383,16 +383,16 @@ def default_moves(sc: Scenario) -> list[LeverMove]:
         ),
         LeverMove(
             "vibration",
-            f"track vibration amplitude {h * 1e3:.3g} -> {0.5 * h * 1e3:.3g} mm (stiffer "
-            "mounting, balancing, isolation)",
+            f"track vibration amplitude set to {0.5 * h * 1e3:.3g} mm in every sample "
+            f"(nominal {h * 1e3:.3g} mm; stiffer mounting, balancing, isolation)",
             {"track.vibration_amplitude": 0.5 * h},
             effort=2.0,
             effort_reason="machine mounting and balancing, no new parts on the carriers",
         ),
         LeverMove(
             "clearance",
-            f"track clearance {c * 1e3:.3g} -> {0.5 * c * 1e3:.3g} mm (tighter guide "
-            "pads, kept by maintenance)",
+            f"track clearance set to {0.5 * c * 1e3:.3g} mm in every sample (nominal "
+            f"{c * 1e3:.3g} mm; tighter guide pads, kept by maintenance)",
             {"track.clearance": 0.5 * c},
             effort=3.0,
             effort_reason="tighter tolerances of the track and pads, and replacing pads as "
