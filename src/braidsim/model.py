@@ -95,6 +95,17 @@ class Model:
     duration: float
     implicit_rest: bool = False
 
+    def __repr__(self) -> str:
+        laws = ", ".join(
+            f"{p} {m.law} (n = {m.exponent:g})"
+            for p, m in (("track", self.track), ("slot", self.slot))
+            if p == "track" or self.two_dof
+        )
+        return (
+            f"<braidsim.Model of {self.scenario.name!r}: {type(self.record).__name__}, "
+            f"{self.duration:g} s, {laws}, {len(self.transfer_times)} transfers>"
+        )
+
     @property
     def horn_gear(self) -> HornGear:
         """The horn gear's speed record (omega(t), s(t))."""

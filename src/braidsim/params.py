@@ -532,6 +532,20 @@ class Scenario:
         except KeyError:
             raise _unknown(key) from None
 
+    def __repr__(self) -> str:
+        # the whole parameter set is ~70 entries: name the ones set explicitly, briefly
+        def brief(v: Any) -> str:
+            return f"{v:.4g}" if isinstance(v, float) else repr(v)
+
+        shown = [f"{k} = {brief(self.values[k])}" for k in sorted(self.explicit)[:4]]
+        more = len(self.explicit) - len(shown)
+        set_ = ", ".join(shown) + (f", +{more} more" if more > 0 else "")
+        return (
+            f"<braidsim.Scenario {self.name!r}: {len(self.values)} parameters in SI"
+            + (f"; set: {set_}" if shown else "")
+            + ">"
+        )
+
     def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
         # the read-only view of the values cannot be pickled: pickle (and deepcopy) a plain
         # copy of them, viewed read-only again on the way back

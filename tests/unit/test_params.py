@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 
@@ -185,3 +186,16 @@ def test_summary_is_strict_json_and_refuses_a_window_it_has_no_ranges_for() -> N
     for bad in ((0.002, 0.004), (0.01, 0.005), "0.01"):
         with pytest.raises(InputError, match=r"^window: .* allowed one of \(0, 0.02\), "):
             res.summary(window=bad)  # type: ignore[arg-type]
+
+
+def test_reprs_are_one_short_line() -> None:
+    from braidsim.model import build_model
+    from braidsim.sweep import load_spec
+
+    sc = load_scenario("paper-3.3", overrides={"track.clearance": "2 mm"})
+    spec = load_spec(Path(__file__).resolve().parents[2] / "examples" / "sweep_ha_omega.toml")
+    for obj in (sc, build_model(sc), spec):
+        text = repr(obj)
+        assert text.startswith("<braidsim.") and "\n" not in text and len(text) < 300, text
+    assert "63 parameters" in repr(sc) or "parameters in SI" in repr(sc)
+    assert "(425 runs)" in repr(spec)

@@ -247,6 +247,14 @@ class SweepSpec:
     chunk_shape: tuple[int, ...]
     retries: int
 
+    def __repr__(self) -> str:
+        shape = " x ".join(f"{d} {n}" for d, n in zip(self.dims, self.shape, strict=True))
+        dur = "each run's duration" if self.duration is None else f"{self.duration:g} s"
+        return (
+            f"<braidsim.SweepSpec {self.name!r}: {self.base.name!r}, {shape} "
+            f"({self.n_runs} runs), {dur}, {len(self.metrics)} metrics>"
+        )
+
     # -------------------------------------------------------------- geometry
     @property
     def dims(self) -> tuple[str, ...]:
