@@ -54,6 +54,7 @@ a_p = (T1 cos phi + m r_c omega^2)/m >= h_a omega_h^2 and impacts above that lin
 from __future__ import annotations
 
 import math
+import numbers
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -349,23 +350,17 @@ def scenario_from_payload(payload: tuple[Any, ...]) -> Scenario:
 
 def check_options(
     durations: Sequence[float],
-    window: tuple[float, float] | None,
+    window: tuple[float | str, float | str] | None,
     series: Sequence[str],
-    series_times: Sequence[float] | np.ndarray | None,
+    series_times: Sequence[float | str] | np.ndarray | None,
 ) -> RunOptions:
     """Validate the reduction options against the run durations; an InputError names the option."""
+    from braidsim.simulate import time_array, time_window
+
     tmin = min(durations) if durations else math.inf
     win = None
     if window is not None:
-        t0, t1 = float(window[0]), float(window[1])
-        if not (math.isfinite(t0) and math.isfinite(t1)) or t0 < 0.0 or t1 <= t0:
-            raise InputError(
-                f"window: [{t0:g}, {t1:g}] s is not a time interval; allowed 0 <= T0 < T1"
-            )
-        if t1 > tmin * (1 + 1e-12):
-            raise InputError(
-                f"window: T1 = {t1:g} s is after the end of the shortest run; allowed <= {tmin:g} s"
-            )
+        t0, t1 = time_window("window", window, 0.0, tmin, "the shortest run")
         win = (t0, min(t1, tmin))
     names = tuple(series)
     for name in names:
@@ -377,7 +372,7 @@ def check_options(
             raise InputError(
                 f"series: unknown variable {name!r}{hint}; allowed {', '.join(SERIES_VARIABLES)}"
             )
-    times = np.zeros(0) if series_times is None else np.asarray(series_times, dtype=float).ravel()
+    times = np.zeros(0) if series_times is None else time_array("series_times", series_times)
     if names and times.size == 0:
         raise InputError(
             "series_times: no sample times given for the series; allowed a non-empty list in s"
@@ -388,6 +383,43 @@ def check_options(
         if np.any(np.diff(times) <= 0.0):
             raise InputError("series_times: must increase strictly")
     return RunOptions(win, names, times if names else np.zeros(0))
+
+
+def check_parameter_sets(parameter_sets: object) -> list[dict[str, Any]]:
+    """The parameter sets as a list of dicts (copies); an InputError unless ``parameter_sets``
+    is a list of ``{dotted key: value}`` mappings (one dict alone is refused: wrap it in a
+    list)."""
+    if isinstance(parameter_sets, Mapping):
+        raise InputError(
+            "parameter_sets: got one dict; allowed a list of {key: value} dicts, one per run "
+            "(wrap it: [{...}])"
+        )
+    if isinstance(parameter_sets, str | bytes) or not isinstance(parameter_sets, Iterable):
+        raise InputError(
+            f"parameter_sets: got {type(parameter_sets).__name__}; allowed a list of "
+            "{key: value} dicts, one per run"
+        )
+    sets = []
+    for i, ov in enumerate(parameter_sets):
+        if not isinstance(ov, Mapping):
+            raise InputError(
+                f"parameter_sets: entry {i} is a {type(ov).__name__}, not a {{key: value}} "
+                "dict; allowed a list of {key: value} dicts, one per run"
+            )
+        sets.append(dict(ov))
+    return sets
+
+
+def check_workers(workers: object, *, none: bool = False) -> None:
+    """An InputError unless ``workers`` is an integer (or None, with ``none``)."""
+    if none and workers is None:
+        return
+    if isinstance(workers, bool) or not isinstance(workers, numbers.Integral):
+        also = ", or None to decide from the cost of a run" if none else ""
+        raise InputError(
+            f"workers: {workers!r} is not allowed; allowed an integer (1: run here, 0 or less: "
+            f"all cores){also}"
+        )
 
 
 def build_models(
@@ -539,11 +571,11 @@ EXECUTORS = ("threads", "processes")  # what the parallel workers of simulate_ba
 def simulate_batch(
     scenario: Scenario | str | Path | Mapping[str, Any],
     parameter_sets: Sequence[Mapping[str, Any]],
-    duration: float | None = None,
+    duration: float | str | None = None,
     *,
-    window: tuple[float, float] | None = None,
+    window: tuple[float | str, float | str] | None = None,
     series: Sequence[str] = (),
-    series_times: Sequence[float] | np.ndarray | None = None,
+    series_times: Sequence[float | str] | np.ndarray | None = None,
     workers: int = 1,
     executor: str = "threads",
 ) -> BatchResult:
@@ -556,14 +588,17 @@ def simulate_batch(
     parameter_sets : sequence of mappings
         One ``{dotted key: value}`` per run, applied on top of ``scenario`` (numbers in SI or
         unit strings). Every set is validated before any run starts.
-    duration : float, optional
-        Simulated time of every run [s]; default each run's ``simulation.duration``.
+    duration : float or str, optional
+        Simulated time of every run [s] (or a string with a unit, ``"10 ms"``); default each
+        run's ``simulation.duration``.
     window : (float, float), optional
-        Metrics window [s] (module docstring); default the whole run.
+        Metrics window [s] (numbers in s or strings with a unit; module docstring), inside
+        the shortest run; default the whole run.
     series : sequence of str
         Kernel columns to sample at ``series_times`` (:data:`SERIES_VARIABLES`).
     series_times : sequence of float, optional
-        Increasing sample times [s] of ``series``.
+        Increasing sample times [s] of ``series``, a flat list (numbers in s or strings with a
+        unit).
     workers : int
         Parallel workers; 1 runs everything one after the other in this thread, 0 or less
         uses all cores.
@@ -580,12 +615,15 @@ def simulate_batch(
     InputError
         A bad parameter set (with its index) or option, before any run starts.
     """
+    from braidsim.simulate import time_value
+
     base = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    if duration is not None and not (math.isfinite(duration) and duration > 0.0):
-        raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
-    if executor not in EXECUTORS:
+    if duration is not None:
+        duration = time_value("duration", duration)  # a number in s or a string with a unit
+    check_workers(workers)
+    if not isinstance(executor, str) or executor not in EXECUTORS:
         raise InputError(f"executor: {executor!r} is not known; allowed {' or '.join(EXECUTORS)}")
-    sets = [dict(ov) for ov in parameter_sets]
+    sets = check_parameter_sets(parameter_sets)
     models = build_models(base, sets, duration)
     opts = check_options([m.duration for m in models], window, series, series_times)
     nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)

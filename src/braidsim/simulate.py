@@ -18,20 +18,102 @@ from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
 from braidsim.params import Scenario, load_scenario
 from braidsim.result import Result, State
-from braidsim.units import to_si
+from braidsim.units import is_number, to_si
 
 
-def _windows(
-    t_start: float, t_end: float, windows: Sequence[tuple[float, float]] | None
-) -> np.ndarray:
+def _shown(value: object) -> str:
+    """``value`` as a message shows it: its repr, cut to 60 characters."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def time_value(key: str, value: object, *, allow_zero: bool = False) -> float:
+    """A time [s] from a number in s or a string with a unit (``"10 ms"``), read as
+    :func:`simulate` reads ``duration`` (:func:`braidsim.units.to_si`).
+
+    Raises
+    ------
+    InputError
+        Naming ``key``: not a time, or not finite and > 0 (>= 0 with ``allow_zero``).
+    """
+    t = to_si(key, value, "s")
+    if not (math.isfinite(t) and (t >= 0.0 if allow_zero else t > 0.0)):
+        raise InputError(
+            f"{key}: {t:g} s is out of range; allowed {'>=' if allow_zero else '>'} 0 s"
+        )
+    return t
+
+
+def time_window(
+    key: str, window: object, t_start: float, t_end: float, what: str = "the run"
+) -> tuple[float, float]:
+    """One window ``(t0, t1)`` [s], each a number in s or a string with a unit, with
+    ``t_start <= t0 < t1 <= t_end`` (the span of ``what``, to rounding).
+
+    Raises
+    ------
+    InputError
+        Naming ``key``: not a pair, not times, reversed or empty, or outside the span.
+    """
+    allowed = f"allowed {t_start:g} <= t0 < t1 <= {t_end:g} s, the span of {what}"
+    if isinstance(window, str | bytes | Mapping) or not isinstance(window, Sequence | np.ndarray):
+        raise InputError(
+            f"{key}: {_shown(window)} is not a (t0, t1) pair; allowed two times in s, e.g. "
+            "(0.001, 0.005) or ('1 ms', '5 ms')"
+        )
+    if len(window) != 2:
+        raise InputError(
+            f"{key}: {_shown(window)} has {len(window)} entries, not a (t0, t1) pair; allowed "
+            "two times in s, e.g. (0.001, 0.005) or ('1 ms', '5 ms')"
+        )
+    t0, t1 = to_si(key, window[0], "s"), to_si(key, window[1], "s")
+    if not (math.isfinite(t0) and math.isfinite(t1)) or t1 <= t0:
+        raise InputError(f"{key}: [{t0:g}, {t1:g}] s is not a time interval; {allowed}")
+    tol = 1e-12 * max(1.0, abs(t_start), abs(t_end))
+    if t0 < t_start - tol:
+        raise InputError(f"{key}: t0 = {t0:g} s is before the start of {what}; {allowed}")
+    if t1 > t_end + tol:
+        raise InputError(f"{key}: t1 = {t1:g} s is after the end of {what}; {allowed}")
+    return t0, t1
+
+
+def time_array(key: str, values: object) -> np.ndarray:
+    """A flat array of times [s] from a sequence of numbers in s or strings with units.
+
+    Raises
+    ------
+    InputError
+        Naming ``key``: not a flat sequence of times.
+    """
+    flat = "allowed a flat list of times in s, e.g. [0.001, 0.002] or ['1 ms', '2 ms']"
+    if isinstance(values, str | bytes | Mapping) or not isinstance(values, Sequence | np.ndarray):
+        raise InputError(f"{key}: {_shown(values)} is not a list of times; {flat}")
+    if isinstance(values, np.ndarray):
+        if values.ndim != 1:
+            raise InputError(f"{key}: an array of shape {values.shape}; {flat}")
+    elif any(isinstance(v, Sequence | np.ndarray) and not isinstance(v, str) for v in values):
+        raise InputError(f"{key}: {_shown(values)} is a nested list; {flat}")
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):  # strings with units
+        return np.array([to_si(key, v, "s") for v in values], dtype=float)
+
+
+def _windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
+    """Window 0, the whole run, and the ``windows`` given (see :func:`simulate`)."""
     W = [(t_start, t_end)]
-    for w in windows or ():
-        t0, t1 = float(w[0]), float(w[1])
-        if not (math.isfinite(t0) and math.isfinite(t1)) or t0 < 0 or t1 <= t0:
-            raise InputError(f"window: [{t0}, {t1}] is not a time interval; allowed 0 <= T0 < T1")
-        if t1 > t_end + 1e-12:
-            raise InputError(f"window: T1 = {t1:g} s is after the end of the run ({t_end:g} s)")
-        W.append((t0, t1))
+    if windows is None:
+        return np.array(W, dtype=float)
+    pairs = "allowed a list of (t0, t1) pairs, e.g. [(0.001, 0.005)] or [('1 ms', '5 ms')]"
+    if isinstance(windows, str | bytes | Mapping) or not isinstance(windows, Sequence | np.ndarray):
+        raise InputError(f"windows: {_shown(windows)} is not a list of (t0, t1) pairs; {pairs}")
+    if any(is_number(w) or isinstance(w, str) for w in windows):
+        raise InputError(
+            f"windows: {_shown(windows)} is a flat list of times, not a list of (t0, t1) "
+            f"pairs; {pairs}"
+        )
+    for i, w in enumerate(windows):
+        W.append(time_window(f"windows[{i}]", w, t_start, t_end))
     return np.array(W, dtype=float)
 
 
@@ -223,9 +305,9 @@ def simulate(
     duration: float | str | None = None,
     *,
     overrides: Mapping[str, Any] | None = None,
-    windows: Sequence[tuple[float, float]] | None = None,
+    windows: Sequence[tuple[float | str, float | str]] | None = None,
     sample_interval: float | str | None = None,
-    sample_times: Sequence[float] | np.ndarray | None = None,
+    sample_times: Sequence[float | str] | np.ndarray | None = None,
     record_events: bool = True,
     start: State | None = None,
     series: bool | SeriesSink = True,
@@ -244,14 +326,16 @@ def simulate(
     overrides : mapping, optional
         Extra ``{key: value}`` applied on top of the scenario.
     windows : sequence of (t0, t1), optional
-        Extra time windows [s] over which the exact ranges of depth and forces are kept
-        (window 0 is always the whole run).
+        Extra time windows [s] (numbers in s or strings with a unit, ``[("1 ms", "5 ms")]``)
+        over which the exact ranges of depth and forces are kept (window 0 is always the
+        whole run); each inside the run.
     sample_interval : float or str, optional
         Spacing of the sampled series [s] (or a string with a unit); default
         ``simulation.sample_interval``;
         0 keeps only the event rows.
     sample_times : array, optional
-        Explicit sample times [s] (replaces ``sample_interval``).
+        Explicit sample times [s], a flat list (numbers in s or strings with a unit;
+        replaces ``sample_interval``).
     record_events : bool
         Add the exact onset/exit/peak/transfer states to the series.
     start : State, optional
@@ -264,7 +348,8 @@ def simulate(
         :data:`braidsim.core.CARRIER_COLUMNS`, in time order), keeping none in memory: for
         runs of any length, streamed to a store or reduced on the fly.
     max_series_bytes : int or None
-        Memory budget of the samples kept in memory (default 64 MiB, about 300,000 rows). A
+        Memory budget (> 0) of the samples kept in memory (default 64 MiB, about 300,000
+        rows). A
         ``sample_interval`` that would exceed it is widened to a multiple of itself that
         fits (``Result.stats["sample_interval"]`` says which); explicit ``sample_times`` are
         never thinned. None: no budget.
@@ -283,11 +368,19 @@ def simulate(
     if overrides:
         sc = sc.with_overrides(overrides)
     if duration is not None:
-        duration = to_si("duration", duration, "s")  # a number in s or a string with a unit
-        if not (math.isfinite(duration) and duration > 0):
-            raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
+        duration = time_value("duration", duration)  # a number in s or a string with a unit
     if sample_interval is not None:
-        sample_interval = to_si("sample_interval", sample_interval, "s")
+        sample_interval = time_value("sample_interval", sample_interval, allow_zero=True)
+    if max_series_bytes is not None and not (
+        is_number(max_series_bytes)
+        and math.isfinite(max_series_bytes)
+        and max_series_bytes == math.floor(max_series_bytes)
+        and max_series_bytes > 0
+    ):
+        raise InputError(
+            f"max_series_bytes: {_shown(max_series_bytes)} is out of range; allowed an integer "
+            "> 0 (bytes), or None for no budget"
+        )
     if start is not None and not isinstance(start, State):
         raise InputError(
             f"start: expected the State of an earlier run (Result.final_state), got "
@@ -315,7 +408,7 @@ def simulate(
     if series is False:
         st = np.zeros(0)
     elif sample_times is not None:
-        st = np.sort(np.asarray(sample_times, dtype=float))
+        st = np.sort(time_array("sample_times", sample_times))
         if st.size and (st[0] < t_start or st[-1] > T or not np.all(np.isfinite(st))):
             raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
     else:

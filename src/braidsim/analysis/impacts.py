@@ -28,10 +28,13 @@ exchanged, max |W| + max |Q| over the run.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from braidsim.errors import InputError
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -39,13 +42,22 @@ if TYPE_CHECKING:
     from braidsim.result import Result
 
 
-def _window(result: Result, window: tuple[float, float] | None) -> tuple[float, float]:
+Window = tuple[float | str, float | str]
+"""A window (t0, t1) [s]: numbers in s or strings with a unit (``("1 ms", "5 ms")``)."""
+
+
+def _window(result: Result, window: Window | None) -> tuple[float, float]:
+    """The window as floats [s], the whole run when None; an InputError unless it is a
+    (t0, t1) pair inside the run's span."""
+    from braidsim.simulate import time_window
+
+    start, end = float(result.windows[0, 0]), float(result.windows[0, 1])
     if window is None:
-        return float(result.windows[0, 0]), float(result.windows[0, 1])
-    return float(window[0]), float(window[1])
+        return start, end
+    return time_window("window", window, start, end)
 
 
-def impact_sequence(result: Result, window: tuple[float, float] | None = None) -> pd.DataFrame:
+def impact_sequence(result: Result, window: Window | None = None) -> pd.DataFrame:
     """The impacts (contact onsets with an approach) whose onset lies in ``window``."""
     t0, t1 = _window(result, window)
     imp = result.impacts
@@ -53,9 +65,7 @@ def impact_sequence(result: Result, window: tuple[float, float] | None = None) -
     return imp[sel].reset_index(drop=True)
 
 
-def contact_fraction(
-    result: Result, pair: str = "track", window: tuple[float, float] | None = None
-) -> float:
+def contact_fraction(result: Result, pair: str = "track", window: Window | None = None) -> float:
     """Time in contact with a wall of ``pair`` inside ``window`` over its length [-]."""
     t0, t1 = _window(result, window)
     imp = result.impacts
@@ -144,10 +154,13 @@ class ImpactStatistics:
 
 
 def impact_statistics(
-    result: Result, window: tuple[float, float] | None = None, bins: int = 20
+    result: Result, window: Window | None = None, bins: int = 20
 ) -> ImpactStatistics:
-    """Impact statistics of ``result`` over ``window`` (default: the whole run)."""
+    """Impact statistics of ``result`` over ``window`` (default: the whole run), with a
+    histogram of ``bins`` (>= 1) approach-speed bins."""
     t0, t1 = _window(result, window)
+    if isinstance(bins, bool) or not isinstance(bins, numbers.Integral) or bins < 1:
+        raise InputError(f"bins: {bins!r} is out of range; allowed an integer >= 1")
     imp = impact_sequence(result, (t0, t1))
     counts: dict[str, int] = {}
     for (pair, wall), grp in imp.groupby(["pair", "wall"]):
@@ -234,8 +247,9 @@ class EnergyBalance:
         }
 
 
-def energy_balance(result: Result, window: tuple[float, float] | None = None) -> EnergyBalance:
-    """The energy balance of ``result`` over ``window`` (default: the whole run).
+def energy_balance(result: Result, window: Window | None = None) -> EnergyBalance:
+    """The energy balance of ``result`` over ``window`` (default: the whole run; a (t0, t1)
+    pair [s] inside the run, numbers in s or strings with a unit).
 
     Every term is measured from the first series row in the window, so a window that starts
     after a transient gives the balance of the steady state alone.
@@ -244,7 +258,8 @@ def energy_balance(result: Result, window: tuple[float, float] | None = None) ->
     t = s["t"]
     sel = np.ones(t.size, dtype=bool)
     if window is not None:
-        sel = (t >= window[0]) & (t <= window[1])
+        t0, t1 = _window(result, window)
+        sel = (t >= t0) & (t <= t1)
     m = float(result.model.scenario["carrier.mass"])
     kt, nt = result.model.track.stiffness, result.model.track.exponent
     ks, ns = result.model.slot.stiffness, result.model.slot.exponent

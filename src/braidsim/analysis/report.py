@@ -39,6 +39,7 @@ from braidsim.analysis.spectra import Spectrum, run_spectra
 from braidsim.core import CARRIER_COLUMNS
 from braidsim.errors import InputError
 from braidsim.params import Scenario
+from braidsim.units import is_number
 
 if TYPE_CHECKING:
     from braidsim.result import Result
@@ -139,8 +140,8 @@ def analyze(
     scenario: Scenario | str | Any,
     overrides: Mapping[str, Any] | None = None,
     *,
-    duration: float | None = None,
-    transient: float | None = None,
+    duration: float | str | None = None,
+    transient: float | str | None = None,
     per_cycle: int = 256,
     period_tol: float = DEFAULT_PERIOD_TOL,
     max_period: int = DEFAULT_MAX_PERIOD,
@@ -153,11 +154,12 @@ def analyze(
         The scenario.
     overrides : mapping, optional
         ``{key: value}`` on top of it.
-    duration : float, optional
-        [s]; default :func:`default_duration`: long enough for the transient and the window
-        of the steady-state rule below.
-    transient : float, optional
-        Start of the steady-state window [s]; default :func:`default_transient`.
+    duration : float or str, optional
+        [s] (or a string with a unit, ``"0.3 s"``); default :func:`default_duration`: long
+        enough for the transient and the window of the steady-state rule below.
+    transient : float or str, optional
+        Start of the steady-state window [s] (or a string with a unit), before ``duration``;
+        default :func:`default_transient`.
 
     Steady-state rule
     -----------------
@@ -174,17 +176,21 @@ def analyze(
     period_tol, max_period
         Regime rule 4 (:mod:`braidsim.analysis.regimes`).
     """
-    from braidsim.simulate import simulate
+    from braidsim.simulate import simulate, time_value
 
     sc = as_scenario(scenario, overrides)
     T = reference_period(sc)
-    T_run = default_duration(sc) if duration is None else float(duration)
-    if not (math.isfinite(T_run) and T_run > 0):
-        raise InputError(f"duration: {T_run!r} s is out of range; allowed > 0 s")
-    t_tr = default_transient(T_run, T) if transient is None else float(transient)
-    if not (math.isfinite(t_tr) and 0 <= t_tr < T_run):
-        raise InputError(f"transient: {t_tr!r} s is out of range; allowed 0 <= T < {T_run:g} s")
-    if int(per_cycle) != per_cycle or per_cycle < 16:
+    # numbers in s or strings with a unit, as simulate reads them
+    T_run = default_duration(sc) if duration is None else time_value("duration", duration)
+    if transient is None:
+        t_tr = default_transient(T_run, T)
+    else:
+        t_tr = time_value("transient", transient, allow_zero=True)
+    if not t_tr < T_run:
+        raise InputError(f"transient: {t_tr:g} s is out of range; allowed 0 <= T < {T_run:g} s")
+    if not is_number(per_cycle) or not math.isfinite(per_cycle) or int(per_cycle) != per_cycle:
+        raise InputError(f"per_cycle: {per_cycle!r} is not allowed; allowed an integer >= 16")
+    if per_cycle < 16:
         raise InputError(f"per_cycle: {per_cycle!r} is out of range; allowed an integer >= 16")
     grid = sample_grid(sc, T_run, int(per_cycle))
     res = simulate(sc, duration=T_run, sample_times=grid)

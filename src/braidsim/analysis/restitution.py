@@ -14,6 +14,7 @@ restitutes what it is told; the others dissipate more (e < c_r) or less.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -101,8 +102,8 @@ class RestitutionTable:
 def restitution_table(
     laws: Sequence[str] | None = None,
     nominal: Sequence[float] | np.ndarray | None = None,
-    velocity: float = 0.5,
-    mass: float = 1.2,
+    velocity: float | str = 0.5,
+    mass: float | str = 1.2,
     stiffness: float | None = None,
     exponent: float | None = None,
 ) -> RestitutionTable:
@@ -111,26 +112,54 @@ def restitution_table(
     Parameters
     ----------
     laws : sequence of str, optional
-        Law names (default: all, ``braidsim models``).
+        Law names, at least one (default None: all, ``braidsim models``).
     nominal : sequence of float, optional
         c_r values in (0, 1] (default 0.1, 0.2, ..., 1.0).
-    velocity : float
-        Approach speed [m/s] (e does not depend on it).
-    mass : float
-        [kg] (e does not depend on it).
+    velocity : float or str
+        Approach speed [m/s] (or a string with a unit, ``"0.5 m/s"``; e does not depend on
+        it).
+    mass : float or str
+        [kg] (or a string with a unit; e does not depend on it).
     stiffness : float, optional
         K [N/m^n]; default Eq. (4) with the paper's guide pad and track.
     exponent : float, optional
         n; default each law's.
     """
     from braidsim.impact import single_impact
+    from braidsim.units import to_si
 
-    names = tuple(laws) if laws else tuple(contact.law_names())
+    if laws is None:
+        names = tuple(contact.law_names())
+    elif isinstance(laws, str | bytes) or not isinstance(laws, Sequence):
+        raise InputError(
+            f"laws: {laws!r} is not a list of law names; allowed e.g. ['hunt_crossley'], or "
+            "None for all"
+        )
+    elif not laws:
+        raise InputError(
+            f"laws: an empty list; allowed one or more of {', '.join(contact.law_names())}, "
+            "or None for all"
+        )
+    else:
+        names = tuple(laws)
     for name in names:
+        if not isinstance(name, str):
+            raise InputError(f"laws: {name!r} is not a law name; allowed a list of names")
         contact.get_law(name)  # InputError naming the closest law
-    c = np.linspace(0.1, 1.0, 10) if nominal is None else np.asarray(nominal, dtype=float)
+    if nominal is None:
+        c = np.linspace(0.1, 1.0, 10)
+    elif isinstance(nominal, str | bytes) or not isinstance(nominal, Sequence | np.ndarray):
+        raise InputError(f"nominal: {nominal!r} is not a list of c_r values; allowed 0 < c_r <= 1")
+    else:
+        c = np.array([to_si("nominal", v, "") for v in np.ravel(nominal)], dtype=float)
     if c.size == 0 or not np.all((c > 0) & (c <= 1)):
-        raise InputError("restitution: nominal c_r values must lie in (0, 1]; allowed 0 < c_r <= 1")
+        raise InputError("nominal: c_r values must lie in (0, 1]; allowed 0 < c_r <= 1")
+    velocity = to_si("velocity", velocity, "m/s")  # numbers in SI or strings with a unit
+    if not (math.isfinite(velocity) and velocity > 0):
+        raise InputError(f"velocity: {velocity:g} m/s is out of range; allowed > 0 m/s")
+    mass = to_si("mass", mass, "kg")
+    if not (math.isfinite(mass) and mass > 0):
+        raise InputError(f"mass: {mass:g} kg is out of range; allowed > 0 kg")
     D = np.empty((len(names), c.size))
     sim = np.empty_like(D)
     ex = np.empty_like(D)

@@ -108,10 +108,13 @@ def run_steady_states(
     InputError
         A bad set (with its index) or option.
     """
+    from braidsim.batch import check_parameter_sets, check_workers
+
     check_window_options(transient_cycles, cycles, period_tol, max_period)
+    check_workers(workers)
     if not math.isfinite(strobe_phase):
         raise InputError(f"strobe_phase: {strobe_phase!r} rad is out of range; allowed finite")
-    sets = [dict(ov) for ov in parameter_sets]
+    sets = check_parameter_sets(parameter_sets)
     for i, ov in enumerate(sets):
         try:
             base.with_overrides(ov)

@@ -139,7 +139,7 @@ class Spectrum:
 
 def run_spectra(
     result: Result,
-    window: tuple[float, float] | None = None,
+    window: tuple[float | str, float | str] | None = None,
     quantities: Sequence[str] = ("x", "track_contact_force"),
     peaks: int = 8,
     harmonics: int = 10,
@@ -163,7 +163,13 @@ def run_spectra(
     if t.size < 4:
         raise InputError("spectrum: fewer than 4 samples; sample the run (sample_interval > 0)")
     # a half-open window [t0, t1): over whole cycles the sample at t1 repeats the phase of t0
-    t0, t1 = (float(t[0]), float(t[-1])) if window is None else (window[0], window[1])
+    if window is None:
+        t0, t1 = float(t[0]), float(t[-1])
+    else:
+        from braidsim.simulate import time_window
+
+        span = float(result.windows[0, 0]), float(result.windows[0, 1])
+        t0, t1 = time_window("window", window, *span)
     sel = (t >= t0 - 1e-12) & (t < t1 - 1e-9 * max(abs(t1), 1e-3))
     t = t[sel]
     if t.size < 4:

@@ -17,6 +17,7 @@ from braidsim.fit.data import QUANTITY_UNITS, Record, make_record, read_record
 from braidsim.fit.estimate import FitResult, fit, fit_record
 from braidsim.fit.problem import Problem
 from braidsim.fit.spec import FitSpec, FreeParameter, load_fit_spec, parse_fit_spec
+from braidsim.fit.synthetic import synthetic_record
 
 __all__ = [
     "QUANTITY_UNITS",
@@ -31,4 +32,5 @@ __all__ = [
     "make_record",
     "parse_fit_spec",
     "read_record",
+    "synthetic_record",
 ]

@@ -36,6 +36,7 @@ about the machine axis is ``omega_c = 2 omega_mean / N`` [rad/s] and its speed a
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -45,6 +46,7 @@ from numba import njit
 from braidsim.core import horn_gear_state
 from braidsim.errors import InputError
 from braidsim.model import Model
+from braidsim.units import to_si
 
 
 @njit(cache=True, error_model="numpy")
@@ -222,21 +224,63 @@ def cycle_profile(
     }, scale
 
 
-def carrier_angular_speed(mean_speed: float, horn_gears: int) -> float:
-    """Mean angular speed of a carrier about the machine axis, omega_c = 2 omega / N [rad/s]."""
-    return 2.0 * mean_speed / horn_gears
+def _positive(key: str, value: float | str, unit: str) -> float:
+    """``value`` (a number in SI or a string with a unit) in ``unit``; an InputError unless
+    it is finite and > 0."""
+    v = to_si(key, value, unit)
+    if not (math.isfinite(v) and v > 0.0):
+        raise InputError(f"{key}: {v:g} {unit} is out of range; allowed > 0 {unit}")
+    return v
 
 
-def revolution_time(mean_speed: float, horn_gears: int) -> float:
-    """Time of one carrier revolution round the machine, N pi / omega [s]."""
-    return horn_gears * math.pi / mean_speed
+def _horn_gears(horn_gears: int) -> int:
+    """``horn_gears`` as an int; an InputError unless it is an even integer from 4 to 1000,
+    as a machine's (:class:`~braidsim.machine.geometry.MachineGeometry`)."""
+    if (
+        isinstance(horn_gears, bool)
+        or not isinstance(horn_gears, numbers.Integral)
+        or not 4 <= horn_gears <= 1000
+        or horn_gears % 2
+    ):
+        raise InputError(
+            f"horn_gears: {horn_gears!r} is out of range; allowed an even integer from 4 to 1000"
+        )
+    return int(horn_gears)
 
 
-def braid_angle(carrier_speed: float, mandrel_radius: float, take_up_speed: float) -> float:
-    """Braid angle alpha [rad] from tan(alpha) = omega_c r_m / v."""
-    return math.atan2(carrier_speed * mandrel_radius, take_up_speed)
+def carrier_angular_speed(mean_speed: float | str, horn_gears: int) -> float:
+    """Mean angular speed of a carrier about the machine axis, omega_c = 2 omega / N [rad/s],
+    from the horn gears' mean speed omega > 0 [rad/s] (or a string with a unit, ``"120 rpm"``)
+    and their number N (even, 4 to 1000)."""
+    return 2.0 * _positive("mean_speed", mean_speed, "rad/s") / _horn_gears(horn_gears)
 
 
-def take_up_speed(carrier_speed: float, mandrel_radius: float, angle: float) -> float:
-    """Take-up speed v = omega_c r_m / tan(alpha) [m/s] for a braid angle alpha [rad]."""
-    return carrier_speed * mandrel_radius / math.tan(angle)
+def revolution_time(mean_speed: float | str, horn_gears: int) -> float:
+    """Time of one carrier revolution round the machine, N pi / omega [s] (arguments as in
+    :func:`carrier_angular_speed`)."""
+    return _horn_gears(horn_gears) * math.pi / _positive("mean_speed", mean_speed, "rad/s")
+
+
+def braid_angle(
+    carrier_speed: float | str, mandrel_radius: float | str, take_up_speed: float | str
+) -> float:
+    """Braid angle alpha [rad] from tan(alpha) = omega_c r_m / v: the carrier's angular
+    speed omega_c [rad/s], the mandrel radius r_m [m] and the take-up speed v [m/s], each > 0
+    (numbers in SI or strings with a unit)."""
+    wc = _positive("carrier_speed", carrier_speed, "rad/s")
+    rm = _positive("mandrel_radius", mandrel_radius, "m")
+    v = _positive("take_up_speed", take_up_speed, "m/s")
+    return math.atan2(wc * rm, v)
+
+
+def take_up_speed(
+    carrier_speed: float | str, mandrel_radius: float | str, angle: float | str
+) -> float:
+    """Take-up speed v = omega_c r_m / tan(alpha) [m/s] for a braid angle 0 < alpha < pi/2
+    [rad] (numbers in SI or strings with a unit, ``"30 deg"``)."""
+    wc = _positive("carrier_speed", carrier_speed, "rad/s")
+    rm = _positive("mandrel_radius", mandrel_radius, "m")
+    a = to_si("angle", angle, "rad")
+    if not 0.0 < a < 0.5 * math.pi:
+        raise InputError(f"angle: {a:g} rad is out of range; allowed 0 < angle < pi/2 rad")
+    return wc * rm / math.tan(a)

@@ -53,6 +53,7 @@ whole run), dissipated power, the worst carrier (largest peak force) and the wor
 from __future__ import annotations
 
 import math
+import numbers
 import os
 import time
 from collections.abc import Sequence
@@ -62,7 +63,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.core import CARRIER_COLUMNS
-from braidsim.errors import SimulationError
+from braidsim.errors import InputError, SimulationError
 from braidsim.machine.geometry import TransferEvent
 from braidsim.machine.kinematics import SpeedLaw
 from braidsim.machine.spec import MachineSpec
@@ -101,13 +102,15 @@ class CarrierPlan:
 
 
 def plan_transfers(
-    spec: MachineSpec, duration: float | None = None
+    spec: MachineSpec, duration: float | str | None = None
 ) -> tuple[SpeedLaw, list[CarrierPlan]]:
     """The transfer times of every loaded carrier from the horn-gear rotation.
 
     Transfers happen at whole horn-gear angles (the crossing angles of the geometry); their
     times invert ``Omega(t) = int omega dt`` of the carrier model's speed law."""
-    T = spec.duration if duration is None else float(duration)
+    from braidsim.simulate import time_value
+
+    T = spec.duration if duration is None else time_value("duration", duration)
     geom = spec.geometry
     law = SpeedLaw.from_model(build_model(spec.scenario, T))
     _, ang = law.rotation([T])
@@ -316,7 +319,7 @@ def frame_times(spec: MachineSpec, duration: float, frames: int | None = None) -
 
 def run_machine(
     spec: MachineSpec,
-    duration: float | None = None,
+    duration: float | str | None = None,
     workers: int | None = None,
     frames: int | None = None,
 ) -> MachineRun:
@@ -326,8 +329,8 @@ def run_machine(
     ----------
     spec : MachineSpec
         From :func:`~braidsim.machine.spec.load_machine_spec`.
-    duration : float, optional
-        Simulated time [s]; default ``spec.duration``.
+    duration : float or str, optional
+        Simulated time [s] (or a string with a unit, ``"0.5 s"``); default ``spec.duration``.
     workers : int, optional
         Local processes: 1 runs here, 0 every core; default: decided from the cost of the
         first carrier (:func:`run_carriers`).
@@ -337,14 +340,28 @@ def run_machine(
     Raises
     ------
     InputError
-        A bad duration.
+        A bad duration, workers or frames.
     SimulationError
         A carrier's run failed (the message names the carrier).
     """
     import pandas as pd
 
+    from braidsim.batch import check_workers
+
+    if not isinstance(spec, MachineSpec):
+        raise InputError(
+            f"spec: got {type(spec).__name__}; allowed a MachineSpec (load_machine_spec)"
+        )
     if duration is not None:
-        spec = spec.with_duration(duration)
+        spec = spec.with_duration(duration)  # a number in s or a string with a unit
+    check_workers(workers, none=True)
+    if frames is not None and (
+        isinstance(frames, bool) or not isinstance(frames, numbers.Integral) or frames < 0
+    ):
+        raise InputError(
+            f"frames: {frames!r} is out of range; allowed an integer >= 0 (0: none), or None "
+            "for the spec's"
+        )
     T = spec.duration
     geom = spec.geometry
     law, plans = plan_transfers(spec, T)

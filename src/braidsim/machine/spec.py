@@ -224,13 +224,13 @@ class MachineSpec:
         """Time of one transfer cycle, Theta_c / omega_mean [s]."""
         return self.geometry.transfer_cycle * self.geometry.quantum / self.mean_speed
 
-    def with_duration(self, duration: float) -> MachineSpec:
-        """The same machine simulated for ``duration`` [s]."""
-        if not (math.isfinite(duration) and duration > 0.0):
-            raise InputError(f"duration: {duration!r} s is out of range; allowed > 0 s")
+    def with_duration(self, duration: float | str) -> MachineSpec:
+        """The same machine simulated for ``duration`` [s] (or a string with a unit)."""
         from dataclasses import replace
 
-        return replace(self, duration=float(duration))
+        from braidsim.simulate import time_value
+
+        return replace(self, duration=time_value("duration", duration))
 
 
 def _rest_start(sc: Scenario) -> dict[str, float]:

@@ -1,0 +1,259 @@
+"""Input handling of the Python API: unit strings wherever a time or a speed is asked for, and
+a one-line InputError naming the parameter for bad input (never a raw TypeError, ValueError or
+ZeroDivisionError from inside)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim import InputError
+from braidsim.analysis import analyze, energy_balance, impact_statistics, restitution_table
+from braidsim.analysis.spectra import run_spectra
+from braidsim.batch import simulate_batch
+from braidsim.fit import synthetic_record
+from braidsim.machine import (
+    braid_angle,
+    carrier_angular_speed,
+    load_machine_spec,
+    run_machine,
+)
+from braidsim.machine.kinematics import revolution_time, take_up_speed
+
+SC = "paper-3.1"
+MACHINE = Path(__file__).resolve().parents[2] / "examples" / "machine16.toml"
+
+
+def one_line(exc: pytest.ExceptionInfo[InputError]) -> str:
+    text = str(exc.value)
+    assert "\n" not in text
+    return text
+
+
+@pytest.fixture(scope="module")
+def res() -> braidsim.Result:
+    return braidsim.simulate(SC, 0.02, sample_interval=1e-4)
+
+
+# ----------------------------------------------------------------------------------------
+# 1. unit strings accepted everywhere a time or speed is asked for
+# ----------------------------------------------------------------------------------------
+
+
+def test_batch_duration_and_window_accept_unit_strings() -> None:
+    a = simulate_batch(SC, [{}], duration="10 ms", window=("1 ms", "5 ms"))
+    b = simulate_batch(SC, [{}], duration=0.01, window=(0.001, 0.005))
+    np.testing.assert_array_equal(a.windows, b.windows)
+    for name, col in a.metrics.items():
+        np.testing.assert_array_equal(col, b.metrics[name], err_msg=name)
+    c = simulate_batch(SC, [{}], 0.01, series=["x"], series_times=["1 ms", "2 ms"])
+    np.testing.assert_array_equal(c.series_times, [0.001, 0.002])
+
+
+def test_analyze_accepts_unit_strings() -> None:
+    a = analyze("paper-3.3", duration="0.05 s", transient="10 ms", per_cycle=16)
+    assert a.result.final["t"] == pytest.approx(0.05)
+    assert a.window[0] >= 0.01
+    with pytest.raises(InputError, match=r"^duration: -1 s is out of range; allowed > 0 s$"):
+        analyze("paper-3.3", duration="-1 s")
+    with pytest.raises(InputError, match=r"^transient: .*allowed 0 <= T < 0\.05 s"):
+        analyze("paper-3.3", duration=0.05, transient="60 ms")
+    with pytest.raises(InputError, match=r"^per_cycle: '256' is not allowed"):
+        analyze("paper-3.3", duration=0.05, per_cycle="256")  # type: ignore[arg-type]
+
+
+def test_run_machine_accepts_a_duration_with_a_unit() -> None:
+    spec = load_machine_spec(MACHINE)
+    run = run_machine(spec, duration="20 ms", workers=1, frames=0)
+    assert run.duration == pytest.approx(0.02)
+    assert spec.with_duration("20 ms").duration == pytest.approx(0.02)
+    with pytest.raises(InputError, match=r"^duration: 0 s is out of range; allowed > 0 s$"):
+        run_machine(spec, duration="0 s")
+    with pytest.raises(InputError, match=r"^workers: '2' is not allowed"):
+        run_machine(spec, duration=0.02, workers="2")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"^frames: -1 is out of range"):
+        run_machine(spec, duration=0.02, frames=-1)
+
+
+def test_synthetic_record_accepts_unit_strings() -> None:
+    a = synthetic_record(SC, "30 ms", rate="2 kHz", noise={"acceleration": "20 m/s^2"}, seed=1)
+    b = synthetic_record(SC, 0.03, rate=2000.0, noise={"acceleration": 20.0}, seed=1)
+    np.testing.assert_array_equal(a.t, b.t)
+    np.testing.assert_array_equal(a.columns["acceleration"], b.columns["acceleration"])
+
+
+def test_restitution_table_accepts_unit_strings() -> None:
+    a = restitution_table(["hunt_crossley"], [0.5], velocity="0.5 m/s", mass="1200 g")
+    b = restitution_table(["hunt_crossley"], [0.5], velocity=0.5, mass=1.2)
+    assert (a.velocity, a.mass) == (0.5, 1.2)
+    np.testing.assert_array_equal(a.simulated, b.simulated)
+    with pytest.raises(InputError, match=r"^velocity: -0\.5 m/s is out of range; allowed > 0"):
+        restitution_table(["hunt_crossley"], [0.5], velocity="-0.5 m/s")
+    with pytest.raises(InputError, match=r"^velocity: .*wrong unit"):
+        restitution_table(["hunt_crossley"], [0.5], velocity="0.5 kg")
+    with pytest.raises(InputError, match=r"^nominal: "):
+        restitution_table(["hunt_crossley"], [1.5])
+
+
+def test_windows_accept_unit_strings(res: braidsim.Result) -> None:
+    a = braidsim.simulate(SC, 0.01, windows=[("1 ms", "5 ms")], sample_interval=0.0)
+    b = braidsim.simulate(SC, 0.01, windows=[(0.001, 0.005)], sample_interval=0.0)
+    np.testing.assert_array_equal(a.windows, b.windows)
+    np.testing.assert_array_equal(a.rms_x, b.rms_x)
+    e1 = energy_balance(res, window=("5 ms", "15 ms"))
+    e2 = energy_balance(res, window=(0.005, 0.015))
+    np.testing.assert_array_equal(e1.t, e2.t)
+    assert e1.t[0] >= 0.005 and e1.t[-1] <= 0.015
+    s1 = impact_statistics(res, window=("0 ms", "20 ms"))
+    assert s1.window == (0.0, 0.02)
+    sp = run_spectra(res, window=("5 ms", "15 ms"), quantities=("x",))
+    assert sp[0].window[0] == pytest.approx(0.005)
+
+
+def test_sample_times_accept_unit_strings() -> None:
+    a = braidsim.simulate(SC, 0.01, sample_times=["1 ms", "2 ms"], record_events=False)
+    np.testing.assert_array_equal(a.series["t"], [0.001, 0.002])
+
+
+# ----------------------------------------------------------------------------------------
+# 2. no raw errors from inside
+# ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("budget", [0, -1, 1.5, "1 MB", True])
+def test_max_series_bytes_must_be_a_positive_integer(budget: object) -> None:
+    with pytest.raises(InputError, match=r"^max_series_bytes: .*allowed an integer > 0"):
+        braidsim.simulate(SC, 0.01, max_series_bytes=budget)  # type: ignore[arg-type]
+
+
+def test_max_series_bytes_still_widens_the_interval() -> None:
+    res = braidsim.simulate(SC, 0.01, sample_interval=1e-5, max_series_bytes=10_000)
+    assert res.stats["sample_interval"] > 1e-5
+
+
+def test_flat_window_pair_is_refused() -> None:
+    with pytest.raises(InputError, match=r"^windows: .*a list of \(t0, t1\) pairs") as exc:
+        braidsim.simulate(SC, 0.01, windows=[0.001, 0.005])  # type: ignore[list-item]
+    one_line(exc)
+    with pytest.raises(InputError, match=r"^windows: .*a list of \(t0, t1\) pairs"):
+        braidsim.simulate(SC, 0.01, windows=(0.001, 0.005))  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"^windows\[0\]: .* has 3 entries"):
+        braidsim.simulate(SC, 0.01, windows=[(0.001, 0.002, 0.003)])  # type: ignore[list-item]
+    with pytest.raises(InputError, match=r"^windows\[0\]: t1 = 0\.02 s is after the end"):
+        braidsim.simulate(SC, 0.01, windows=[(0.001, 0.02)])
+    with pytest.raises(InputError, match=r"^windows\[0\]: .*wrong unit"):
+        braidsim.simulate(SC, 0.01, windows=[("1 mm", "5 ms")])
+
+
+def test_nested_sample_times_are_refused() -> None:
+    with pytest.raises(InputError, match=r"^sample_times: .*allowed a flat list of times"):
+        braidsim.simulate(SC, 0.01, sample_times=[[0.001]])  # type: ignore[list-item]
+    with pytest.raises(InputError, match=r"^sample_times: an array of shape \(1, 1\)"):
+        braidsim.simulate(SC, 0.01, sample_times=np.array([[0.001]]))
+    with pytest.raises(InputError, match=r"^sample_times: "):
+        braidsim.simulate(SC, 0.01, sample_times=0.001)  # type: ignore[arg-type]
+
+
+def test_batch_parameter_sets_must_be_a_list_of_dicts() -> None:
+    with pytest.raises(InputError, match=r"^parameter_sets: got one dict.*\[\{\.\.\.\}\]"):
+        simulate_batch(SC, {"track.clearance": 0.002}, duration=0.01)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"^parameter_sets: entry 1 is a str"):
+        simulate_batch(SC, [{}, "track.clearance"], duration=0.01)  # type: ignore[list-item]
+    with pytest.raises(InputError, match=r"^parameter_sets: got int"):
+        simulate_batch(SC, 3, duration=0.01)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("workers", ["2", 1.5, None, True])
+def test_batch_workers_must_be_an_integer(workers: object) -> None:
+    with pytest.raises(InputError, match=r"^workers: .* is not allowed; allowed an integer"):
+        simulate_batch(SC, [{}], duration=0.01, workers=workers)  # type: ignore[arg-type]
+
+
+def test_batch_bad_duration_and_window() -> None:
+    with pytest.raises(InputError, match=r"^duration: -1 s is out of range; allowed > 0 s$"):
+        simulate_batch(SC, [{}], duration=-1)
+    with pytest.raises(InputError, match=r"^duration: .*wrong unit"):
+        simulate_batch(SC, [{}], duration="10 mm")
+    with pytest.raises(InputError, match=r"^window: .*after the end of the shortest run"):
+        simulate_batch(SC, [{}], duration=0.01, window=("1 ms", "50 ms"))
+    with pytest.raises(InputError, match=r"^window: .* is not a \(t0, t1\) pair"):
+        simulate_batch(SC, [{}], duration=0.01, window=0.005)  # type: ignore[arg-type]
+
+
+def test_kinematics_refuse_bad_arguments() -> None:
+    with pytest.raises(InputError, match=r"^horn_gears: 0 is out of range; allowed an even"):
+        carrier_angular_speed(1.0, 0)
+    with pytest.raises(InputError, match=r"^mean_speed: 0 rad/s is out of range; allowed > 0"):
+        revolution_time(0.0, 8)
+    with pytest.raises(InputError, match=r"^carrier_speed: -1 rad/s is out of range"):
+        braid_angle(-1, 0.01, 0.01)
+    with pytest.raises(InputError, match=r"^mandrel_radius: 0 m is out of range"):
+        braid_angle(1.0, 0.0, 0.01)
+    with pytest.raises(InputError, match=r"^take_up_speed: -0\.01 m/s is out of range"):
+        braid_angle(1.0, 0.01, -0.01)
+    with pytest.raises(InputError, match=r"^angle: .*allowed 0 < angle < pi/2"):
+        take_up_speed(1.0, 0.01, "90 deg")
+    # units: 120 rpm over 8 gears; 45 degrees from omega_c r_m = v
+    assert carrier_angular_speed("120 rpm", 8) == pytest.approx(math.pi)
+    assert braid_angle("60 rpm", "10 mm", 2 * math.pi * 0.01) == pytest.approx(math.pi / 4)
+    assert take_up_speed(1.0, "10 mm", "45 deg") == pytest.approx(0.01)
+
+
+# ----------------------------------------------------------------------------------------
+# 3. no silent acceptance
+# ----------------------------------------------------------------------------------------
+
+
+def test_energy_balance_refuses_reversed_and_outside_windows(res: braidsim.Result) -> None:
+    with pytest.raises(InputError, match=r"^window: \[0\.01, 0\.005\] s is not a time interval"):
+        energy_balance(res, window=(0.01, 0.005))
+    with pytest.raises(
+        InputError, match=r"^window: t1 = 5 s is after the end of the run; allowed 0 <= t0 < t1 "
+    ) as exc:
+        energy_balance(res, window=(0.01, 5))
+    assert "0.02 s" in one_line(exc)
+    with pytest.raises(InputError, match=r"^window: .*is not a \(t0, t1\) pair"):
+        energy_balance(res, window="1 ms")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"^window: t0 = -1 s is before the start"):
+        impact_statistics(res, window=(-1, 0.01))
+
+
+@pytest.mark.parametrize("bins", [0, -1, 2.5, "20"])
+def test_impact_statistics_bins_must_be_a_positive_integer(
+    res: braidsim.Result, bins: object
+) -> None:
+    with pytest.raises(InputError, match=r"^bins: .* is out of range; allowed an integer >= 1$"):
+        impact_statistics(res, bins=bins)  # type: ignore[arg-type]
+
+
+def test_restitution_table_refuses_an_empty_law_list() -> None:
+    with pytest.raises(InputError, match=r"^laws: an empty list; allowed one or more of .*hertz"):
+        restitution_table(laws=[])
+    with pytest.raises(InputError, match=r"^laws: 'hertz' is not a list of law names"):
+        restitution_table(laws="hertz")
+    with pytest.raises(InputError, match=r"did you mean 'hunt_crossley'"):
+        restitution_table(laws=["hunt_crosley"], nominal=[0.5])
+
+
+def test_synthetic_record_refuses_unknown_noise_keys() -> None:
+    with pytest.raises(InputError, match=r"^noise: 'foo' is not a known quantity; allowed keys "):
+        synthetic_record(SC, 0.01, noise={"foo": 1})
+    with pytest.raises(InputError, match=r"^noise: 'acceleratoin' .*did you mean 'acceleration'"):
+        synthetic_record(SC, 0.01, noise={"acceleratoin": 1})
+    with pytest.raises(InputError, match=r"^noise: 'x' is not recorded \(add it to quantities\)"):
+        synthetic_record(SC, 0.01, noise={"x": 1e-6})
+    with pytest.raises(InputError, match=r"^noise\.acceleration: -1 m/s\*\*2 is out of range"):
+        synthetic_record(SC, 0.01, noise={"acceleration": -1})
+
+
+def test_synthetic_record_blames_the_duration() -> None:
+    with pytest.raises(InputError, match=r"^duration: -1 s is out of range; allowed > 0 s$"):
+        synthetic_record(SC, -1)
+    with pytest.raises(InputError, match=r"^rate: 0 Hz is out of range; allowed > 0 Hz$"):
+        synthetic_record(SC, 0.01, rate=0)
+    with pytest.raises(InputError, match=r"^rate: 100 Hz gives fewer than 3 samples in 0\.01 s"):
+        synthetic_record(SC, 0.01, rate=100)
