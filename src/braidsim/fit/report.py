@@ -27,6 +27,7 @@ import numpy as np
 from braidsim.fit.data import IMPACT_UNITS, QUANTITY_UNITS, Record
 from braidsim.fit.estimate import FitResult
 from braidsim.fit.spec import FitSpec
+from braidsim.io import json_safe
 
 REPORT_KIND = "fit"
 
@@ -138,21 +139,6 @@ def summary(res: FitResult) -> dict[str, Any]:
         ]
         out["selected_law"] = res.law
     return out
-
-
-def _clean(obj: Any) -> Any:
-    """NaN and inf become null, numpy scalars Python numbers: strict JSON."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _clean(obj.tolist())
-    if isinstance(obj, np.generic):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
 
 
 def _toml_value(v: Any) -> str:
@@ -413,7 +399,9 @@ def write_report(res: FitResult, spec: FitSpec, out: str | Path) -> dict[str, An
         from braidsim.provenance import version
 
         (tmp / "fit.json").write_text(
-            json.dumps(_clean({"braidsim_version": version(), **data}), indent=1, allow_nan=False)
+            json.dumps(
+                json_safe({"braidsim_version": version(), **data}), indent=1, allow_nan=False
+            )
             + "\n",
             encoding="utf-8",
         )

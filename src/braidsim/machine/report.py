@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from braidsim.io import atomic_directory
+from braidsim.io import atomic_directory, json_safe
 from braidsim.machine.geometry import braid_pattern
 from braidsim.machine.kinematics import (
     braid_angle,
@@ -493,20 +493,7 @@ def write_report(run: MachineRun, out: str | Path, animation: bool = True) -> di
         data = summary(run, files)
         atomic_write_text(tmp / "report.md", markdown(run, data, figs))
         atomic_write_text(
-            tmp / "summary.json", json.dumps(_clean(data), indent=1, allow_nan=False) + "\n"
+            tmp / "summary.json", json.dumps(json_safe(data), indent=1, allow_nan=False) + "\n"
         )
     data["out"] = str(out)
     return data
-
-
-def _clean(obj: Any) -> Any:
-    """NaN and inf become null; numpy scalars become Python numbers."""
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_clean(v) for v in obj]
-    if hasattr(obj, "item") and callable(obj.item):
-        obj = obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
