@@ -16,8 +16,9 @@ results.
 
 Metrics window
 --------------
-Every metric except the final state is taken over one window [t0, t1] (default: the whole
-run), so that a start-up transient can be left out (``window=(0.5, 1.0)``):
+Every metric except the final state is taken over one window [t0, t1], so that a start-up
+transient is left out: by default the second half of the shortest run, [D/2, D], as in a
+sweep (``window=(0.0, D)`` takes the whole run):
 
 * impacts: contact onsets with t0 <= t_onset <= t1, per pair and wall. A contact that exists
   at t = 0 (or right after a transfer) with an overlap has no approach and is not an impact.
@@ -67,7 +68,7 @@ import numpy as np
 from braidsim.core import CARRIER_COLUMNS, RawRun
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
-from braidsim.params import Scenario, load_scenario
+from braidsim.params import SCHEMA, Scenario, load_scenario
 from braidsim.regimes import CONTACT_PATTERNS, FAILED, contact_pattern
 from braidsim.result import UNITS as SERIES_UNITS
 
@@ -512,6 +513,10 @@ class BatchResult:
         Sample times [s] of ``series``.
     windows : np.ndarray
         (n, 2) metrics window of each run [s].
+    parameters : dict of str to np.ndarray
+        Every key that a parameter set gives, resolved for each run in SI (the scenario's
+        value where a set leaves the key out): floats, or the text of a choice such as a
+        contact law. Units in :meth:`units`.
     """
 
     parameter_sets: list[dict[str, Any]]
@@ -520,9 +525,19 @@ class BatchResult:
     series: dict[str, np.ndarray]
     series_times: np.ndarray
     windows: np.ndarray
+    parameters: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.parameter_sets)
+
+    def __repr__(self) -> str:
+        labels = self.regime_labels()
+        counts = ", ".join(f"{labels.count(r)} {r}" for r in dict.fromkeys(labels))
+        keys = ", ".join(self.parameters) or "none"
+        return (
+            f"<braidsim.BatchResult: {len(self)} runs ({int(self.failed.sum())} failed); "
+            f"parameters {keys}; regimes {counts or '-'}>"
+        )
 
     @property
     def failed(self) -> np.ndarray:
@@ -533,20 +548,37 @@ class BatchResult:
         """Regime of each run as text ("failed" for a failed run)."""
         return ["failed" if r < 0 else REGIMES[r] for r in self.metrics["regime"]]
 
+    def units(self) -> dict[str, str]:
+        """SI unit of every parameter and metric column ("" for none)."""
+        out = {key: SCHEMA[key].unit for key in self.parameters}
+        out.update({m.name: m.unit for m in METRICS})
+        return out
+
     def to_dataframe(self) -> pd.DataFrame:
-        """One row per run: the parameter sets' keys (as given), the metrics, ``failure``."""
+        """One row per run: the parameters in SI (:attr:`parameters`), the metrics and
+        ``failure``; ``attrs["units"]`` gives the unit of each column."""
         import pandas as pd
 
-        params = pd.DataFrame(self.parameter_sets, index=pd.RangeIndex(len(self), name="run"))
-        mets = pd.DataFrame(self.metrics, index=params.index)
-        mets["failure"] = self.failure
-        return pd.concat([params, mets], axis=1)
+        index = pd.RangeIndex(len(self), name="run")
+        params = pd.DataFrame(dict(self.parameters), index=index)
+        mets = pd.DataFrame(self.metrics, index=index)
+        mets["failure"] = self.failure.astype(str)
+        df = pd.concat([params, mets], axis=1)
+        df.attrs["units"] = self.units()
+        return df
 
     def to_xarray(self) -> xr.Dataset:
-        """The metrics (and series) on a ``run`` dimension, units and descriptions in attrs."""
+        """The metrics (and series) on a ``run`` dimension, units and descriptions in attrs;
+        the parameters in SI as coordinates along ``run`` (``ds.swap_dims(run=KEY)`` or
+        ``ds.where(ds[KEY] > v)`` select by them)."""
         import xarray as xr
 
-        ds = xr.Dataset()
+        ds = xr.Dataset(
+            coords={
+                key: ("run", values, {"units": SCHEMA[key].unit})
+                for key, values in self.parameters.items()
+            }
+        )
         for m in METRICS:
             ds[m.name] = (
                 "run",
@@ -593,7 +625,7 @@ def simulate_batch(
         run's ``simulation.duration``.
     window : (float, float), optional
         Metrics window [s] (numbers in s or strings with a unit; module docstring), inside
-        the shortest run; default the whole run.
+        the shortest run; default its second half [D/2, D], as in a sweep.
     series : sequence of str
         Kernel columns to sample at ``series_times`` (:data:`SERIES_VARIABLES`).
     series_times : sequence of float, optional
@@ -625,6 +657,11 @@ def simulate_batch(
         raise InputError(f"executor: {executor!r} is not known; allowed {' or '.join(EXECUTORS)}")
     sets = check_parameter_sets(parameter_sets)
     models = build_models(base, sets, duration)
+    if window is None and models:
+        # as a sweep: the start of a run is a transient (the release of an initial overlap,
+        # the first impacts), so the metrics describe the second half of the shortest run
+        d_min = min(m.duration for m in models)
+        window = (0.5 * d_min, d_min)
     opts = check_options([m.duration for m in models], window, series, series_times)
     nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)
     nw = max(1, min(nw, len(models)))
@@ -641,7 +678,23 @@ def simulate_batch(
         series_out,
         opts.series_times,
         wins,
+        resolved_parameters(models, sets),
     )
+
+
+def resolved_parameters(
+    models: Sequence[Model], sets: Sequence[Mapping[str, Any]]
+) -> dict[str, np.ndarray]:
+    """Every key the parameter sets give, as each run's model resolved it (SI)."""
+    keys = list(dict.fromkeys(k for s in sets for k in s))
+    out: dict[str, np.ndarray] = {}
+    for key in keys:
+        vals = [m.scenario[key] for m in models]
+        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in vals):
+            out[key] = np.array(vals, dtype=float)
+        else:
+            out[key] = np.array([str(v) for v in vals], dtype=object)
+    return out
 
 
 def process_context() -> Any:

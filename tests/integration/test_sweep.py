@@ -444,9 +444,9 @@ def test_sampled_sweep_has_a_run_dimension(tmp_path):
             }
             for i in range(4)
         ],
-        0.02,
-        window=(0.01, 0.02),  # a sweep's default metrics window: the second half of the run
+        0.02,  # the default metrics window, as a sweep's: the second half of the run
     )
+    np.testing.assert_array_equal(b.windows, [[0.01, 0.02]] * 4)
     np.testing.assert_array_equal(
         ds["track_max_contact_force"].values, b.metrics["track_max_contact_force"]
     )

@@ -96,11 +96,24 @@ def test_batch_metric_table_is_complete(batch):
     for m in METRICS:
         assert batch.metrics[m.name].dtype == np.dtype(m.dtype)
         assert batch.metrics[m.name].shape == (len(SETS),)
+    # the parameters resolved in SI, the scenario's value where a set leaves a key out
+    omega = [4 * np.pi, 8 * np.pi, 2 * np.pi]
+    np.testing.assert_allclose(batch.parameters["horn_gear.angular_velocity"], omega)
+    np.testing.assert_allclose(batch.parameters["track.vibration_amplitude"], [1.2e-4] * 2 + [3e-4])
     df = batch.to_dataframe()
     assert list(df.index) == [0, 1, 2]
-    assert df.loc[1, "horn_gear.angular_velocity"] == "240 rpm"
+    assert df["horn_gear.angular_velocity"].dtype == np.float64
+    assert df.loc[1, "horn_gear.angular_velocity"] == pytest.approx(8 * np.pi)
+    assert df.attrs["units"]["horn_gear.angular_velocity"] == "rad/s"
+    assert df.attrs["units"]["track_max_contact_force"] == "N"
     ds = batch.to_xarray()
     assert ds["track_max_contact_force"].attrs["units"] == "N"
+    assert ds["track.vibration_amplitude"].attrs["units"] == "m"
+    fast = ds.swap_dims(run="horn_gear.angular_velocity").sel(
+        {"horn_gear.angular_velocity": omega[1]}
+    )
+    assert int(fast["regime"]) == int(batch.metrics["regime"][1])
+    assert repr(batch).startswith("<braidsim.BatchResult: 3 runs (0 failed); parameters ")
 
 
 @pytest.mark.parametrize("executor", ["threads", "processes"])
