@@ -261,6 +261,13 @@ class Sensitivities:
     series: np.ndarray | None
     latched: np.ndarray
 
+    def __repr__(self) -> str:
+        rows = "no series" if self.series is None else f"{self.series.shape[0]} series rows"
+        return (
+            f"<braidsim.Sensitivities along {', '.join(self.keys)}: "
+            f"{self.impacts.shape[0]} impacts, {rows}>"
+        )
+
     @classmethod
     def from_run(cls, keys: Sequence[str], sens: SensitivityRun) -> Sensitivities:
         k = len(keys)

@@ -257,3 +257,14 @@ def test_synthetic_record_blames_the_duration() -> None:
         synthetic_record(SC, 0.01, rate=0)
     with pytest.raises(InputError, match=r"^rate: 100 Hz gives fewer than 3 samples in 0\.01 s"):
         synthetic_record(SC, 0.01, rate=100)
+
+
+def test_result_objects_have_one_line_reprs() -> None:
+    import braidsim
+    from braidsim.analysis.restitution import restitution_table
+
+    r = braidsim.simulate("paper-3.3", 0.01, sensitivities=["track.clearance"])
+    tab = restitution_table(laws=["flores"])
+    for obj in (r.sensitivity, tab):
+        text = repr(obj)
+        assert text.startswith("<braidsim.") and "\n" not in text and len(text) < 200, text

@@ -56,6 +56,12 @@ class RestitutionTable:
     stiffness: float | None
     exponent: float | None
 
+    def __repr__(self) -> str:
+        return (
+            f"<braidsim.RestitutionTable: {len(self.laws)} laws x {self.nominal.size} c_r at "
+            f"{self.velocity:g} m/s; largest |simulated - exact| {self.max_deviation:.3g}>"
+        )
+
     @property
     def max_deviation(self) -> float:
         """max |simulated - exact| over the table [-]."""

@@ -289,6 +289,13 @@ class MachineRun:
         Accepted integration steps of all carriers (cost).
     """
 
+    def __repr__(self) -> str:
+        return (
+            f"<braidsim.MachineRun: {len(self.plans)} carriers over {self.duration:g} s, "
+            f"{len(self.transfers)} transfers, {len(self.impacts)} track impacts, "
+            f"{self.steps} steps>"
+        )
+
     spec: MachineSpec
     duration: float
     speed: SpeedLaw
