@@ -318,7 +318,7 @@ def read_csv(path: str | Path) -> Record | ImpactList:
 
     p = Path(path)
     if not p.is_file():
-        raise InputError(f"--data: {str(p)!r} is not a file; allowed a CSV or netCDF record")
+        raise InputError(f"data (--data): {str(p)!r} is not a file; allowed a CSV or netCDF record")
     try:
         df = pd.read_csv(p, comment="#", skipinitialspace=True)
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
@@ -363,12 +363,15 @@ def read_record(data: Any) -> Record | ImpactList:
         return from_table({c: data[c].to_numpy() for c in data.columns}, "DataFrame")
     if not isinstance(data, str | Path):
         raise InputError(
-            f"--data: expected a CSV or netCDF path or an xarray Dataset, got {type(data).__name__}"
+            "data (--data): expected a CSV or netCDF path or an xarray Dataset, got "
+            f"{type(data).__name__}"
         )
     p = Path(data)
     if p.suffix.lower() in (".nc", ".nc4", ".netcdf", ".h5"):
         if not p.is_file():
-            raise InputError(f"--data: {str(p)!r} is not a file; allowed a CSV or netCDF record")
+            raise InputError(
+                f"data (--data): {str(p)!r} is not a file; allowed a CSV or netCDF record"
+            )
         import xarray as xr
 
         try:

@@ -531,7 +531,7 @@ def _items(records: Any) -> list[tuple[Record | ImpactList, dict[str, Any]]]:
         else:
             out.append((item, {}))
     if not out:
-        raise InputError("--data: no record; allowed one or more records")
+        raise InputError("data (--data): no record; allowed one or more records")
     return out
 
 
@@ -573,8 +573,8 @@ def _check_covers_an_impact(problem: Problem) -> None:
                 part.model_values(start_run)
             except SimulationError as exc:
                 raise InputError(
-                    f"--data: at the start values {exc}; allowed an impact list the scenario "
-                    "can reach (check its times, the scenario's overrides and the start)"
+                    f"data (--data): at the start values {exc}; allowed an impact list the "
+                    "scenario can reach (check its times, the scenario's overrides and the start)"
                 ) from None
             continue
         record = part.record
@@ -586,13 +586,13 @@ def _check_covers_an_impact(problem: Problem) -> None:
         )
         if part.event_quantity is not None and not part.has_events and n_model == 0:
             raise InputError(
-                f"--data: the record {record.source} ({record.duration:g} s) holds no impact; "
-                "allowed a record of at least one impact"
+                f"data (--data): the record {record.source} ({record.duration:g} s) holds no "
+                "impact; allowed a record of at least one impact"
             )
         if part.event_quantity is None and n_model == 0:
             raise InputError(
-                f"--data: the record {record.source} ({record.duration:g} s) is shorter than "
-                "the first impact of the scenario at the start values; allowed a record of at "
+                f"data (--data): the record {record.source} ({record.duration:g} s) is shorter "
+                "than the first impact of the scenario at the start values; allowed a record of at "
                 "least one impact"
             )
 
