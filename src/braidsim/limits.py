@@ -23,6 +23,7 @@ DEFAULTS: dict[str, tuple[float, str, str]] = {
     "memory": (4e9, "bytes", "memory of one chunk of work or of an animation"),
     "frames": (10_000, "frames", "frames of an animation"),
     "transfers": (1_000_000, "transfers", "transfer times of one run (transfer.period)"),
+    "steps": (1e9, "steps", "least integration steps of one run (duration / max_step)"),
 }
 
 

@@ -10,7 +10,7 @@ from typing import Any, Literal
 import numpy as np
 
 from braidsim import limits
-from braidsim.core import CARRIER_COLUMNS, RawRun, state_size
+from braidsim.core import CARRIER_COLUMNS, RawRun, SeriesOverflow, state_size
 from braidsim.core import layout as L
 from braidsim.core import run as core_run
 from braidsim.core.driver import SeriesSink, Tangents, quadrature_prefix
@@ -250,6 +250,14 @@ def run_model(
     integrate are NaN there, and a run started from such a state integrates them from its
     own start.
     """
+    # the step never exceeds max_step: a run takes at least duration / max_step steps
+    # (1e9 steps are 20 minutes to hours of CPU)
+    limits.check(
+        "steps",
+        model.duration / float(model.options.max_step),
+        f"duration: {model.duration:g} s in steps of at most {float(model.options.max_step):.3g} s "
+        "(simulation.max_step) needs at least",
+    )
     nq = quadrature_prefix(model.record, energy) if isinstance(energy, str) else -1
     opts = model.options._replace(record_events=record_events, energy=bool(energy), quadratures=nq)
     n = state_size(model.record, bool(energy), nq)
@@ -273,18 +281,31 @@ def run_model(
         r["mode_0"], r["mode_1"] = start.track_mode, start.slot_mode
         r["v0_0"], r["v0_1"] = start.track_v0, start.slot_v0
         opts = opts._replace(t_end=start.t + model.duration)
-    raw = core_run(
-        model.record,
-        opts,
-        y0,
-        sample_times=sample_times,
-        transfer_times=model.transfer_times,
-        windows=windows,
-        series=series,
-        restart=restart,
-        tangents=tangents,
-        implicit=model.implicit_rest,
-    )
+    try:
+        raw = core_run(
+            model.record,
+            opts,
+            y0,
+            sample_times=sample_times,
+            transfer_times=model.transfer_times,
+            windows=windows,
+            series=series,
+            restart=restart,
+            tangents=tangents,
+            implicit=model.implicit_rest,
+            max_rows=int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS))),
+        )
+    except SeriesOverflow as exc:
+        raise SimulationError(
+            f"the series kept in memory outgrew the memory limit ({limits.limit('memory'):.3g} "
+            f"bytes, {limits.env_name('memory')}) at t = {exc.t:.9g} s with {exc.rows} rows, "
+            f"{exc.event_rows} of them onset, exit and peak rows (a contact at rest for long "
+            "has a peak of its force at every wobble of the solution); keep fewer rows: "
+            "simulate(..., record_events=False) or series=False or a SeriesSink that streams "
+            "them (on the command line: run without --out), a shorter duration, or raise "
+            f"{limits.env_name('memory')}",
+            exc.t,
+        ) from None
     if raw.status == L.ST_GRAZING:
         from braidsim.sensitivity import sensitivity_error
 
@@ -437,8 +458,17 @@ def simulate(
     # a series kept in memory is collected column by column from the solver's chunks, so
     # that it is held once (not as chunks and again as their concatenation)
     columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS]
+    # the sample grid fits the budget, the event rows are counted as they come: the rows
+    # kept stay within the memory limit (run_model turns the overflow into its message)
+    cap = int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS)))
+    kept = [0, 0]  # rows, and those of them that are onsets, exits and peaks
+    i_kind = CARRIER_COLUMNS.index("kind")
 
     def keep(chunk: np.ndarray) -> None:
+        kept[0] += chunk.shape[0]
+        kept[1] += int(np.count_nonzero(chunk[:, i_kind] != L.KIND_SAMPLE))
+        if kept[0] > cap:
+            raise SeriesOverflow(float(chunk[-1, 0]), kept[0], kept[1])
         for i, col in enumerate(columns):
             col.append(chunk[:, i].copy())
 

@@ -268,3 +268,40 @@ def test_result_objects_have_one_line_reprs() -> None:
     for obj in (r.sensitivity, tab):
         text = repr(obj)
         assert text.startswith("<braidsim.") and "\n" not in text and len(text) < 200, text
+
+
+def test_a_run_too_long_for_its_step_limit_is_refused_up_front() -> None:
+    """At most max_step per step: 1e9 s at 1 ms needs 1e12 steps (days of CPU)."""
+    import time
+
+    import braidsim
+
+    c0 = time.process_time()
+    with pytest.raises(
+        InputError,
+        match=r"^duration: 1e\+09 s in steps of at most 0.001 s .*"
+        r"1e\+12 steps exceeds the limit of 1e\+09 steps; .*BRAIDSIM_MAX_STEPS",
+    ):
+        braidsim.simulate("paper-3.1", 1e9)
+    assert time.process_time() - c0 < 5.0
+
+
+def test_the_rows_kept_in_memory_stay_within_the_memory_limit(monkeypatch) -> None:
+    """The sample grid is sized beforehand; the peak rows of a long rest are counted as
+    they come, and the run stops with what to change instead of growing without bound."""
+    import braidsim
+    from braidsim.errors import SimulationError
+
+    # 17,857 rows of 28 columns; the rows are counted as the solver hands them over, in
+    # chunks of 32,768
+    monkeypatch.setenv("BRAIDSIM_MAX_MEMORY", "4e6")
+    with pytest.raises(
+        SimulationError,
+        match=r"outgrew the memory limit .* onset, exit and "
+        r"peak rows .* record_events=False",
+    ) as err:
+        braidsim.simulate("paper-3.1", 100.0, sample_interval=0.01)
+    assert 0.0 < err.value.time < 100.0
+    # the same run without the event rows fits
+    res = braidsim.simulate("paper-3.1", 100.0, sample_interval=0.01, record_events=False)
+    assert res.stats["series_rows"] == 10001

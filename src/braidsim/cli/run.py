@@ -68,7 +68,11 @@ def run(
     T = float(sc["simulation.duration"] if dur is None else dur)
     with progress_status(f"simulating {sc.name}, {T:g} s", quiet=json_):
         res = braidsim.simulate(
-            sc, duration=dur, windows=windows, sensitivities=list(sensitivity or ()) or None
+            sc,
+            duration=dur,
+            windows=windows,
+            sensitivities=list(sensitivity or ()) or None,
+            series=out is not None,  # only the files of --out read the series
         )
     summary = res.summary(window=win)
     if out is not None:

@@ -26,7 +26,7 @@ import warnings
 from numba.core.errors import NumbaIRAssumptionWarning
 
 from braidsim.core import layout
-from braidsim.core.driver import RawRun, run, state_size
+from braidsim.core.driver import RawRun, SeriesOverflow, run, state_size
 from braidsim.core.interfaces import (
     derivatives,
     pair_gaps,
@@ -66,6 +66,7 @@ __all__ = [
     "PowerLawContact",
     "RawRun",
     "RegularizedFriction",
+    "SeriesOverflow",
     "TrackHarmonics",
     "contact_quantities",
     "derivatives",

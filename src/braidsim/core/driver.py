@@ -27,6 +27,17 @@ DEFAULT_ROW_CHUNK = 32768  # rows of the series buffer (about 7 MB for the carri
 DEFAULT_EPISODE_CHUNK = 256
 
 
+class SeriesOverflow(Exception):
+    """The series kept in memory outgrew ``max_rows`` (:func:`run`); the run stopped at
+    ``t`` after keeping ``rows`` rows, ``event_rows`` of them onset, exit and peak rows."""
+
+    def __init__(self, t: float, rows: int, event_rows: int) -> None:
+        super().__init__(f"series of {rows} rows at t = {t:.9g} s")
+        self.t = t
+        self.rows = rows
+        self.event_rows = event_rows
+
+
 @dataclass
 class Tangents:
     """What a run needs to carry k forward sensitivities (see
@@ -199,6 +210,7 @@ def run(
     episode_chunk: int = DEFAULT_EPISODE_CHUNK,
     tangents: Tangents | None = None,
     implicit: bool = False,
+    max_rows: int | None = None,
 ) -> RawRun:
     """Integrate ``model`` with solver options ``opts`` from ``y0`` (or from ``restart``).
 
@@ -224,6 +236,11 @@ def run(
         runs with tangents always use Dormand-Prince. (A switch of the call, not a field of
         :class:`~braidsim.core.layout.SolverOptions`: one more field there made every step
         of every run 5 % slower.)
+    max_rows : int, optional
+        With ``series=True``, the most rows kept in memory: past it the run stops with
+        :class:`SeriesOverflow` (the sample grid is sized beforehand, but the event rows
+        are not: a contact resting for hours has a peak of its force at every wobble of
+        the solution).
     """
     prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
     if opts.quadratures not in (-1, model_sizes(model)[2], *prefixes):
@@ -284,6 +301,11 @@ def run(
                     sens_chunks.append(SENS.RSENS[:nrow][order])
                 if keep:
                     chunks.append(chunk)
+                    if max_rows is not None and written > max_rows:
+                        ik = list(series_columns(model)).index("kind")
+                        kinds = np.concatenate([c[:, ik] for c in chunks])
+                        n_events = int(np.count_nonzero(kinds != L.KIND_SAMPLE))
+                        raise SeriesOverflow(float(chunk[-1, 0]), written, n_events)
                 elif sink is not None:
                     sink(chunk)
                 r["rows"] = 0
