@@ -697,6 +697,30 @@ def resolved_parameters(
     return out
 
 
+def start_resource_tracker() -> None:
+    """Start multiprocessing's resource tracker (the process that frees the pools'
+    semaphores and shared memory) with SIGHUP ignored, before any pool needs it.
+
+    It ignores SIGINT and SIGTERM of itself, but a hangup sent to the process group (a
+    closed terminal, ``timeout -s HUP``) killed it: it was started again, and printed a
+    traceback for every resource the pool then gave back (50 lines on one SIGHUP). An
+    ignored signal stays ignored across the tracker's exec. Nothing happens when it runs
+    already or outside the main thread (where signals cannot be set).
+    """
+    import signal
+    import threading
+    from multiprocessing import resource_tracker
+
+    hup = getattr(signal, "SIGHUP", None)
+    if hup is None or threading.current_thread() is not threading.main_thread():
+        return
+    old = signal.signal(hup, signal.SIG_IGN)
+    try:
+        resource_tracker.ensure_running()
+    finally:
+        signal.signal(hup, old)
+
+
 def process_context() -> Any:
     """The multiprocessing context of the worker processes.
 
@@ -708,6 +732,7 @@ def process_context() -> Any:
     import multiprocessing
     import threading
 
+    start_resource_tracker()
     methods = multiprocessing.get_all_start_methods()
     if "fork" in methods and threading.active_count() == 1:
         return multiprocessing.get_context("fork")

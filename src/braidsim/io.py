@@ -89,6 +89,9 @@ def check_output_target(
         raise InputError(
             f"{option}: {str(p)!r} has no known extension; allowed {', '.join(suffixes)}"
         )
+    if p.is_symlink() and not p.exists():
+        raise InputError(f"{option}: {str(p)!r} is a broken link; allowed {what} path")
+    p = _target(p)  # the writers follow a link: its target is what they replace
     if p.exists() or p.is_symlink():
         if directory and not p.is_dir():
             raise InputError(f"{option}: {str(p)!r} exists and is not a directory; allowed {what}")
@@ -127,9 +130,22 @@ def check_output_target(
     Path(probe).unlink(missing_ok=True)
 
 
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename)."""
+#: every output put in place by this process, in order (the command line reports them when
+#: a signal arrives after an output was already whole)
+WRITTEN: list[Path] = []
+
+
+def _target(path: str | Path) -> Path:
+    """The path an output replaces: a symbolic link's target (the link itself stays), else
+    ``path``."""
     p = Path(path)
+    return p.resolve() if p.is_symlink() else p
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename);
+    a symbolic link at ``path`` is followed."""
+    p = _target(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(p)
     fd, tmp = tempfile.mkstemp(prefix=_prefix(p), suffix=".tmp", dir=p.parent)
@@ -141,6 +157,7 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    WRITTEN.append(p)
     return p
 
 
@@ -150,8 +167,9 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
 
 
 def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
-    """Let ``writer(tmp_path)`` produce a file (e.g. ``fig.savefig``), then rename it into place."""
-    p = Path(path)
+    """Let ``writer(tmp_path)`` produce a file (e.g. ``fig.savefig``), then rename it into
+    place; a symbolic link at ``path`` is followed."""
+    p = _target(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(p)
     fd, tmp = tempfile.mkstemp(prefix=_prefix(p), suffix=p.suffix, dir=p.parent)
@@ -163,6 +181,7 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    WRITTEN.append(p)
     return p
 
 
@@ -177,7 +196,8 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     file system). On success a marker file naming ``kind`` is added and the directory is
     renamed to ``path``; a previous output of the same kind at ``path`` is replaced. On any
     error the temporary directory is removed and ``path`` is left as it was: the output is
-    complete or absent, never half-written.
+    complete or absent, never half-written. A symbolic link at ``path`` is followed: its
+    target is the output replaced.
 
     Raises
     ------
@@ -185,11 +205,12 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
         ``path`` exists and is not an empty directory or an earlier output of ``kind``
         (we never delete what we did not write).
     """
-    p = Path(path)
+    p = _target(path)
     check_output_directory(p, kind)
     p.parent.mkdir(parents=True, exist_ok=True)
     remove_stale(p)
     tmp = Path(tempfile.mkdtemp(prefix=_prefix(p), suffix=".tmp", dir=p.parent))
+    mark = len(WRITTEN)  # the files written inside are parts of this output, not outputs
     try:
         yield tmp
         (tmp / MARKER).write_text(kind + "\n", encoding="utf-8")
@@ -204,7 +225,10 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
             os.replace(tmp, p)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        del WRITTEN[mark:]
         raise
+    del WRITTEN[mark:]
+    WRITTEN.append(p)
 
 
 def check_output_directory(path: str | Path, kind: str = "output") -> None:

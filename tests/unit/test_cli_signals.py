@@ -10,8 +10,9 @@ import sys
 import warnings
 
 import pytest
+import typer
 
-from braidsim.cli.common import Interrupted, signals_handled
+from braidsim.cli.common import _RECEIVED, Interrupted, signals_handled
 
 
 @pytest.fixture
@@ -48,10 +49,66 @@ def test_a_failure_after_a_swallowed_signal_is_reported_as_the_signal(
 
     with pytest.raises(Interrupted) as info, signals_handled():
         Collected()  # freed at once: the handler's exception is raised in __del__
-        assert dropped and isinstance(dropped[0], Interrupted)
+        assert _RECEIVED and not dropped  # dropped by Python, and not printed
         raise RuntimeError("the workers are gone")  # what the killed workers lead to
     assert info.value.signum == signal.SIGTERM
     assert info.value.__cause__ is None
+
+
+def test_a_swallowed_signal_still_ends_the_command(restore_logging_and_hooks, capsys):
+    """With no failure after it, the command used to run to its end and exit 0 after
+    printing the dropped exception's traceback: now it ends as interrupted, silently."""
+
+    class Collected:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):
+                pass
+
+    with pytest.raises(Interrupted) as info, signals_handled():
+        Collected()
+        finished = True  # the rest of the command runs
+    assert finished and info.value.signum == signal.SIGINT
+    assert capsys.readouterr().err == ""
+
+
+def test_a_forked_worker_ends_quietly_on_the_signal(restore_logging_and_hooks):
+    """A worker forked with the handler dies of the signal, as without it: no traceback of
+    its own (a sweep's processes printed theirs on SIGHUP)."""
+    with signals_handled():
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the worker
+            os.close(r)
+            os.dup2(w, 2)  # its stderr into the pipe
+            os.kill(os.getpid(), signal.SIGHUP)
+            for _ in range(100000):
+                pass
+            os._exit(0)  # not reached
+        os.close(w)
+        _, status = os.waitpid(pid, 0)
+        err = os.read(r, 65536)
+        os.close(r)
+    assert os.WIFSIGNALED(status) and os.WTERMSIG(status) == signal.SIGHUP
+    assert err == b""
+
+
+def test_an_interrupted_command_names_the_outputs_it_had_written(tmp_path, capsys):
+    from braidsim.cli.common import guarded
+    from braidsim.io import atomic_write_text
+
+    @guarded
+    def command() -> None:
+        atomic_write_text(tmp_path / "a.json", "{}")
+        raise Interrupted(signal.SIGINT)
+
+    with pytest.raises(typer.Exit) as exc:
+        command()
+    assert exc.value.exit_code == 130
+    err = capsys.readouterr().err
+    assert (
+        f"interrupted by SIGINT; the output '{tmp_path / 'a.json'}' had been written whole" in err
+    )
 
 
 def test_a_failure_with_no_signal_stays_what_it_is():
@@ -77,3 +134,23 @@ def test_the_stopping_process_says_nothing_but_its_line(restore_logging_and_hook
         del coro
     assert not [w for w in seen if "never awaited" in str(w.message)]
     assert "Batched" not in capsys.readouterr().err
+
+
+def test_an_output_given_as_a_link_replaces_the_links_target(tmp_path):
+    """The writers follow a symbolic link: the link stays, its target is the output."""
+    from braidsim.io import atomic_directory, atomic_write_text
+
+    real = tmp_path / "real"
+    with atomic_directory(real, kind="run") as d:
+        (d / "a.txt").write_text("old")
+    link = tmp_path / "link"
+    link.symlink_to(real)
+    with atomic_directory(link, kind="run") as d:
+        (d / "a.txt").write_text("new")
+    assert link.is_symlink() and (real / "a.txt").read_text() == "new"
+    target = tmp_path / "f.json"
+    target.write_text("{}")
+    flink = tmp_path / "f-link.json"
+    flink.symlink_to(target)
+    atomic_write_text(flink, '{"a": 1}')
+    assert flink.is_symlink() and target.read_text() == '{"a": 1}'

@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 
 import typer
 
+from braidsim import io
 from braidsim.errors import InputError, SimulationError, StoreError
 from braidsim.io import json_safe
 
@@ -132,7 +133,16 @@ def _quiet_shutdown() -> None:
 _RECEIVED: list[Interrupted] = []  # the signal this command received, once one arrived
 
 
+_MAIN_PID: list[int] = []  # the process whose command handles the signals
+
+
 def _on_signal(signum: int, frame: Any) -> None:
+    if _MAIN_PID and os.getpid() != _MAIN_PID[0]:
+        # a worker forked with this handler (a pool, a sweep's processes): it ends quietly
+        # on the signal, as it would without the handler; the command reports it
+        signal.signal(signum, signal.SIG_DFL)
+        os.kill(os.getpid(), signum)
+        return
     # ignore further signals while we stop: the first one decides the exit code
     for sig in _SIGNALS:
         signal.signal(sig, signal.SIG_IGN)
@@ -161,6 +171,23 @@ def signal_decides() -> Iterator[None]:
         if not _RECEIVED:
             raise
         raise _RECEIVED[0] from None
+    if _RECEIVED:
+        # the interruption was dropped where it was raised and the command went on to its
+        # end: it still ends as interrupted (its outputs, whole, are named then)
+        raise _RECEIVED[0]
+
+
+def _unraisable(hook: Any) -> Any:
+    """A ``sys.unraisablehook`` that drops the signal's own exception where Python cannot
+    raise it (a weakref callback, a ``__del__``, a ctypes callback of the compiler) instead
+    of printing its traceback: :func:`signal_decides` ends the command on it."""
+
+    def quiet(unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, Interrupted):
+            return
+        hook(unraisable)
+
+    return quiet
 
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
@@ -177,7 +204,10 @@ def signals_handled() -> Iterator[None]:
         yield
         return
     old = {sig: signal.getsignal(sig) for sig in _SIGNALS}
+    old_hook = sys.unraisablehook
     _RECEIVED.clear()
+    _MAIN_PID[:] = [os.getpid()]
+    sys.unraisablehook = _unraisable(old_hook)
     for sig in _SIGNALS:
         signal.signal(sig, _on_signal)
     try:
@@ -186,6 +216,7 @@ def signals_handled() -> Iterator[None]:
     finally:
         for sig, h in old.items():
             signal.signal(sig, h)
+        sys.unraisablehook = old_hook
 
 
 def _os_error_text(exc: OSError) -> str:
@@ -197,12 +228,23 @@ def _os_error_text(exc: OSError) -> str:
     return f"{path}: {why}{hint}"
 
 
+def _written_since(first: int) -> str:
+    """What an interrupted command leaves: the outputs it had put in place (each whole),
+    or none."""
+    done = list(dict.fromkeys(str(p) for p in io.WRITTEN[first:]))
+    if not done:
+        return "no output was written"
+    more = f" and {len(done) - 1} more" if len(done) > 1 else ""
+    return f"the output {done[-1]!r}{more} had been written whole before it"
+
+
 def guarded(func: F) -> F:
     """Turn braidsim's errors into one-line messages and exit codes (2 input, 1 failures)."""
 
     @wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         _NOTICES.clear()
+        first = len(io.WRITTEN)  # the outputs this command puts in place come after
         try:
             with signals_handled():
                 out = func(*args, **kwargs)
@@ -217,9 +259,9 @@ def guarded(func: F) -> F:
         except StoreError as exc:
             fail(str(exc), 1)
         except Interrupted as exc:
-            fail(f"interrupted by {exc.args[0]}; no output was written", 128 + exc.signum)
+            fail(f"interrupted by {exc.args[0]}; {_written_since(first)}", 128 + exc.signum)
         except KeyboardInterrupt:
-            fail("interrupted by SIGINT; no output was written", 130)
+            fail(f"interrupted by SIGINT; {_written_since(first)}", 130)
         except OSError as exc:
             fail(_os_error_text(exc), 1)
         except MemoryError:

@@ -375,6 +375,9 @@ class DaskExecutor:
                     "address of a running Dask scheduler, e.g. tcp://host:8786"
                 ) from None
             return client, [client]
+        from braidsim.batch import start_resource_tracker
+
+        start_resource_tracker()  # before the cluster's processes need it (see there)
         cluster = LocalCluster(
             n_workers=self.workers,
             threads_per_worker=1,
@@ -386,6 +389,8 @@ class DaskExecutor:
         return client, [client, cluster]
 
     _conn: tuple[Any, list[Any]] | None = None
+    #: seconds to wait for the client and the local cluster to close
+    CLOSE_TIMEOUT = 10.0
 
     def start(self) -> None:
         """Connect to the cluster (or start the local one) now: :func:`run_sweep` calls this
@@ -394,10 +399,15 @@ class DaskExecutor:
             self._conn = self._connect()
 
     def close(self) -> None:
-        """Close what :meth:`start` opened (a client, a local cluster)."""
+        """Close what :meth:`start` opened (a client, a local cluster), waiting at most
+        :attr:`CLOSE_TIMEOUT` seconds for each: after a signal killed its workers a local
+        cluster could wait for them forever (1 of 10 SIGHUPs sent to the process group)."""
         if self._conn is not None:
             for obj in self._conn[1]:
-                obj.close()
+                try:
+                    obj.close(timeout=self.CLOSE_TIMEOUT)
+                except Exception:  # the store is written (or resumable) either way
+                    pass
             self._conn = None
 
     def run(self, base: tuple[Any, ...], tasks: Sequence[ChunkTask], on_result: OnResult) -> None:
