@@ -253,8 +253,9 @@ def check_output_directory(path: str | Path, kind: str = "output") -> None:
         ok = False
     if ok:
         return
+    verb = kind.removeprefix("analysis-")  # the analysis verbs mark "analysis-<verb>"
     raise InputError(
-        f"--out: {str(p)!r} is not empty and is not an earlier braidsim {kind}; "
+        f"--out: {str(p)!r} is not empty and is not an earlier output of `braidsim {verb}`; "
         "allowed: a new or empty directory, or an earlier output to replace"
     )
 

@@ -99,6 +99,22 @@ def time_array(key: str, values: object) -> np.ndarray:
         return np.array([to_si(key, v, "s") for v in values], dtype=float)
 
 
+def _sample_interval(
+    sc: Scenario, sample_interval: float | None, length: float
+) -> tuple[float, float]:
+    """(the sample interval [s], the samples it makes over ``length`` s, not rounded)."""
+    dt = sc["simulation.sample_interval"] if sample_interval is None else float(sample_interval)
+    if dt < 0 or not math.isfinite(dt):
+        raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
+    span = length / dt if dt > 0 else 0.0
+    if not math.isfinite(span):  # a subnormal interval: no count to widen or refuse
+        raise InputError(
+            f"sample_interval: {dt!r} s is out of range for a run of {length:g} s; "
+            f"allowed >= {length * 1e-300:.3g} s"
+        )
+    return dt, span
+
+
 def _windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
     """Window 0, the whole run, and the ``windows`` given (see :func:`simulate`)."""
     W = [(t_start, t_end)]
@@ -428,20 +444,14 @@ def simulate(
     dt_used: float | None = None
     if series is False:
         st = np.zeros(0)
+        if sample_times is None:  # unused, but refused as it would be with a series
+            _sample_interval(sc, sample_interval, T - t_start)
     elif sample_times is not None:
         st = np.sort(time_array("sample_times", sample_times))
         if st.size and (st[0] < t_start or st[-1] > T or not np.all(np.isfinite(st))):
             raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
     else:
-        dt = sc["simulation.sample_interval"] if sample_interval is None else float(sample_interval)
-        if dt < 0 or not math.isfinite(dt):
-            raise InputError(f"sample_interval: {dt!r} s is out of range; allowed >= 0 s")
-        span = (T - t_start) / dt if dt > 0 else 0.0
-        if not math.isfinite(span):  # a subnormal interval: no count to widen or refuse
-            raise InputError(
-                f"sample_interval: {dt!r} s is out of range for a run of {T - t_start:g} s; "
-                f"allowed >= {(T - t_start) * 1e-300:.3g} s"
-            )
+        dt, span = _sample_interval(sc, sample_interval, T - t_start)
         n = math.floor(span + 1e-9) + 1 if dt > 0 else 0
         row_bytes = 8 * len(CARRIER_COLUMNS)
         if series is True and max_series_bytes is not None and n * row_bytes > max_series_bytes:

@@ -92,6 +92,12 @@ def sweep(
     )
     if "regimes" in summary:
         con.print("regimes: " + ", ".join(f"{k} {v}" for k, v in summary["regimes"].items()))
+    if summary["failed_runs"]:
+        con.print(
+            f"failed runs: {summary['failed_runs']}, most often: {summary['failure_example']} "
+            "(every run's reason is in the store's `failure` variable)",
+            markup=False,
+        )
 
 
 @app.command("sweep-plot")

@@ -671,6 +671,11 @@ def summarize_store(path: str | Path) -> dict[str, Any]:
         r = np.asarray(ds["regime"].values).ravel()
         out["regimes"] = {name: int(np.count_nonzero(r == i)) for i, name in enumerate(REGIMES)}
     fail = np.asarray(ds["failure"].values).astype(object).ravel()
-    out["failed_runs"] = int(np.count_nonzero(fail != ""))
+    failed = fail[fail != ""]
+    out["failed_runs"] = int(failed.size)
+    if failed.size:
+        # the most common reason, for the summary line (every run's is in `failure`)
+        reasons, counts = np.unique(failed.astype(str), return_counts=True)
+        out["failure_example"] = str(reasons[int(np.argmax(counts))])
     out["complete"] = bool(done_chunks(path).all())
     return out
