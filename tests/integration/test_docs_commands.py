@@ -54,7 +54,7 @@ REDUCED = {
 # commands that a command before them must have prepared (run first, in the same folder)
 SETUP = {
     "braidsim analyze results/run-folder": [
-        "braidsim run paper-3.1 --duration \"0.05 s\" --out results/run-folder"
+        'braidsim run paper-3.1 --duration "0.05 s" --out results/run-folder'
     ],
     "braidsim machine design16/optimised_machine.toml --out m16opt": [
         "braidsim design examples/design16.toml --out design16"
