@@ -75,6 +75,7 @@ from braidsim.continuation.results import (
 from braidsim.continuation.system import ScenarioSystem, check_continuable
 from braidsim.continuation.twopar import BoundaryCurve, trace_boundary
 from braidsim.errors import InputError
+from braidsim.io import json_safe
 from braidsim.params import SCHEMA, Scenario, convert, load_scenario
 from braidsim.specfile import check_keys, expect_table, read_toml_file
 
@@ -535,19 +536,6 @@ def write_outputs(res: ContinuationResult, directory: Path, fmt: str = "nc") -> 
     data = res.to_json()
     data["files"] = sorted(files)
     (directory / "summary.json").write_text(
-        json.dumps(clean_json(data), allow_nan=False), encoding="utf-8"
+        json.dumps(json_safe(data), allow_nan=False), encoding="utf-8"
     )
     return data
-
-
-def clean_json(obj: Any) -> Any:
-    """NaN and inf become None (strict JSON); numpy scalars plain numbers."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: clean_json(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [clean_json(v) for v in obj]
-    if hasattr(obj, "item") and callable(obj.item):
-        return clean_json(obj.item())
-    return obj
