@@ -115,8 +115,9 @@ def _sample_interval(
     return dt, span
 
 
-def _windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
-    """Window 0, the whole run, and the ``windows`` given (see :func:`simulate`)."""
+def run_windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
+    """Window 0, the whole run [t_start, t_end], and the ``windows`` given (see
+    :func:`simulate`), as an (n, 2) array [s]."""
     W = [(t_start, t_end)]
     if windows is None:
         return np.array(W, dtype=float)
@@ -464,7 +465,7 @@ def simulate(
         limits.check("memory", 8.0 * n, f"sample_interval = {dt:g} s over {T - t_start:g} s")
         st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
         dt_used = dt
-    W = _windows(t_start, T, windows)
+    W = run_windows(t_start, T, windows)
     # a series kept in memory is collected column by column from the solver's chunks, so
     # that it is held once (not as chunks and again as their concatenation)
     columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS]

@@ -274,24 +274,6 @@ class ScipyResult:
 # =======================================================================================
 
 
-def _windows(duration: float, windows: Sequence[tuple[float, float]] | None) -> np.ndarray:
-    W = [(0.0, duration)]
-    for w in windows or ():
-        t0, t1 = float(w[0]), float(w[1])
-        if (
-            not (math.isfinite(t0) and math.isfinite(t1))
-            or t0 < 0
-            or t1 <= t0
-            or t1 > duration + 1e-12
-        ):
-            raise InputError(
-                f"window: [{t0}, {t1}] is not inside the run; "
-                f"allowed 0 <= T0 < T1 <= {duration:g} s"
-            )
-        W.append((t0, t1))
-    return np.array(W, dtype=float)
-
-
 class _Run:
     """State of one SciPy run: modes, latched speeds, open episodes, ranges."""
 
@@ -643,7 +625,9 @@ def simulate_scipy(
     if not (0.0 < rtol < 1.0):
         raise InputError(f"rtol: {rtol!r} is out of range; allowed 0 < rtol < 1")
     model = build_model(sc, duration)
-    W = _windows(model.duration, windows)
+    from braidsim.simulate import run_windows
+
+    W = run_windows(0.0, model.duration, windows)
     if atol is None:
         ax, av = float(model.options.atol_position), float(model.options.atol_velocity)
         atol = [ax, av, ax, av] if model.two_dof else [ax, av]
