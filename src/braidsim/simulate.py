@@ -249,6 +249,7 @@ def run_model(
     energy: bool | Literal["dissipation", "friction"] = True,
     start: State | None = None,
     tangents: Tangents | None = None,
+    in_memory: bool = True,
 ) -> RawRun:
     """Run one model through the compiled core: the one way from a :class:`Model` to its
     results, for :func:`simulate`, the batches, the machine and the analyses.
@@ -266,6 +267,10 @@ def run_model(
     The returned ``y`` is always the model's full state: the quadratures a run did not
     integrate are NaN there, and a run started from such a state integrates them from its
     own start.
+
+    ``in_memory``: the rows kept, or handed to a callable that keeps them, count against
+    ``BRAIDSIM_MAX_MEMORY`` as they come (the sample grid is sized beforehand, the event rows
+    are not); False for a callable that streams them away.
     """
     # the step never exceeds max_step: a run takes at least duration / max_step steps
     # (1e9 steps are 20 minutes to hours of CPU)
@@ -310,7 +315,9 @@ def run_model(
             restart=restart,
             tangents=tangents,
             implicit=model.implicit_rest,
-            max_rows=int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS))),
+            max_rows=int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS)))
+            if in_memory
+            else None,
         )
     except SeriesOverflow as exc:
         raise SimulationError(
@@ -469,17 +476,8 @@ def simulate(
     # a series kept in memory is collected column by column from the solver's chunks, so
     # that it is held once (not as chunks and again as their concatenation)
     columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS]
-    # the sample grid fits the budget, the event rows are counted as they come: the rows
-    # kept stay within the memory limit (run_model turns the overflow into its message)
-    cap = int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS)))
-    kept = [0, 0]  # rows, and those of them that are onsets, exits and peaks
-    i_kind = CARRIER_COLUMNS.index("kind")
 
     def keep(chunk: np.ndarray) -> None:
-        kept[0] += chunk.shape[0]
-        kept[1] += int(np.count_nonzero(chunk[:, i_kind] != L.KIND_SAMPLE))
-        if kept[0] > cap:
-            raise SeriesOverflow(float(chunk[-1, 0]), kept[0], kept[1])
         for i, col in enumerate(columns):
             col.append(chunk[:, i].copy())
 
@@ -489,6 +487,7 @@ def simulate(
         windows=W,
         # the series' tangents come back with the rows kept by the driver
         series=(True if tangents is not None else keep) if series is True else series,
+        in_memory=series is True,  # a SeriesSink of the caller streams the rows away
         record_events=record_events and series is not False,
         # the lean path integrates only the energy the impact table reports
         energy="dissipation" if series is False else True,

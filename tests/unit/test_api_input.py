@@ -305,3 +305,9 @@ def test_the_rows_kept_in_memory_stay_within_the_memory_limit(monkeypatch) -> No
     # the same run without the event rows fits
     res = braidsim.simulate("paper-3.1", 100.0, sample_interval=0.01, record_events=False)
     assert res.stats["series_rows"] == 10001
+    # a sink that streams the rows away is not held to it
+    streamed: list[int] = []
+    braidsim.simulate(
+        "paper-3.1", 100.0, sample_interval=0.01, series=lambda c: streamed.append(len(c))
+    )
+    assert sum(streamed) > 17_857

@@ -237,10 +237,10 @@ def run(
         :class:`~braidsim.core.layout.SolverOptions`: one more field there made every step
         of every run 5 % slower.)
     max_rows : int, optional
-        With ``series=True``, the most rows kept in memory: past it the run stops with
-        :class:`SeriesOverflow` (the sample grid is sized beforehand, but the event rows
-        are not: a contact resting for hours has a peak of its force at every wobble of
-        the solution).
+        The most rows to keep or hand to ``series`` (give it for a sink that keeps them in
+        memory): past it the run stops with :class:`SeriesOverflow` (the sample grid is
+        sized beforehand, but the event rows are not: a contact resting for hours has a
+        peak of its force at every wobble of the solution).
     """
     prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
     if opts.quadratures not in (-1, model_sizes(model)[2], *prefixes):
@@ -281,6 +281,8 @@ def run(
     sens_chunks: list[np.ndarray] = []
     sens_closed: list[np.ndarray] = []
     written = 0
+    event_rows = 0  # of those, onsets, exits, peaks and transfers
+    i_kind = list(series_columns(model)).index("kind")
     while True:
         status = integrate(
             model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP
@@ -297,15 +299,13 @@ def run(
                 order = np.argsort(rows[:nrow, 0], kind="stable")
                 chunk = rows[:nrow][order]
                 written += nrow
+                event_rows += int(np.count_nonzero(chunk[:, i_kind] != L.KIND_SAMPLE))
+                if max_rows is not None and written > max_rows:
+                    raise SeriesOverflow(float(chunk[-1, 0]), written, event_rows)
                 if SENS is not None and SENS.RSENS is not None:
                     sens_chunks.append(SENS.RSENS[:nrow][order])
                 if keep:
                     chunks.append(chunk)
-                    if max_rows is not None and written > max_rows:
-                        ik = list(series_columns(model)).index("kind")
-                        kinds = np.concatenate([c[:, ik] for c in chunks])
-                        n_events = int(np.count_nonzero(kinds != L.KIND_SAMPLE))
-                        raise SeriesOverflow(float(chunk[-1, 0]), written, n_events)
                 elif sink is not None:
                     sink(chunk)
                 r["rows"] = 0
