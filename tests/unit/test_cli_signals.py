@@ -33,6 +33,19 @@ def test_a_signal_raised_in_the_main_flow_is_the_interruption(restore_logging_an
     assert info.value.signum == signal.SIGTERM
 
 
+def _signal_inside_del(signum: int) -> None:
+    """Send ``signum`` to this process from inside a ``__del__``, where the handler runs and
+    Python drops the exception it raises."""
+
+    class Collected:
+        def __del__(self):
+            os.kill(os.getpid(), signum)
+            for _ in range(1000):  # the handler runs between bytecodes
+                pass
+
+    Collected()  # freed at once
+
+
 def test_a_failure_after_a_swallowed_signal_is_reported_as_the_signal(
     restore_logging_and_hooks,
 ):
@@ -41,14 +54,8 @@ def test_a_failure_after_a_swallowed_signal_is_reported_as_the_signal(
     dropped: list[BaseException] = []
     sys.unraisablehook = lambda u: dropped.append(u.exc_value)
 
-    class Collected:
-        def __del__(self):
-            os.kill(os.getpid(), signal.SIGTERM)
-            for _ in range(1000):
-                pass
-
     with pytest.raises(Interrupted) as info, signals_handled():
-        Collected()  # freed at once: the handler's exception is raised in __del__
+        _signal_inside_del(signal.SIGTERM)
         assert _RECEIVED and not dropped  # dropped by Python, and not printed
         raise RuntimeError("the workers are gone")  # what the killed workers lead to
     assert info.value.signum == signal.SIGTERM
@@ -58,15 +65,8 @@ def test_a_failure_after_a_swallowed_signal_is_reported_as_the_signal(
 def test_a_swallowed_signal_still_ends_the_command(restore_logging_and_hooks, capsys):
     """With no failure after it, the command used to run to its end and exit 0 after
     printing the dropped exception's traceback: now it ends as interrupted, silently."""
-
-    class Collected:
-        def __del__(self):
-            os.kill(os.getpid(), signal.SIGINT)
-            for _ in range(1000):
-                pass
-
     with pytest.raises(Interrupted) as info, signals_handled():
-        Collected()
+        _signal_inside_del(signal.SIGINT)
         finished = True  # the rest of the command runs
     assert finished and info.value.signum == signal.SIGINT
     assert capsys.readouterr().err == ""
