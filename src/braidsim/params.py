@@ -559,9 +559,16 @@ class Scenario:
     ) -> Scenario:
         """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied."""
         if overrides is not None and not isinstance(overrides, Mapping):
+            # analyze(scenario, 0.3) and the like: their second positional argument is the
+            # overrides, the duration a keyword
+            hint = (
+                "; a duration is given by keyword (duration=...)"
+                if isinstance(overrides, (int, float, str))
+                else ""
+            )
             raise InputError(
                 f"overrides: expected a mapping {{dotted key: value}}, got "
-                f"{type(overrides).__name__}"
+                f"{type(overrides).__name__}{hint}"
             )
         raw: dict[str, Any] = dict(self.values)
         explicit = set(self.explicit)

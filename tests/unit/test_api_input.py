@@ -311,3 +311,15 @@ def test_the_rows_kept_in_memory_stay_within_the_memory_limit(monkeypatch) -> No
         "paper-3.1", 100.0, sample_interval=0.01, series=lambda c: streamed.append(len(c))
     )
     assert sum(streamed) > 17_857
+
+
+@pytest.mark.parametrize("given", [0.3, "0.3 s"])
+def test_a_duration_in_the_overrides_place_is_named(given):
+    # analyze(scenario, 0.3): the second positional argument is the overrides
+    with pytest.raises(InputError, match=r"overrides: .*duration is given by keyword"):
+        analyze("paper-3.3", given)
+
+
+def test_a_wrong_overrides_object_gets_no_duration_hint():
+    with pytest.raises(InputError, match=r"got list$"):
+        braidsim.load_scenario("paper-3.3").with_overrides([("initial.x", 0.0)])  # type: ignore[arg-type]
