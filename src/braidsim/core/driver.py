@@ -242,6 +242,13 @@ def run(
         sized beforehand, but the event rows are not: a contact resting for hours has a
         peak of its force at every wobble of the solution).
     """
+    n_pairs = model_sizes(model)[1]
+    if n_pairs > L.MAX_PAIRS:
+        # the solver keeps per-pair state in arrays of MAX_PAIRS, unchecked in compiled code
+        raise ValueError(
+            f"{type(model).__name__} has {n_pairs} contact pairs; the solver allows at most "
+            f"{L.MAX_PAIRS}"
+        )
     prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
     if opts.quadratures not in (-1, model_sizes(model)[2], *prefixes):
         # the models write their quadratures in these blocks only
@@ -281,7 +288,7 @@ def run(
     sens_chunks: list[np.ndarray] = []
     sens_closed: list[np.ndarray] = []
     written = 0
-    event_rows = 0  # of those, onsets, exits, peaks and transfers
+    event_rows = 0  # of those, the rows that are not samples (start, onsets, peaks, ...)
     i_kind = list(series_columns(model)).index("kind")
     while True:
         status = integrate(

@@ -10,6 +10,16 @@ gap to the inner (lower) wall, ``g_out`` the gap to the outer (upper) wall, both
 when free; ``rate`` is d g_in / dt (= -d g_out / dt). In contact with a wall, the
 penetration is ``p = -gap`` >= 0 and ``p_dot`` its rate. A one-sided pair has an infinite
 gap to its missing wall.
+
+Besides these functions the solver reads two fields of every model record by name, for its
+contact policy (:func:`braidsim.core.solver.loop.integrate`): ``min_impact_velocity``
+[m/s], the floor of the approach speed latched at contact onset, and
+``initial_impact_velocity`` [m/s], the approach speed given to a contact that overlaps a
+wall at the start (<= 0: none, the overlap is released elastically, v0 = inf). A model
+without them fails to compile with "unknown attribute".
+
+A model has at most two contact pairs (:data:`braidsim.core.layout.MAX_PAIRS`); the
+driver refuses more.
 """
 
 from __future__ import annotations
@@ -18,14 +28,21 @@ from typing import Any
 
 from braidsim.core.generic import generic, inline_helper
 
-# What each model writes: its series columns (``kind`` last) and the names of its energy
-# quadratures in state order. Filled by :func:`describe_model`, read by :func:`series_columns`.
+# What each model writes: its series columns (``t`` first, ``kind`` last) and the names of
+# its energy quadratures in state order. Filled by :func:`describe_model`, read by
+# :func:`series_columns`.
 _COLUMNS: dict[type, tuple[str, ...]] = {}
 _QUADS: dict[type, tuple[str, ...]] = {}
 
 
 def describe_model(cls: type, columns: tuple[str, ...], quads: tuple[str, ...]) -> None:
-    """Register the series columns and energy quadratures of a model class."""
+    """Register the series columns and energy quadratures of a model class. The columns
+    start with ``t`` (the driver sorts and streams rows by it) and end with ``kind`` (the
+    row's kind: a sample or an event, :mod:`braidsim.core.layout`)."""
+    if not columns or columns[0] != "t" or columns[-1] != "kind":
+        raise ValueError(
+            f"{cls.__name__}: series columns must start with 't' and end with 'kind', got {columns}"
+        )
     _COLUMNS[cls] = columns
     _QUADS[cls] = quads
 
@@ -85,8 +102,11 @@ def contact_force_rates(law, p, p_dot, p_ddot, v0, f_k, f_c):
 @generic
 def contact_onset_step(law, mass, v):
     """(h, q): a first step [s] for a contact that starts at approach speed ``v`` [m/s] on a
-    body of ``mass`` [kg] (about 1/12 of the contact's duration), and the exponent q of that
-    step's local error (h^q: the force grows as p^n after onset, so q = n + 1)."""
+    body of ``mass`` [kg] (about 1/12 of the contact's duration), and the exponent q used to
+    rescale that step when it is rejected, h_new = h err^(-1/q): the force grows as p^n after
+    onset, so for n not an integer the step's error grows as h^(n+1), q = n + 1. (For an
+    integer n the error is the method's regular one; the laws still return n + 1, which
+    shrinks a rejected first step somewhat more than needed.)"""
     raise NotImplementedError
 
 
@@ -180,22 +200,27 @@ def pair_onset_step(model, pair, v):
 
 @generic
 def free_accel_bound(model, pair, f0, f1):
-    """A bound of |d^2 g / dt^2| of pair ``pair`` in free flight over a step whose ends have
-    the derivatives ``f0``, ``f1``; +inf when no useful bound exists (the pair's events are
-    then sampled in every step)."""
+    """An estimate, with a margin, of the largest |d^2 g / dt^2| of pair ``pair`` in free
+    flight over a step whose ends have the derivatives ``f0``, ``f1`` (the screen rules a
+    pair out of a step when its gap cannot close under it); +inf when no useful estimate
+    exists (the pair's events are then sampled in every step)."""
     raise NotImplementedError
 
 
 @generic
 def apply_transfer(model, t, y):
-    """Apply a transfer (a jump of the state at a prescribed time) to ``y`` in place."""
+    """Apply a transfer (a jump of the state at a prescribed time) to ``y`` in place, and
+    return the number k (0 <= k <= n_pairs) of leading pairs whose contacts end at the
+    transfer and are started anew by the contact policy (the carrier: 1, its track pair; a
+    model whose jump leaves its contacts alone: 0)."""
     raise NotImplementedError
 
 
 @generic
 def dissipation_index(model, pair):
     """Index in the state vector of the energy dissipated by pair ``pair``'s contact law; a
-    constant of the record class (the driver keeps it per class)."""
+    constant of the record class (the driver keeps it per class). With the quadratures
+    ordered as :func:`model_size` says, it is 2 n_coords + pair."""
     raise NotImplementedError
 
 
