@@ -33,6 +33,10 @@ class MeasuredTrack(NamedTuple):
 
     times: np.ndarray  # knots [s], increasing
     coeffs: np.ndarray  # (4, n - 1)
+    # the largest |h''| [m/s^2], computed once by from_samples (the solver's contact screen
+    # asks for it at every step, and a record has thousands of pieces); < 0: not given,
+    # computed from the pieces at every call
+    accel_bound: float = -1.0
 
     @classmethod
     def from_samples(cls, times: np.ndarray, h: np.ndarray) -> MeasuredTrack:
@@ -48,7 +52,8 @@ class MeasuredTrack(NamedTuple):
             raise ValueError("a track record needs finite h and strictly increasing times")
         y[-1] = y[0]
         spline = CubicSpline(t, y, bc_type="periodic")
-        return cls(t, np.ascontiguousarray(spline.c))
+        c = np.ascontiguousarray(spline.c)
+        return cls(t, c, _largest_accel(t, c))
 
     @classmethod
     def from_csv(cls, path: str | Path) -> MeasuredTrack:
@@ -109,8 +114,17 @@ def _motion_jvp(ex, dex, t):
     return h, hd, hdd
 
 
+def _largest_accel(times: np.ndarray, c: np.ndarray) -> float:
+    """max |h''| of the spline: h'' is linear on each piece, so the largest magnitude is
+    at a knot, an end of a piece."""
+    dt = np.diff(times)
+    return float(max(np.max(np.abs(2.0 * c[1])), np.max(np.abs(6.0 * c[0] * dt + 2.0 * c[1]))))
+
+
 @wall_accel_bound.register(MeasuredTrack)
 def _bound(ex):
+    if ex.accel_bound >= 0.0:
+        return ex.accel_bound
     # h'' is linear on each piece: its largest magnitude is at a knot
     c = ex.coeffs
     acc = 0.0
