@@ -122,6 +122,19 @@ def _profile_integral(tau, hg, period):
     return om, k * pi_[npf - 1] + pi_[j] + w0 * dt + 0.5 * slope * dt * dt
 
 
+@helper
+def _profile_piece(tau, hg, period):
+    """Index j of the piece [pt[j], pt[j+1]] of the periodic profile that holds tau (time
+    from the profile start), and tau reduced to one period."""
+    pt = hg.profile_times
+    npf = pt.shape[0]
+    tau -= math.floor(tau / period) * period
+    j = 0
+    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
+        j += 1
+    return j
+
+
 @inline_helper
 def horn_gear_state(hg, t):
     """(omega(t) [rad/s], s(t) = r_c int_0^t omega [m])."""
@@ -149,12 +162,13 @@ def horn_gear_state(hg, t):
 
 @helper
 def horn_gear_accel(hg, t):
-    """omega'(t) [rad/s^2]: analytic for the harmonics, a central difference on a profile."""
-    if hg.profile_times.shape[0] >= 2:
-        dt = 1e-7
-        wp, _ = horn_gear_state(hg, t + dt)
-        wm, _ = horn_gear_state(hg, t - dt)
-        return (wp - wm) / (2.0 * dt)
+    """omega'(t) [rad/s^2]: analytic for the harmonics; on a profile the slope of its piece
+    (at a knot, the piece that starts there, as :func:`horn_gear_state` takes it)."""
+    pt = hg.profile_times
+    if pt.shape[0] >= 2:
+        j = _profile_piece(t - pt[0], hg, pt[pt.shape[0] - 1] - pt[0])
+        pw = hg.profile_speeds
+        return (pw[j + 1] - pw[j]) / (pt[j + 1] - pt[j])
     acc = 0.0
     tab = hg.harmonics
     for i in range(tab.shape[0]):
@@ -219,11 +233,11 @@ def horn_gear_state_jvp(hg, dhg, t):
 @helper
 def horn_gear_accel_jvp(hg, dhg, t):
     """The tangent of :func:`horn_gear_accel` at fixed t."""
-    if hg.profile_times.shape[0] >= 2:
-        dt = 1e-7
-        wp, _ = horn_gear_state_jvp(hg, dhg, t + dt)
-        wm, _ = horn_gear_state_jvp(hg, dhg, t - dt)
-        return (wp - wm) / (2.0 * dt)
+    pt = hg.profile_times
+    if pt.shape[0] >= 2:
+        j = _profile_piece(t - pt[0], hg, pt[pt.shape[0] - 1] - pt[0])
+        dpw = dhg.profile_speeds
+        return (dpw[j + 1] - dpw[j]) / (pt[j + 1] - pt[j])
     dacc = 0.0
     tab = hg.harmonics
     dtab = dhg.harmonics
