@@ -212,26 +212,31 @@ def directions(model: Model, keys: Sequence[str]) -> Directions:
 
 
 def check_differentiable(record: Any) -> None:
-    """Raise an InputError naming a physics record class without tangents."""
+    """Raise an InputError naming the part of a model record that has no tangents: the model
+    itself (its four model tangents) or a physics record inside it, found by what it
+    implements (a contact law, a friction law or an excitation needs the tangent of that
+    function), whatever the field that holds it."""
     from braidsim.core import interfaces as I
 
-    needs = {
-        "track_law": I.contact_forces_jvp,
-        "slot_law": I.contact_forces_jvp,
-        "law": I.contact_forces_jvp,
-        "friction": I.friction_force_jvp,
-        "track": I.wall_motion_jvp,
-        "horn_gear": I.wall_motion_jvp,
-    }
-    if type(record) not in I.derivatives_jvp.generic.impls:
-        raise InputError(f"sensitivity: the model {type(record).__name__} has no tangents")
-    for field, fn in needs.items():
-        sub = getattr(record, field, None)
-        if sub is not None and type(sub) not in fn.generic.impls:
+    for fn in (I.derivatives_jvp, I.pair_gaps_jvp, I.pair_law_jvp, I.apply_transfer_jvp):
+        if type(record) not in fn.generic.impls:
             raise InputError(
-                f"sensitivity: {type(sub).__name__} ({field}) does not provide its derivatives "
-                f"(register {fn.__name__} for it)"
+                f"sensitivity: the model {type(record).__name__} has no tangents (register "
+                f"{fn.__name__} for it)"
             )
+    roles = (
+        (I.contact_forces, I.contact_forces_jvp),
+        (I.friction_force, I.friction_force_jvp),
+        (I.wall_motion, I.wall_motion_jvp),
+    )
+    for field in getattr(record, "_fields", ()):
+        sub = getattr(record, field)
+        for primal, tangent in roles:
+            if type(sub) in primal.generic.impls and type(sub) not in tangent.generic.impls:
+                raise InputError(
+                    f"sensitivity: {type(sub).__name__} ({field}) does not provide its "
+                    f"derivatives (register {tangent.__name__} for it)"
+                )
 
 
 @dataclass

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from braidsim.core import (
     wall_motion,
 )
 from braidsim.core import layout as L
+from braidsim.core.interfaces import contact_forces
 from braidsim.model import build_model
 from braidsim.params import load_scenario
 
@@ -124,6 +126,21 @@ def test_measured_track_interpolates_the_sampled_vibration() -> None:
         assert pos == pytest.approx(a * math.cos(arg), abs=1e-8 * a)
         assert vel == pytest.approx(-a * w * math.sin(arg), abs=1e-6 * a * w)
         assert acc == pytest.approx(-a * w * w * math.cos(arg), abs=1e-3 * a * w * w)
+
+
+def test_measured_track_acceleration_bound_is_computed_once_and_holds() -> None:
+    from braidsim.core.interfaces import wall_accel_bound
+
+    t, h, (a, w, _ph) = _paper_track_record()
+    tr = MeasuredTrack.from_samples(t, h)
+    # stored by from_samples, equal to the bound taken from the pieces at every call
+    assert tr.accel_bound == pytest.approx(wall_accel_bound.py(tr._replace(accel_bound=-1.0)))
+    assert wall_accel_bound.py(tr) == tr.accel_bound
+    # the spline's |h''| never exceeds it, and it is close to the sine's a w^2
+    dense = np.linspace(0.0, t[-1], 2001)
+    acc = np.array([wall_motion.py(tr, tq)[2] for tq in dense])
+    assert np.max(np.abs(acc)) <= tr.accel_bound * (1 + 1e-12)
+    assert tr.accel_bound == pytest.approx(a * w * w, rel=1e-2)
 
 
 def test_a_run_on_the_measured_record_equals_the_run_on_the_harmonic(tmp_path: Path) -> None:
@@ -318,3 +335,30 @@ def test_a_record_passed_by_reference_reads_as_the_record() -> None:
     # (two more: the return slot and the exception slot)
     assert n_args(ref_sig) == 2 + 1 + 1
     assert n_args(rec_sig) == 2 + 4 + 7 + 9 + 1  # a, n, inner (2), v (7), table (9), x
+
+
+class _LawWithoutTangent(NamedTuple):
+    stiffness: float
+
+
+@contact_forces.register(_LawWithoutTangent)
+def _law_without_tangent_forces(law, p, p_dot, v0):
+    fk = law.stiffness * p
+    return fk, 0.0, fk
+
+
+def test_sensitivities_name_the_part_without_tangents() -> None:
+    """The check finds a physics record by the function it implements, in any field."""
+    from braidsim import InputError
+    from braidsim.sensitivity import check_differentiable
+
+    rec = build_model(load_scenario("paper-3.1"), 0.01).record
+    check_differentiable(rec)  # every shipped part has its tangents
+    with pytest.raises(InputError, match=r"_LawWithoutTangent \(slot_law\).*contact_forces_jvp"):
+        check_differentiable(rec._replace(slot_law=_LawWithoutTangent(1e6)))
+
+    class NoTangentModel(NamedTuple):
+        mass: float
+
+    with pytest.raises(InputError, match=r"model NoTangentModel has no tangents"):
+        check_differentiable(NoTangentModel(1.0))
