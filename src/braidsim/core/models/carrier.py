@@ -101,7 +101,7 @@ CARRIER_COLUMNS = (
     "kind",
 )
 # Energy quadratures of the xy carrier in state order (after x, vx, y, vy); the x-only
-# carrier integrates the four of them that concern x, in this order.
+# carrier integrates the five of them that concern x (transfers included), in this order.
 XY_QUADS = (
     "track_dissipated",
     "slot_dissipated",
@@ -122,11 +122,15 @@ class CarrierX(NamedTuple):
     Physical parameters in SI units; ``track_law``, ``slot_law`` and ``friction`` are
     physics records, ``track`` the track's excitation record, ``horn_gear`` the
     :class:`HornGear`.
+
+    ``mass_radius`` and ``normal_x`` are derived from ``mass`` (and r_c, g, T2) when the
+    record is built (:func:`braidsim.model.build_model`): a record changed with
+    ``_replace(mass=...)`` must have them changed too.
     """
 
     mass: float  # m [kg]
     load_x: float  # T1 cos(phi) [N]
-    mass_radius: float  # m r_c [kg m] (centrifugal load m r_c omega^2)
+    mass_radius: float  # m r_c [kg m] (centrifugal load m r_c omega^2), derived from m
     load_y: float  # T1 sin(phi) [N]
     track_clearance: float  # eps_g [m]
     slot_clearance: float  # eps_h [m]
@@ -134,7 +138,7 @@ class CarrierX(NamedTuple):
     slot_law: Any
     friction: Any
     mu_x: float  # mu1, friction between carrier and horn gear [-]
-    normal_x: float  # |m g - T2| [N]
+    normal_x: float  # |m g - T2| [N], derived from m
     mu_y: float  # mu2, friction between guide pad and track [-]
     track: Any  # excitation of the track walls
     horn_gear: HornGear
@@ -377,7 +381,8 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     else:
         for i in (3, 4, 9, 10, 11, 12, 14):
             row[i] = 0.0
-        # state order: track_dissipated, friction_work_x, load_work_x, track_work
+        # state order: track_dissipated, friction_work_x, load_work_x, track_work,
+        # transfer_work
         energy = n_state > 4  # all the quadratures
         row[15] = y[2] if n_state > 2 else math.nan
         row[16] = 0.0 if n_state > 2 else math.nan

@@ -1,7 +1,10 @@
 """The Dormand-Prince 5(4) pair with its 4th-order continuous extension.
 
-Hairer, Norsett & Wanner, Solving Ordinary Differential Equations I, 2nd ed. (1993),
-Sect. II.5 (code DOPRI5) and II.6 (dense output), doi:10.1007/978-3-540-78862-1. The stage
+The pair: Dormand & Prince, A family of embedded Runge-Kutta formulae, J. Comput. Appl.
+Math. 6 (1980) 19-26, doi:10.1016/0771-050X(80)90013-3. Its tableau, error weights and the
+dense output's coefficients as in Hairer's code DOPRI5: Hairer, Norsett & Wanner, Solving
+Ordinary Differential Equations I, 2nd ed. (1993), Sect. II.5 and II.6,
+doi:10.1007/978-3-540-78862-1. The stage
 loops run over the ``n`` components the run integrates (coordinates and speeds, plus the
 energy quadratures only when asked).
 """
@@ -129,7 +132,8 @@ def onset_error_ratio(q):
 
 @helper
 def error_norm(y, y1, h, K, n_dof2, rtol, atol_x, atol_v):
-    """RMS of the embedded error estimate scaled by atol + rtol |y| over the coordinates and
+    """RMS of the embedded error estimate, each component scaled by
+    atol + rtol max(|y0_i|, |y1_i|) (ibid. Sect. II.4, Eq. (4.11)), over the coordinates and
     speeds (the energy quadratures follow the motion and are not controlled)."""
     acc = 0.0
     for i in range(n_dof2):

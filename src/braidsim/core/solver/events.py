@@ -1,12 +1,15 @@
 """Contact onset and exit, located on the step's interpolant.
 
 Event function j belongs to pair j // 2 and its inner (j even) or outer (j odd) wall: in
-free flight it is the gap to that wall, in contact with that wall minus the penetration; it
-turns negative when the event happens. In every accepted step the event functions are
-sampled at ``N_SUB`` interior points of the interpolant (after a screen that rules a pair
-out when its gap cannot close within the step); a sign change is located by the Illinois
-method, and an interior minimum that does not change sign at the samples is searched for by
-golden section, so that a contact cannot hide between two samples.
+free flight it is the gap to that wall, in contact with that wall the penetration (minus the
+gap); it turns negative when the event happens. In every accepted step the event functions
+are sampled at the ``N_SUB + 1`` points k / N_SUB of the step (its two ends and 7 interior
+points of the interpolant; after a screen that rules a pair out when its gap cannot close
+within the step); a sign change is located by the Illinois method (the regula falsi that
+halves the retained end's value when the same end is kept twice: Dowell & Jarratt, BIT 11
+(1971) 168-174, doi:10.1007/BF01934364), and an interior minimum that does not change sign
+at the samples is searched for by golden section, so that a contact cannot hide between two
+samples.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from braidsim.core.interfaces import free_accel_bound, pair_gaps
 from braidsim.core.solver.dopri5 import dense_eval
 from braidsim.core.solver.pairs import I_GIN, I_GOUT, I_P, I_PDD
 
-N_SUB = 8  # interior samples of the interpolant per step for events and extremes
+N_SUB = 8  # a step is sampled at k / N_SUB, k = 0..N_SUB, for events and extremes
 GOLD = 0.3819660112501051  # 2 - golden ratio
 
 

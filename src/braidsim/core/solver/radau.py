@@ -14,11 +14,16 @@ by simplified Newton iterations in the eigenbasis of its coefficient matrix (one
 complex linear system per iteration, the complex one solved in real form), with the embedded
 error estimate filtered through the real system, as in Hairer's RADAU5: Hairer & Wanner,
 Solving Ordinary Differential Equations II, 2nd ed. (1996), Sect. IV.8,
-doi:10.1007/978-3-642-05221-7. With the stages' increments
+doi:10.1007/978-3-642-05221-7. The transformation matrices T, T^-1, the collocation
+weights P, the Newton tolerance and iteration limit and the safety factor are those of
+SciPy's ``Radau`` (Virtanen et al., Nat. Methods 17 (2020) 261-272,
+doi:10.1038/s41592-019-0686-2), whose eigenvectors are normalised differently from
+RADAU5's (a reader comparing with ``radau5.f`` finds other numbers for the same method).
+With the stages' increments
 Z_i = y(t + c_i h) - y::
 
     Z = h (A (x) I) F(Z),   y1 = y + Z_3,
-    dense output y(t + theta h) = y + sum_j Q_j theta^(j+1)  (the collocation polynomial)
+    dense output y(t + theta h) = y + sum_{j=1..3} Q_j theta^j  (the collocation polynomial)
 
 The Jacobian J = df/dy over the coordinates and speeds is taken by forward differences at
 the start of every step (n_dof2 evaluations), so that a run interrupted and resumed at any
@@ -38,8 +43,8 @@ from braidsim.core.solver.calls import rhs
 
 S6 = math.sqrt(6.0)
 # nodes (c_3 = 1) and the error estimate's weights
-RC1 = (4.0 - S6) / 10.0
-RC2 = (4.0 + S6) / 10.0
+NODE1 = (4.0 - S6) / 10.0
+NODE2 = (4.0 + S6) / 10.0
 RE1 = (-13.0 - 7.0 * S6) / 3.0
 RE2 = (-13.0 + 7.0 * S6) / 3.0
 RE3 = -1.0 / 3.0
@@ -216,12 +221,12 @@ def _newton(
     for i in range(n):
         if hq > 0.0:
             for s in range(3):
-                cs = RC1 if s == 0 else (RC2 if s == 1 else 1.0)
+                cs = NODE1 if s == 0 else (NODE2 if s == 1 else 1.0)
                 x = cs * h / hq
                 Z[s, i] = x * (Q[0, i] + (2.0 + x) * Q[1, i] + (3.0 + x * (3.0 + x)) * Q[2, i])
         else:
-            Z[0, i] = RC1 * h * K[0, i]
-            Z[1, i] = RC2 * h * K[0, i]
+            Z[0, i] = NODE1 * h * K[0, i]
+            Z[1, i] = NODE2 * h * K[0, i]
             Z[2, i] = h * K[0, i]
         W[0, i] = TI11 * Z[0, i] + TI12 * Z[1, i] + TI13 * Z[2, i]
         W[1, i] = TI21 * Z[0, i] + TI22 * Z[1, i] + TI23 * Z[2, i]
@@ -230,7 +235,7 @@ def _newton(
     nfev = 0
     for k in range(NEWTON_MAXITER):
         for s in range(3):
-            cs = RC1 if s == 0 else (RC2 if s == 1 else 1.0)
+            cs = NODE1 if s == 0 else (NODE2 if s == 1 else 1.0)
             for i in range(n):
                 B[3, i] = y[i] + Z[s, i]
             rhs(model, t + cs * h, B[3], modes, v0s, n, K[s + 1])
@@ -301,7 +306,8 @@ def _scale(y, z, m, opts, scale):
 
 @helper
 def _newton_tol(rtol):
-    """RADAU5's tolerance of the Newton iterations in the scaled norm."""
+    """The tolerance of the Newton iterations in the scaled norm, as SciPy's ``Radau``
+    (RADAU5 applies the same rule to a transformed rtol)."""
     return max(10.0 * 2.220446049250313e-16 / rtol, min(0.03, math.sqrt(rtol)))
 
 

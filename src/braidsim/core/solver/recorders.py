@@ -1,7 +1,8 @@
 """What a run writes, each recorder used only when the caller asks for it.
 
 - the sampled series (``rows``: samples at given times plus, optionally, the exact onset,
-  exit, peak and transfer states), one row per instant in the model's ``COLUMNS``;
+  exit, peak and transfer states), one row per instant in the model's
+  :func:`~braidsim.core.interfaces.series_columns`;
 - window ranges (``RANGES[w, pair, quantity, min/max]``): exact extremes of the depth and
   forces over time windows (refined on the interpolant);
 - the integral of x^2 dt over each window (``XSQ``), by a 4-point Gauss-Legendre rule on the
@@ -34,7 +35,9 @@ from braidsim.core.solver.pairs import (
 )
 
 # 4-point Gauss-Legendre rule on [0, 1], exact for polynomials of degree 7: the quadrature
-# of x^2 over each step, x being the degree-5 interpolant
+# of x^2 over each step. Dormand-Prince's interpolant is a quartic, so x^2 has degree 8 and
+# the rule misses only the square of its top term, O(h^10); Radau IIA's collocation cubic
+# is integrated exactly.
 GL_NODES = np.array(
     [
         0.5 - 0.4305681557970263,

@@ -30,7 +30,11 @@ unless the floor ``min_impact_velocity`` holds it. A transfer at time tau, y+ = 
 
 Peak force and maximum depth are stationary in time where they occur, so their tangents
 are the partial ones at that instant (plus their slope times dt_e when the maximum sits at
-the onset instant itself). See ``docs/sensitivities.md`` for the derivation.
+the onset instant itself). See ``docs/sensitivities.md`` for the derivation. (2), (3) and
+(5) are the trajectory sensitivities of hybrid systems of Hiskens & Pai, IEEE Trans.
+Circuits Syst. I 47 (2000) 204-220, doi:10.1109/81.828574; (3) is the saltation matrix of
+Leine & Nijmeijer, Dynamics and Bifurcations of Non-Smooth Mechanical Systems, Springer
+(2004), doi:10.1007/978-3-540-44398-8.
 """
 
 from __future__ import annotations
@@ -69,24 +73,25 @@ from braidsim.core.solver.dopri5 import (
 )
 from braidsim.core.solver.pairs import gaps
 
-# with numba's reference counting: the tangent records come out of a typed list
-helper = njit(cache=True, error_model="numpy")
+# with numba's reference counting (the tangent records come out of a typed list), unlike
+# core.generic.helper, whose functions run without it
+tangent_helper = njit(cache=True, error_model="numpy")
 
 
-@helper
+@tangent_helper
 def tangent_rhs(model, SENS, d, t, y, s, modes, v0s, out):
     """Write (1) for direction d into ``out[:2 n_coords]``."""
     derivatives_jvp(model, SENS.tangents[d], t, y, s, modes, v0s, SENS.DV0[d], out)
 
 
-@helper
+@tangent_helper
 def tangent_start(model, SENS, t, y, modes, v0s, KS):
     """KS[d, 0] = (1) at (t, y, S[d]) for every direction."""
     for d in range(SENS.S.shape[0]):
         tangent_rhs(model, SENS, d, t, y, SENS.S[d], modes, v0s, KS[d, 0])
 
 
-@helper
+@tangent_helper
 def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1):
     """Integrate (1) over the step [t, t + h] the state took (stages K): fills KS[:, 1..6]
     and the tangents at the end of the step S1 (KS[:, 0] holds (1) at the start). ``YS``
@@ -110,7 +115,7 @@ def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1):
             derivatives_jvp(model, dm, t + RK_C[st] * h, YS[st], sd, modes, v0s, dv0, KS[d, st])
 
 
-@helper
+@tangent_helper
 def tangent_error(SENS, S1, h, KS, n_dof2, rtol, SMAX):
     """RMS of the embedded error estimate of the tangents over the step, each component
     scaled by rtol (max(|s|, |s1|) + the largest |s| of its kind (positions or speeds) seen
@@ -142,7 +147,7 @@ def tangent_error(SENS, S1, h, KS, n_dof2, rtol, SMAX):
     return math.sqrt(acc / max(cnt, 1))
 
 
-@helper
+@tangent_helper
 def tangent_scales(S1, n_dof2, SMAX):
     """Fold the tangents at the end of an accepted step into their running maxima."""
     for d in range(S1.shape[0]):
@@ -152,7 +157,7 @@ def tangent_scales(S1, n_dof2, SMAX):
                 SMAX[d, i % 2] = a
 
 
-@helper
+@tangent_helper
 def tangent_dense_coeffs(SENS, S1, h, KS, RCS, n_dof2):
     """Continuous extension of the tangents over the step (as the state's)."""
     for d in range(SENS.S.shape[0]):
@@ -174,7 +179,7 @@ def tangent_dense_coeffs(SENS, S1, h, KS, RCS, n_dof2):
             )
 
 
-@helper
+@tangent_helper
 def tangent_dense_eval(theta, RCS, d, out, n_dof2):
     """Tangent of direction d at fraction theta of the step."""
     th1 = 1.0 - theta
@@ -184,7 +189,7 @@ def tangent_dense_eval(theta, RCS, d, out, n_dof2):
         )
 
 
-@helper
+@tangent_helper
 def pair_tangent(model, dm, pair, t, y, s, mode, v0, dv0):
     """(dp, dp', dN) of a pair in contact mode ``mode`` at fixed t (zeros when free)."""
     if mode == 0:
@@ -197,7 +202,7 @@ def pair_tangent(model, dm, pair, t, y, s, mode, v0, dv0):
     return dp, dpd, dn
 
 
-@helper
+@tangent_helper
 def episode_extremes(model, SENS, ie, pair, t, y, s_all, mode, v0, which):
     """Tangents of the maximum depth (which & 1) and peak force (which & 2) of episode ie
     at the instant t where they were found (state y, tangents s_all[d])."""
@@ -211,7 +216,7 @@ def episode_extremes(model, SENS, ie, pair, t, y, s_all, mode, v0, which):
             SENS.ESENS[ie, d, ES_PEAK] = dn
 
 
-@helper
+@tangent_helper
 def onset_correction(SENS, ie, which, slope_depth, slope_force):
     """Add slope x dt_onset to extremes found at the onset instant itself (a law whose
     force jumps at onset can have its peak there: a corner, not a stationary point)."""
@@ -223,7 +228,7 @@ def onset_correction(SENS, ie, which, slope_depth, slope_force):
             SENS.ESENS[ie, d, ES_PEAK] += slope_force * dt_on
 
 
-@helper
+@tangent_helper
 def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2, ie, KS):
     """Tangents at a contact event of ``pair`` with wall ``side`` at t: (2), (3) and, at
     onset, (4). ``f_minus``, ``f_plus``: dy/dt before and after the mode change; ``ie``:
@@ -258,7 +263,7 @@ def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2,
     return True
 
 
-@helper
+@tangent_helper
 def start_contact(model, SENS, pair, t, y, mode, ie, initial):
     """Tangents of the latched speed (and of the episode's first values) of a contact the
     start policy opens at t (at the start of a run or right after a transfer)."""
@@ -278,7 +283,7 @@ def start_contact(model, SENS, pair, t, y, mode, ie, initial):
             SENS.ESENS[ie, d, ES_VELOCITY] = dpd
 
 
-@helper
+@tangent_helper
 def new_episode_row(SENS, ie):
     """Clear the tangents of a new impact-table row (NaN: not defined yet)."""
     for d in range(SENS.S.shape[0]):
@@ -286,7 +291,7 @@ def new_episode_row(SENS, ie):
             SENS.ESENS[ie, d, q] = math.nan
 
 
-@helper
+@tangent_helper
 def transfer_jump(model, SENS, itr, t, y_minus, f_minus, f_plus, n_dof2, v, out):
     """(5) for every direction at the transfer ``itr`` at time t (state before it
     ``y_minus``); ``v``, ``out``: work space."""
@@ -300,7 +305,7 @@ def transfer_jump(model, SENS, itr, t, y_minus, f_minus, f_plus, n_dof2, v, out)
             s[i] = out[i] - f_plus[i] * dtau
 
 
-@helper
+@tangent_helper
 def series_tangent_row(model, SENS, R, r, t, y, s_all, modes, v0s, n_pairs, work):
     """Tangents of the series row r (:data:`~braidsim.core.layout.SERIES_SENS_FIELDS`) at
     time t, state y, tangents s_all[d], into ``R`` (``SENS.RSENS``; None: nothing)."""
@@ -339,7 +344,7 @@ def series_tangent_row(model, SENS, R, r, t, y, s_all, modes, v0s, n_pairs, work
             R[r, d, 6 + pair] = dn
 
 
-@helper
+@tangent_helper
 def step_series_tangents(
     model, SENS, R, rows, r0, r1, t0, h, RC, RCS, n, n_dof2, modes, v0s, n_pairs, yq, SQ, work
 ):
@@ -356,7 +361,7 @@ def step_series_tangents(
         series_tangent_row(model, SENS, R, r, tr, yq, SQ, modes, v0s, n_pairs, work)
 
 
-@helper
+@tangent_helper
 def arrays_fit(SENS, R, rows, n_dof2, n_episodes):
     """Whether the tangent arrays match the run's state, impact table and series buffer."""
     k = SENS.S.shape[0]
