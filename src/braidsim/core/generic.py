@@ -282,12 +282,15 @@ class GenericFunction:
         return deco
 
     def implementation(self, cls: type) -> Any:
-        """The compiled implementation registered for ``cls`` (callable from Python)."""
+        """The compiled implementation registered for ``cls``: callable from Python for an
+        inlined generic function; for one declared ``inline=False`` a helper that only
+        compiled code can call (:class:`CompiledOnly`)."""
         return self.impls[cls]
 
     def py(self, *args: Any) -> Any:
         """Call from Python (tests, the SciPy reference backend): the implementation of the
-        first argument's class, compiled."""
+        first argument's class, compiled (inlined generic functions only: one declared
+        ``inline=False`` is a helper that only compiled code can call)."""
         return self.impls[type(args[0])](*args)
 
 
