@@ -93,7 +93,7 @@ def test_the_collocation_polynomial_is_the_one_of_the_stages() -> None:
     RC = np.empty((5, n))
     _finish(y, Z, n, y1, RC)
     np.testing.assert_allclose(y1, y + Z[2], rtol=1e-15)
-    for c, z in ((radau.RC1, Z[0]), (radau.RC2, Z[1]), (1.0, Z[2])):
+    for c, z in ((radau.NODE1, Z[0]), (radau.NODE2, Z[1]), (1.0, Z[2])):
         th1 = 1.0 - c
         val = RC[0] + c * (RC[1] + th1 * (RC[2] + c * (RC[3] + th1 * RC[4])))
         np.testing.assert_allclose(val, y + z, rtol=1e-12, atol=1e-13)
