@@ -39,6 +39,8 @@ from braidsim.core.interfaces import (
     pair_law_jvp,
     pair_law_rates,
     pair_onset_step,
+    penetration,
+    penetration_jvp,
     series_row,
 )
 
@@ -94,14 +96,8 @@ def _gaps(model, pair, t, y):
 def _contact(model, mode, y, v0):
     if mode == 0:
         return 0.0, 0.0, 0.0, 0.0, 0.0
-    if mode < 0:
-        p = -(y[0] + model.gap_inner)
-        pd = -y[1]
-    else:
-        p = -(model.gap_outer - y[0])
-        pd = y[1]
-    if p < 0.0:
-        p = 0.0
+    # the gaps of pair_gaps above, turned into the penetration of the wall in contact
+    p, pd = penetration(mode, y[0] + model.gap_inner, model.gap_outer - y[0], y[1])
     fk, fc, nn = contact_forces(model.law, p, pd, v0)
     return p, pd, fk, fc, nn
 
@@ -182,18 +178,8 @@ def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
     _, _, _, _, nn = _contact(model, mode, y, v0s[0])
     dnn = 0.0
     if mode != 0:
-        if mode < 0:
-            p = -(y[0] + model.gap_inner)
-            dp = -(s[0] + dm.gap_inner)
-            pd = -y[1]
-            dpd = -s[1]
-        else:
-            p = -(model.gap_outer - y[0])
-            dp = s[0] - dm.gap_outer
-            pd = y[1]
-            dpd = s[1]
-        if p < 0.0:
-            p = 0.0
+        p, pd = penetration(mode, y[0] + model.gap_inner, model.gap_outer - y[0], y[1])
+        dp, dpd = penetration_jvp(mode, s[0] + dm.gap_inner, dm.gap_outer - s[0], s[1])
         _, _, dnn = contact_forces_jvp(model.law, dm.law, p, dp, pd, dpd, v0s[0], dv0s[0])
     arg = model.force_frequency * t + model.force_phase
     force = model.force_amplitude * math.cos(arg)
