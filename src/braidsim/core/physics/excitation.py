@@ -97,7 +97,9 @@ class HornGear(NamedTuple):
 
     turning_radius: float  # r_c [m]
     omega0: float  # [rad/s]
-    harmonics: np.ndarray  # (n, 3): amplitude [rad/s], angular frequency [rad/s], phase [rad]
+    # (n, 3): amplitude [rad/s], angular frequency [rad/s] (>= 0; 0: a constant term
+    # a cos(phase), as the scenario keys allow), phase [rad]
+    harmonics: np.ndarray
     profile_times: np.ndarray  # [s]
     profile_speeds: np.ndarray  # [rad/s]
     profile_integral: np.ndarray  # int of omega from profile_times[0] to each time [rad]
