@@ -1,7 +1,7 @@
 """The compiled core against its peers, as ratios of CPU time measured in one process.
 
-Run: ``python benchmarks/bench_core.py [--part lean|numbalsoda|scipy|batch|machine|memory|startup]
-[--repeats 15]`` (every part by default; ``--part`` may be given more than once).
+Run: ``python benchmarks/bench_core.py [--part lean|numbalsoda|scipy|dop853|taylor|batch|machine|
+memory|startup] [--repeats 15]`` (every part by default; ``--part`` may be given more than once).
 
 Parts (all on paper-3.3, x only, unless said otherwise):
 
@@ -30,6 +30,13 @@ numbalsoda
 dop853
     the lean DP5 loop against the same loop with the DOP853 pair (``lean_dop853.py``): what a
     higher-order pair buys in steps, evaluations and time at equal accuracy.
+taylor
+    the lean DP5 loop against the hybrid Taylor / DP5 loop (``lean_taylor.py``: Taylor steps
+    of order 12, the first step of a contact in s = sqrt(t - t_onset), DP5 steps near contact
+    exits and the friction poles): what a Taylor method buys. 'rhs evaluations' of the Taylor
+    loop are its DP5 evaluations plus its Taylor steps, one each (a Taylor step is not an
+    evaluation: it computes up to 12 coefficients of the solution by recurrences); the Taylor
+    steps in contact and in flight and the DP5 steps in contact are printed as well.
 scipy
     the same against ``scipy.integrate.solve_ivp`` (DOP853, terminal events at contact onset,
     exit and the force peak, restart after each), plain Python right-hand side.
@@ -86,7 +93,7 @@ ATOL_X_PER_RTOL = 1e-13 / 1e-8
 ATOL_V_PER_RTOL = 1e-9 / 1e-8
 RTOL_GRID = tuple(10.0 ** (-6.0 - k / 8.0) for k in range(0, 49))  # 1e-6 ... 1e-12
 HMAX = 1e-3  # braidsim's default maximum step for a 60-Hz track (1 ms cap)
-PARTS = ("lean", "numbalsoda", "scipy", "dop853", "batch", "machine", "memory", "startup")
+PARTS = ("lean", "numbalsoda", "scipy", "dop853", "taylor", "batch", "machine", "memory", "startup")
 
 
 def tolerances(rtol: float) -> dict[str, float]:
@@ -465,6 +472,65 @@ def part_dop853(sc: Scenario, args: argparse.Namespace) -> None:
     compare(lean, LeanDop853Peer(lean.q, lean.x0, lean.v0), res.impacts, args.repeats)
 
 
+class LeanTaylorPeer(LeanPeer):
+    name = "hybrid Taylor loop"
+
+    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+        import lean_taylor
+
+        ep, st = lean_taylor.run_taylor(
+            self.q,
+            DURATION,
+            self.x0,
+            self.v0,
+            rtol,
+            ATOL_X_PER_RTOL * rtol,
+            ATOL_V_PER_RTOL * rtol,
+            HMAX,
+        )
+        stats = {
+            # DP5 evaluations plus Taylor steps (one each, though a step is no evaluation)
+            "rhs": st[lean_taylor.S_NFEV] + st[lean_taylor.S_TAYLOR],
+            "steps": st[lean_taylor.S_ACC],
+            "rejected": st[lean_taylor.S_REJ],
+            "dp5": st[lean_taylor.S_NFEV],
+            "taylor": st[lean_taylor.S_TAYLOR],
+            "taylor_contact": st[lean_taylor.S_TAYLOR_CONTACT],
+            "taylor_flight": st[lean_taylor.S_TAYLOR_FLIGHT],
+            "dp_contact": st[lean_taylor.S_DP_CONTACT],
+            "events": st[lean_taylor.S_EV],
+        }
+        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
+
+
+def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:
+    print(
+        f"\n== taylor: what a Taylor method buys: the lean DP5 loop vs the hybrid Taylor / DP5 "
+        f"loop (lean_taylor.py), {SCENARIO} x only, {DURATION} s"
+    )
+    print(
+        "   hybrid Taylor loop: 'rhs evaluations' = DP5 evaluations + Taylor steps, one each "
+        "(a Taylor step is not an evaluation: up to 12 coefficients by recurrences)"
+    )
+    res = reference(sc)
+    lean = lean_peer(sc, res)
+    taylor = LeanTaylorPeer(lean.q, lean.x0, lean.v0)
+    compare(lean, taylor, res.impacts, args.repeats)
+    cal = calibrate(taylor, res.impacts, RTOL_GRID)
+    for level in LEVELS:
+        c = pick(cal, level)
+        if c is None:
+            continue
+        st = c[2]
+        print(
+            f"   hybrid Taylor loop at {level:.1e} (rtol {c[0]:.2e}): "
+            f"{int(st['taylor'])} Taylor steps ({int(st['taylor_contact'])} in contact, "
+            f"{int(st['taylor_flight'])} in flight), {int(st['dp_contact'])} DP5 steps "
+            f"(all in contact), {int(st['rejected'])} rejected, {int(st['dp5'])} DP5 "
+            f"evaluations, {int(st['events'])} events"
+        )
+
+
 class NumbalsodaPeer(Peer):
     name = "numbalsoda DOP853"
 
@@ -703,6 +769,7 @@ PART_FUNCTIONS: dict[str, Callable[[Scenario, argparse.Namespace], None]] = {
     "numbalsoda": part_numbalsoda,
     "scipy": part_scipy,
     "dop853": part_dop853,
+    "taylor": part_taylor,
     "batch": part_batch,
     "machine": part_machine,
     "memory": part_memory,

@@ -87,3 +87,40 @@ def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
     np.testing.assert_allclose(
         ep[:, lean_dp5.EP_PEAK], imp["peak_force"].to_numpy(), rtol=1e-7, atol=0
     )
+
+
+def test_lean_taylor_loop_matches_simulate_on_paper_3_3() -> None:
+    """The hybrid Taylor / DP5 loop (an experiment on what a Taylor method buys)."""
+    import lean_taylor
+
+    sc = load_scenario("paper-3.3")
+    ref = simulate(
+        sc,
+        0.5,
+        overrides={
+            "simulation.rtol": 1e-12,
+            "simulation.atol_position": 1e-16,
+            "simulation.atol_velocity": 1e-13,
+        },
+        sample_interval=0.0,
+        record_events=False,
+    )
+    q = lean_dp5.lean_params(sc, ref.stats["track_stiffness"], ref.stats["track_damping_factor"])
+    ep, st = lean_taylor.run_taylor(
+        q, 0.5, sc["initial.x"], sc["initial.vx"], 1e-12, 1e-16, 1e-13, 1e-3
+    )
+    imp = ref.impacts
+    assert len(ep) == len(imp) == 33
+    assert st[lean_taylor.S_TAYLOR] > 0 and st[lean_taylor.S_DP_CONTACT] > 0  # both kinds ran
+    walls = np.where(imp["wall"].to_numpy() == "inner", -1.0, 1.0)
+    np.testing.assert_array_equal(ep[:, lean_dp5.EP_WALL], walls)
+    np.testing.assert_array_equal(ep[:, lean_dp5.EP_INITIAL] == 1.0, imp["initial"].to_numpy())
+    # measured: onsets and ends 6e-12 s, peak forces and latched speeds 3e-10 relative
+    np.testing.assert_allclose(ep[:, lean_dp5.EP_T], imp["t"].to_numpy(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ep[:, lean_dp5.EP_TEND], imp["t_end"].to_numpy(), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(
+        ep[:, lean_dp5.EP_PEAK], imp["peak_force"].to_numpy(), rtol=1e-8, atol=0
+    )
+    np.testing.assert_allclose(
+        ep[:, lean_dp5.EP_V0], imp["latched_velocity"].to_numpy(), rtol=1e-8, atol=0
+    )
