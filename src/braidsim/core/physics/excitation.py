@@ -127,7 +127,7 @@ def _profile_integral(tau, hg, period):
 @helper
 def _profile_piece(tau, hg, period):
     """Index j of the piece [pt[j], pt[j+1]] of the periodic profile that holds tau (time
-    from the profile start), and tau reduced to one period."""
+    from the profile start, reduced to one period here)."""
     pt = hg.profile_times
     npf = pt.shape[0]
     tau -= math.floor(tau / period) * period

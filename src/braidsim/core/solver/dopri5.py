@@ -133,8 +133,9 @@ def onset_error_ratio(q):
 @helper
 def error_norm(y, y1, h, K, n_dof2, rtol, atol_x, atol_v):
     """RMS of the embedded error estimate, each component scaled by
-    atol + rtol max(|y0_i|, |y1_i|) (ibid. Sect. II.4, Eq. (4.11)), over the coordinates and
-    speeds (the energy quadratures follow the motion and are not controlled)."""
+    atol + rtol max(|y0_i|, |y1_i|) (ibid. Sect. II.4, "Automatic step size control"), over
+    the coordinates and speeds (the energy quadratures follow the motion and are not
+    controlled)."""
     acc = 0.0
     for i in range(n_dof2):
         atol = atol_x if i % 2 == 0 else atol_v
