@@ -174,13 +174,26 @@ class BraidsimPeer(Peer):
 
 
 class LeanPeer(Peer):
+    """The lean DP5 loop of ``lean_dp5.py``; its variants override :meth:`runner` (a
+    function with ``run_lean``'s arguments and outputs) and :meth:`stats`."""
+
     name = "lean DP5 loop"
 
     def __init__(self, q: np.ndarray, x0: float, v0: float) -> None:
         self.q, self.x0, self.v0 = q, x0, v0
 
+    def runner(self) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+        return lean_dp5.run_lean
+
+    def stats(self, st: np.ndarray) -> dict[str, float]:
+        return {
+            "rhs": st[lean_dp5.S_NFEV],
+            "steps": st[lean_dp5.S_ACC],
+            "rejected": st[lean_dp5.S_REJ],
+        }
+
     def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
-        ep, st = lean_dp5.run_lean(
+        ep, st = self.runner()(
             self.q,
             DURATION,
             self.x0,
@@ -190,12 +203,7 @@ class LeanPeer(Peer):
             ATOL_V_PER_RTOL * rtol,
             HMAX,
         )
-        stats = {
-            "rhs": st[lean_dp5.S_NFEV],
-            "steps": st[lean_dp5.S_ACC],
-            "rejected": st[lean_dp5.S_REJ],
-        }
-        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
+        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], self.stats(st)
 
 
 def calibrate(
@@ -441,25 +449,10 @@ def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
 class LeanDop853Peer(LeanPeer):
     name = "lean DOP853 loop"
 
-    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+    def runner(self) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
         import lean_dop853
 
-        ep, st = lean_dop853.run(
-            self.q,
-            DURATION,
-            self.x0,
-            self.v0,
-            rtol,
-            ATOL_X_PER_RTOL * rtol,
-            ATOL_V_PER_RTOL * rtol,
-            HMAX,
-        )
-        stats = {
-            "rhs": st[lean_dp5.S_NFEV],
-            "steps": st[lean_dp5.S_ACC],
-            "rejected": st[lean_dp5.S_REJ],
-        }
-        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
+        return lean_dop853.run
 
 
 def part_dop853(sc: Scenario, args: argparse.Namespace) -> None:
@@ -475,20 +468,15 @@ def part_dop853(sc: Scenario, args: argparse.Namespace) -> None:
 class LeanTaylorPeer(LeanPeer):
     name = "hybrid Taylor loop"
 
-    def run(self, rtol: float) -> tuple[np.ndarray, np.ndarray, dict[str, float]]:
+    def runner(self) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
         import lean_taylor
 
-        ep, st = lean_taylor.run_taylor(
-            self.q,
-            DURATION,
-            self.x0,
-            self.v0,
-            rtol,
-            ATOL_X_PER_RTOL * rtol,
-            ATOL_V_PER_RTOL * rtol,
-            HMAX,
-        )
-        stats = {
+        return lean_taylor.run_taylor
+
+    def stats(self, st: np.ndarray) -> dict[str, float]:
+        import lean_taylor
+
+        return {
             # DP5 evaluations plus Taylor steps (one each, though a step is no evaluation)
             "rhs": st[lean_taylor.S_NFEV] + st[lean_taylor.S_TAYLOR],
             "steps": st[lean_taylor.S_ACC],
@@ -500,7 +488,6 @@ class LeanTaylorPeer(LeanPeer):
             "dp_contact": st[lean_taylor.S_DP_CONTACT],
             "events": st[lean_taylor.S_EV],
         }
-        return ep[:, lean_dp5.EP_PEAK], ep[:, lean_dp5.EP_WALL], stats
 
 
 def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:

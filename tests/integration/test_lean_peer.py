@@ -63,10 +63,8 @@ def test_lean_loop_matches_simulate_on_paper_3_3(
     )
 
 
-def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
-    """The DOP853 variant of the loop (an experiment on what a higher-order pair buys)."""
-    import lean_dop853
-
+def _tight_reference() -> tuple[object, np.ndarray, object]:
+    """(scenario, the lean loops' parameter vector, simulate's impacts) at rtol 1e-12."""
     sc = load_scenario("paper-3.3")
     ref = simulate(
         sc,
@@ -80,8 +78,15 @@ def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
         record_events=False,
     )
     q = lean_dp5.lean_params(sc, ref.stats["track_stiffness"], ref.stats["track_damping_factor"])
+    return sc, q, ref.impacts
+
+
+def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
+    """The DOP853 variant of the loop (an experiment on what a higher-order pair buys)."""
+    import lean_dop853
+
+    sc, q, imp = _tight_reference()
     ep, _ = lean_dop853.run(q, 0.5, sc["initial.x"], sc["initial.vx"], 1e-11, 1e-16, 1e-12, 1e-3)
-    imp = ref.impacts
     assert len(ep) == len(imp)
     np.testing.assert_allclose(ep[:, lean_dp5.EP_T], imp["t"].to_numpy(), rtol=0, atol=1e-9)
     np.testing.assert_allclose(
@@ -93,23 +98,10 @@ def test_lean_taylor_loop_matches_simulate_on_paper_3_3() -> None:
     """The hybrid Taylor / DP5 loop (an experiment on what a Taylor method buys)."""
     import lean_taylor
 
-    sc = load_scenario("paper-3.3")
-    ref = simulate(
-        sc,
-        0.5,
-        overrides={
-            "simulation.rtol": 1e-12,
-            "simulation.atol_position": 1e-16,
-            "simulation.atol_velocity": 1e-13,
-        },
-        sample_interval=0.0,
-        record_events=False,
-    )
-    q = lean_dp5.lean_params(sc, ref.stats["track_stiffness"], ref.stats["track_damping_factor"])
+    sc, q, imp = _tight_reference()
     ep, st = lean_taylor.run_taylor(
         q, 0.5, sc["initial.x"], sc["initial.vx"], 1e-12, 1e-16, 1e-13, 1e-3
     )
-    imp = ref.impacts
     assert len(ep) == len(imp) == 33
     assert st[lean_taylor.S_TAYLOR] > 0 and st[lean_taylor.S_DP_CONTACT] > 0  # both kinds ran
     walls = np.where(imp["wall"].to_numpy() == "inner", -1.0, 1.0)
