@@ -466,12 +466,22 @@ def part_dop853(sc: Scenario, args: argparse.Namespace) -> None:
 
 
 class LeanTaylorPeer(LeanPeer):
+    """The Taylor loop with its DP5 steps chosen by ``switch`` (``lean_taylor.run_taylor``)."""
+
     name = "hybrid Taylor loop"
 
+    def __init__(self, q: np.ndarray, x0: float, v0: float, switch: str = "distance") -> None:
+        super().__init__(q, x0, v0)
+        self.switch = switch
+        if switch != "distance":
+            self.name = f"Taylor, {switch} switch"
+
     def runner(self) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
+        import functools
+
         import lean_taylor
 
-        return lean_taylor.run_taylor
+        return functools.partial(lean_taylor.run_taylor, switch=self.switch)
 
     def stats(self, st: np.ndarray) -> dict[str, float]:
         import lean_taylor
@@ -499,18 +509,28 @@ def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:
         "   hybrid Taylor loop: 'rhs evaluations' = DP5 evaluations + Taylor steps, one each "
         "(a Taylor step is not an evaluation: up to 12 coefficients by recurrences)"
     )
+    print(
+        "   the DP5 steps where the model's nearest singularity is closer than the DP5 step "
+        "('distance'), then where the Taylor step is shorter than it ('step', generic)"
+    )
     res = reference(sc)
     lean = lean_peer(sc, res)
-    taylor = LeanTaylorPeer(lean.q, lean.x0, lean.v0)
-    compare(lean, taylor, res.impacts, args.repeats)
-    cal = calibrate(taylor, res.impacts, RTOL_GRID)
+    for switch in ("distance", "step"):
+        taylor = LeanTaylorPeer(lean.q, lean.x0, lean.v0, switch)
+        compare(lean, taylor, res.impacts, args.repeats)
+        _taylor_breakdown(taylor, res.impacts)
+
+
+def _taylor_breakdown(taylor: LeanTaylorPeer, ref: Any) -> None:
+    """Where the Taylor loop's steps go at each level's calibrated rtol."""
+    cal = calibrate(taylor, ref, RTOL_GRID)
     for level in LEVELS:
         c = pick(cal, level)
         if c is None:
             continue
         st = c[2]
         print(
-            f"   hybrid Taylor loop at {level:.1e} (rtol {c[0]:.2e}): "
+            f"   {taylor.name} at {level:.1e} (rtol {c[0]:.2e}): "
             f"{int(st['taylor'])} Taylor steps ({int(st['taylor_contact'])} in contact, "
             f"{int(st['taylor_flight'])} in flight), {int(st['dp_contact'])} DP5 steps "
             f"(all in contact), {int(st['rejected'])} rejected, {int(st['dp5'])} DP5 "

@@ -111,6 +111,9 @@ NSAMP = 4  # event checks per Taylor step, at i / NSAMP of it
 # distance to the friction poles is below the DP step (measured best on paper-3.3)
 DP_ONSET = 4.0
 DP_EXIT = 4.0
+# the generic switch (``switch="step"``): inside a run of DP steps, the series is built again
+# to check the rule only every RETEST-th step (every step cost 5-8 % more, measured)
+RETEST = 4
 
 jit = njit(cache=True, error_model="numpy")
 # the coefficient recurrences only: sums reassociated, reciprocals allowed (8 % off a whole
@@ -347,9 +350,13 @@ def gval(G, N, tau, side, mode, eps):
 
 
 @jit
-def integrate_taylor(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, order, order_s):
+def integrate_taylor(
+    t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, order, order_s, generic
+):
     """Integrate from t = 0 to t_end with Taylor steps of order ``order`` (s-steps of order
     ``order_s`` at onsets) and DP5 steps near singularities; returns (status, episodes).
+    ``generic``: choose DP5 by the generic rule (:func:`run_taylor`) instead of the
+    distance to the model's singularities.
 
     Status, ``EP`` and the first four ``stats`` as :func:`lean_dp5.integrate_lean`; stats[4..7]
     the Taylor steps, those in contact, the DP steps in contact, the Taylor steps in flight.
@@ -408,10 +415,53 @@ def integrate_taylor(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, orde
     first_after_onset = False
     lerr_old = math.log(1e-4)
     pc1 = pdc1 = pddc1 = 0.0
+    dp_run = 0  # DP steps in a row in this contact (generic rule)
+    nu = order
     while t < t_end:
         # ---- DP where a singularity is closer than the DP step (module docstring)
         use_dp = False
-        if mode != 0:
+        have_coef = False  # the Taylor coefficients of this step are computed already
+        if generic:
+            if mode != 0 and not (s_steps and t == t_on and pdc > 0.0):
+                if dp_run > 0 and dp_run % RETEST != 0:
+                    use_dp = True
+                else:
+                    # DP where the Taylor step is shorter than the DP step: that is where a
+                    # singularity, whatever its kind, is close (Jorba & Zou's rule below)
+                    tx = atol_x + rtol * abs(x)
+                    tv = atol_v + rtol * abs(v)
+                    nu = tcoef(
+                        t,
+                        x,
+                        v,
+                        mode,
+                        q[Q_D] / v0,
+                        q,
+                        order,
+                        X,
+                        V,
+                        HW,
+                        PP,
+                        PW,
+                        NF,
+                        A,
+                        INV,
+                        -1.0,
+                        tx,
+                        tv,
+                    )
+                    have_coef = True
+                    ht0 = hmax
+                    for kk in (nu - 1, nu):
+                        cx = abs(X[kk])
+                        if cx > 0.0:
+                            ht0 = min(ht0, (tx / cx) ** (1.0 / kk))
+                        cx = abs(V[kk])
+                        if cx > 0.0:
+                            ht0 = min(ht0, (tv / cx) ** (1.0 / kk))
+                    use_dp = ht0 < h
+            dp_run = dp_run + 1 if use_dp else 0
+        elif mode != 0:
             d = math.sqrt(v * v + vhat * vhat) / max(abs(a), 1e-300)
             if (t - t_on) / DP_ONSET < d:
                 d = (t - t_on) / DP_ONSET
@@ -662,7 +712,9 @@ def integrate_taylor(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, orde
             dv0 = q[Q_D] / v0
             tx = atol_x + rtol * abs(x)
             tv = atol_v + rtol * abs(v)
-            if mode != 0:
+            if have_coef:
+                pass  # built by the generic rule above, from the same state
+            elif mode != 0:
                 nu = tcoef(t, x, v, mode, dv0, q, order, X, V, HW, PP, PW, NF, A, INV, -1.0, tx, tv)
             else:
                 # adaptive order: enough terms for a step of hmax (or to t_end)
@@ -834,6 +886,7 @@ def integrate_taylor(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, orde
                 nep += 1
                 h = h_on
                 first_after_onset = True
+                dp_run = 0
             else:  # exit
                 EP[nep - 1, EP_TEND] = t
                 mode = 0
@@ -856,16 +909,38 @@ def run_taylor(
     capacity: int = 4096,
     order: int = 12,
     onset_order: int = 24,
+    switch: str = "distance",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Run :func:`integrate_taylor` with Taylor steps of ``order`` and onset steps in
     s = sqrt(t - t_onset) of ``onset_order``; returns (episode rows, stats). Raises on
-    failure."""
+    failure.
+
+    ``switch`` chooses where a DP5 step replaces a Taylor step in contact: ``"distance"``
+    where the model's nearest singularity (onset, predicted exit, the friction's poles; module
+    docstring) is closer than the DP step; ``"step"``, which knows nothing of the model,
+    where the Taylor step that Jorba & Zou's rule gives is shorter than the DP step (checked
+    again every ``RETEST``-th step of a run of DP steps). Measured on paper-3.3: within 10 %
+    of each other (``benchmarks/README.md``)."""
     if order < 3 or onset_order < 6:
         raise ValueError("order must be >= 3 and onset_order >= 6")
+    if switch not in ("distance", "step"):
+        raise ValueError(f"switch: {switch!r}; allowed 'distance' or 'step'")
     EP = np.full((capacity, NEPCOL), np.nan)
     stats = np.zeros(NSTAT)
     status, nep = integrate_taylor(
-        t_end, x0, v0, q, rtol, atol_x, atol_v, hmax, EP, stats, order, onset_order
+        t_end,
+        x0,
+        v0,
+        q,
+        rtol,
+        atol_x,
+        atol_v,
+        hmax,
+        EP,
+        stats,
+        order,
+        onset_order,
+        switch == "step",
     )
     if status != 0:
         raise RuntimeError(f"hybrid Taylor loop failed with status {status}")
