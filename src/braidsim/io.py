@@ -92,7 +92,7 @@ def check_output_target(
     if p.is_symlink() and not p.exists():
         raise InputError(f"{option}: {str(p)!r} is a broken link; allowed {what} path")
     p = _target(p)  # the writers follow a link: its target is what they replace
-    if p.exists() or p.is_symlink():
+    if p.exists():
         if directory and not p.is_dir():
             raise InputError(f"{option}: {str(p)!r} exists and is not a directory; allowed {what}")
         if not directory and p.is_dir():

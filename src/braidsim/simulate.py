@@ -323,8 +323,9 @@ def run_model(
         raise SimulationError(
             f"the series kept in memory outgrew the memory limit ({limits.limit('memory'):.3g} "
             f"bytes, {limits.env_name('memory')}) at t = {exc.t:.9g} s with {exc.rows} rows, "
-            f"{exc.event_rows} of them onset, exit and peak rows (a contact at rest for long "
-            "has a peak of its force at every wobble of the solution); keep fewer rows: "
+            f"{exc.event_rows} of them event rows: onsets, exits, force peaks (a contact at "
+            "rest for long has a peak of its force at every wobble of the solution); keep fewer "
+            "rows: "
             "simulate(..., record_events=False) or series=False or a SeriesSink that streams "
             "them (on the command line: run without --out), a shorter duration, or raise "
             f"{limits.env_name('memory')}",

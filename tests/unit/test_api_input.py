@@ -297,8 +297,8 @@ def test_the_rows_kept_in_memory_stay_within_the_memory_limit(monkeypatch) -> No
     monkeypatch.setenv("BRAIDSIM_MAX_MEMORY", "4e6")
     with pytest.raises(
         SimulationError,
-        match=r"outgrew the memory limit .* onset, exit and "
-        r"peak rows .* record_events=False",
+        match=r"outgrew the memory limit .* event rows: onsets, exits, "
+        r"force peaks .* record_events=False",
     ) as err:
         braidsim.simulate("paper-3.1", 100.0, sample_interval=0.01)
     assert 0.0 < err.value.time < 100.0

@@ -29,7 +29,8 @@ DEFAULT_EPISODE_CHUNK = 256
 
 class SeriesOverflow(Exception):
     """The series kept in memory outgrew ``max_rows`` (:func:`run`); the run stopped at
-    ``t`` after keeping ``rows`` rows, ``event_rows`` of them onset, exit and peak rows."""
+    ``t`` after keeping ``rows`` rows, ``event_rows`` of them event rows (not samples: the
+    start, onsets, exits, force peaks, transfers)."""
 
     def __init__(self, t: float, rows: int, event_rows: int) -> None:
         super().__init__(f"series of {rows} rows at t = {t:.9g} s")
@@ -242,7 +243,7 @@ def run(
         sized beforehand, but the event rows are not: a contact resting for hours has a
         peak of its force at every wobble of the solution).
     """
-    n_pairs = model_sizes(model)[1]
+    _, n_pairs, n_quads = model_sizes(model)
     if n_pairs > L.MAX_PAIRS:
         # the solver keeps per-pair state in arrays of MAX_PAIRS, unchecked in compiled code
         raise ValueError(
@@ -250,7 +251,7 @@ def run(
             f"{L.MAX_PAIRS}"
         )
     prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
-    if opts.quadratures not in (-1, model_sizes(model)[2], *prefixes):
+    if opts.quadratures not in (-1, n_quads, *prefixes):
         # the models write their quadratures in these blocks only
         raise ValueError(
             f"quadratures: {opts.quadratures}; allowed -1, {prefixes[0]} or {prefixes[1]}"
