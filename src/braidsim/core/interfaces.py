@@ -232,6 +232,67 @@ def series_row(model, t, y, modes, v0s, n_state, kind, row):
 
 
 # =======================================================================================
+# Taylor series: the coefficients of the solution's expansion in time
+# =======================================================================================
+# A Taylor step (:mod:`braidsim.core.solver.taylor`) expands the state in tau = t' - t,
+# y_i(t + tau) = sum_k C[i, k] tau^k, by the recurrences of automatic differentiation: the
+# coefficient k + 1 of y follows from the coefficients 0..k of dy/dt, and those of each
+# function of y from the coefficients of its argument (:mod:`braidsim.core.jets`). The
+# functions below give, each for its own record, coefficient k of its output from the
+# coefficients 0..k of its inputs; the caller calls them for k = 0, 1, 2, ... in turn, and
+# each keeps the coefficients it needs again in the rows of its work array ``S`` (shape
+# (SERIES_ROWS, >= order + 2); its rows are its own). A record without them is integrated
+# by the Runge-Kutta step only.
+
+SERIES_ROWS = 8  # rows of work a physics record's series may use
+TAYLOR_ROWS = 48  # rows of work a model's series may use
+
+
+@generic
+def contact_force_series(law, k, P, v0, S):
+    """Coefficient k of (F_k, F_c, N) [N s^-k] of :func:`contact_forces` along the
+    penetration p(t + tau) = sum_j P[j] tau^j, with P[0] > 0 (the series of p^n does not
+    exist at p = 0). Reads P[0..k+1] (the coefficient k of p' is (k + 1) P[k + 1]). The
+    series is that of the unclamped force F_k + F_c: the solver takes no Taylor step over
+    which it turns negative."""
+    raise NotImplementedError
+
+
+@generic
+def friction_force_series(law, k, V, NS, mu, S):
+    """Coefficient k of :func:`friction_force` along the sliding speed v(t + tau) =
+    sum_j V[j] tau^j under the normal force with coefficients NS[0..k] (a constant normal
+    force: NS of length 1), coefficient ``mu`` (constant)."""
+    raise NotImplementedError
+
+
+@generic
+def wall_series(ex, t, order, H):
+    """Write the coefficients H[0..order] of the inner wall's position h(t + tau) [m s^-k];
+    return the time [s] from t over which this series is the wall's motion (inf for an
+    analytic motion; for a piecewise one, the time to the end of the piece holding t)."""
+    raise NotImplementedError
+
+
+@generic
+def model_series_start(model, t, modes, order, W):
+    """Prepare a Taylor step of ``order`` from t in the contact modes ``modes``: write the
+    series of what the equations take from time alone (the walls' motions) into the model's
+    rows of the work array ``W`` (shape (TAYLOR_ROWS, >= order + 2)); return the time [s]
+    over which these series hold (the smallest :func:`wall_series` horizon)."""
+    raise NotImplementedError
+
+
+@generic
+def model_series(model, k, modes, v0s, n_state, C, W):
+    """Write C[:n_state, k + 1], the coefficient k + 1 of the state's Taylor series, from
+    C[:n_state, 0..k] (coefficient k of dy/dt divided by k + 1), after
+    :func:`model_series_start`; called for k = 0, 1, 2, ... in turn. A pair in contact has
+    a penetration > 0 at the start of the step."""
+    raise NotImplementedError
+
+
+# =======================================================================================
 # Tangents: directional derivatives for the forward sensitivities
 # =======================================================================================
 # A tangent record ``d...`` has the class of its primal record; its float fields and float

@@ -22,11 +22,13 @@ from typing import NamedTuple
 
 from braidsim.core.interfaces import (
     contact_force_rates,
+    contact_force_series,
     contact_forces,
     contact_forces_jvp,
     contact_onset_step,
     contact_potential,
 )
+from braidsim.core.jets import jet_pow
 
 
 class PowerLawContact(NamedTuple):
@@ -49,6 +51,31 @@ def _forces(law, p, p_dot, v0):
     if nn < 0.0 and not law.allow_tension:
         nn = 0.0
     return fk, fc, nn
+
+
+@contact_force_series.register(PowerLawContact)
+def _forces_series(law, k, P, v0, S):
+    # F_k = K p^n by the power recurrence, which is linear in its result's coefficients, so
+    # row 0 of S holds those of K p^n directly; F_c = (D / v0) (F_k p')_k with
+    # p'_j = (j + 1) P[j + 1]; N = F_k + F_c unclamped
+    F = S[0]
+    if k == 0:
+        p = P[0]
+        n = law.exponent
+        fk = law.stiffness * p * math.sqrt(p) if n == 1.5 else law.stiffness * p**n
+    else:
+        fk = jet_pow(P, F, law.exponent, k)
+    F[k] = fk
+    if math.isinf(v0):  # a contact released elastically: no damping term
+        return fk, 0.0, fk
+    if k == 0:
+        fc = fk * law.damping * P[1] / v0
+    else:
+        acc = 0.0
+        for j in range(k + 1):
+            acc += F[j] * ((k - j + 1) * P[k - j + 1])
+        fc = law.damping * acc / v0
+    return fk, fc, fk + fc
 
 
 @contact_forces_jvp.register(PowerLawContact)

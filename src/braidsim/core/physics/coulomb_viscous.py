@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import friction_force, friction_force_jvp
+from braidsim.core.interfaces import friction_force, friction_force_jvp, friction_force_series
+from braidsim.core.jets import jet_mul_const, jet_tanh
 
 
 class CoulombViscousFriction(NamedTuple):
@@ -27,6 +28,16 @@ class CoulombViscousFriction(NamedTuple):
 @friction_force.register(CoulombViscousFriction)
 def _friction(law, v, normal, mu):
     return mu * normal * math.tanh(v / law.regularization_velocity) + law.viscous * v
+
+
+@friction_force_series.register(CoulombViscousFriction)
+def _friction_series(law, k, V, NS, mu, S):
+    # f_k = mu (N tanh(u))_k + b V[k], u = v / v_hat (rows of S: 0 u, 1 tanh(u),
+    # 2 1 - tanh(u)^2)
+    U = S[0]
+    U[k] = V[k] / law.regularization_velocity
+    jet_tanh(U, S[1], S[2], k)
+    return mu * jet_mul_const(NS, S[1], k) + law.viscous * V[k]
 
 
 @friction_force_jvp.register(CoulombViscousFriction)

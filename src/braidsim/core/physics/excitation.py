@@ -21,7 +21,8 @@ from typing import NamedTuple
 import numpy as np
 
 from braidsim.core.generic import helper, inline_helper
-from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp
+from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp, wall_series
+from braidsim.core.jets import jet_cos_linear
 
 
 class TrackHarmonics(NamedTuple):
@@ -77,6 +78,18 @@ def _track_motion_jvp(ex, dex, t):
         dhd -= da * w * sn + a * dw * sn + a * w * c * darg
         dhdd -= da * w * w * c + 2.0 * a * w * dw * c - a * w * w * sn * darg
     return dh, dhd, dhdd
+
+
+@wall_series.register(TrackHarmonics)
+def _track_series(ex, t, order, H):
+    # h(t + tau) = sum a cos(w (t + tau) + phi): analytic, the series holds for all tau
+    tab = ex.table
+    for i in range(tab.shape[0]):
+        jet_cos_linear(tab[i, 0], tab[i, 1], tab[i, 2], t, order, H, i > 0)
+    if tab.shape[0] == 0:
+        for k in range(order + 1):
+            H[k] = 0.0
+    return math.inf
 
 
 @wall_accel_bound.register(TrackHarmonics)
@@ -271,6 +284,40 @@ def _slot_motion(ex, t):
     om, s = horn_gear_state(ex, t)
     rc = ex.turning_radius
     return s, rc * om, rc * horn_gear_accel(ex, t)
+
+
+@wall_series.register(HornGear)
+def _slot_series(ex, t, order, H):
+    # s(t + tau) = s(t) + r_c int_0^tau omega: s_{k+1} = r_c om_k / (k + 1), with om_k of
+    # omega0 + sum a cos(w (t + tau) + psi) (a term with w = 0 is the constant a cos(psi));
+    # on a profile omega is linear on the piece holding t (at a knot, the piece that starts
+    # there): s is quadratic up to the piece's end, the horizon
+    om0, s0 = horn_gear_state(ex, t)
+    rc = ex.turning_radius
+    H[0] = s0
+    for k in range(1, order + 1):
+        H[k] = 0.0
+    pt = ex.profile_times
+    if pt.shape[0] >= 2:
+        period = pt[pt.shape[0] - 1] - pt[0]
+        tp = t - pt[0]  # time in the profile, reduced to one period as _profile_piece does
+        tp -= math.floor(tp / period) * period
+        j = _profile_piece(t - pt[0], ex, period)
+        if order >= 1:
+            H[1] = rc * om0
+        if order >= 2:
+            pw = ex.profile_speeds
+            H[2] = rc * ((pw[j + 1] - pw[j]) / (pt[j + 1] - pt[j])) / 2.0
+        return max(pt[j + 1] - pt[0] - tp, 0.0)
+    if order >= 1:
+        H[1] = ex.omega0
+        om = H[1:]
+        tab = ex.harmonics
+        for i in range(tab.shape[0]):
+            jet_cos_linear(tab[i, 0], tab[i, 1], tab[i, 2], t, order - 1, om, True)
+        for k in range(1, order + 1):
+            H[k] = rc * H[k] / k
+    return math.inf
 
 
 @wall_accel_bound.register(HornGear)

@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import friction_force, friction_force_jvp
+from braidsim.core.interfaces import friction_force, friction_force_jvp, friction_force_series
+from braidsim.core.jets import jet_atan, jet_exp, jet_mul, jet_mul_const, jet_sq, jet_tanh
 
 FRICTION_CODES = {"arctan": 0, "tanh": 1, "stribeck": 2, "none": 3}
 
@@ -42,6 +43,36 @@ def _friction(law, v, normal, mu):
         mu_eff = mu * (1.0 + (law.static_ratio - 1.0) * math.exp(-((v / vs) ** 2)))
         return mu_eff * normal * math.tanh(v / vhat)
     return 0.0
+
+
+@friction_force_series.register(RegularizedFriction)
+def _friction_series(law, k, V, NS, mu, S):
+    # f_k = mu (N phi)_k, phi the sign function of u = v / v_hat (rows of S: 0 u, then
+    # arctan: 1 the series of 1 + u^2, 2 atan(u); tanh and stribeck: 1 tanh(u),
+    # 2 1 - tanh(u)^2; stribeck: 3 x = v / v_s, 4 -x^2, 5 e = exp(-x^2),
+    # 6 phi = (1 + (r_s - 1) e) tanh(u))
+    kind = law.law
+    if kind == 3:
+        return 0.0
+    U = S[0]
+    U[k] = V[k] / law.regularization_velocity
+    if kind == 0:
+        Z = S[2]
+        Z[k] = jet_atan(U, S[1], Z, k)
+        return mu * (2.0 / math.pi) * jet_mul_const(NS, Z, k)
+    T = S[1]
+    jet_tanh(U, T, S[2], k)
+    if kind == 1:
+        return mu * jet_mul_const(NS, T, k)
+    X = S[3]
+    G = S[4]
+    E = S[5]
+    phi = S[6]
+    X[k] = V[k] / law.stribeck_velocity
+    G[k] = -jet_sq(X, k)
+    E[k] = jet_exp(G, E, k)
+    phi[k] = T[k] + (law.static_ratio - 1.0) * jet_mul(E, T, k)
+    return mu * jet_mul_const(NS, phi, k)
 
 
 @friction_force_jvp.register(RegularizedFriction)

@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 from braidsim.core.interfaces import (
     contact_force_rates,
+    contact_force_series,
     contact_forces,
     contact_forces_jvp,
     contact_onset_step,
@@ -60,6 +61,14 @@ def _forces(law, p, p_dot, v0):
     if nn < 0.0 and not law.allow_tension:
         nn = 0.0
     return fk, fc, nn
+
+
+@contact_force_series.register(KelvinVoigtContact)
+def _forces_series(law, k, P, v0, S):
+    # linear: F_k = K P[k], F_c = c (k + 1) P[k + 1] (K stiffness, c damping)
+    fk = law.stiffness * P[k]
+    fc = law.damping * ((k + 1) * P[k + 1])
+    return fk, fc, fk + fc
 
 
 @contact_forces_jvp.register(KelvinVoigtContact)

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from braidsim.core.generic import helper
-from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp
+from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp, wall_series
 
 _UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "m": 1.0, "mm": 1e-3, "um": 1e-6}
 
@@ -101,6 +101,28 @@ def _motion(ex, t):
     hd = (3.0 * c3 * s + 2.0 * c2) * s + c1
     hdd = 6.0 * c3 * s + 2.0 * c2
     return h, hd, hdd
+
+
+@wall_series.register(MeasuredTrack)
+def _series(ex, t, order, H):
+    # the cubic c3 s^3 + c2 s^2 + c1 s + c0 of the piece holding t, about its local time s:
+    # h(t + tau) = h + h' tau + (3 c3 s + c2) tau^2 + c3 tau^3, up to the piece's end
+    i, s = _piece(ex, t)
+    c = ex.coeffs
+    c3 = c[0, i]
+    c2 = c[1, i]
+    c1 = c[2, i]
+    c0 = c[3, i]
+    H[0] = ((c3 * s + c2) * s + c1) * s + c0
+    for k in range(1, order + 1):
+        H[k] = 0.0
+    if order >= 1:
+        H[1] = (3.0 * c3 * s + 2.0 * c2) * s + c1
+    if order >= 2:
+        H[2] = 3.0 * c3 * s + c2
+    if order >= 3:
+        H[3] = c3
+    return max(ex.times[i + 1] - ex.times[i] - s, 0.0)
 
 
 @wall_motion_jvp.register(MeasuredTrack)

@@ -1,0 +1,145 @@
+"""Truncated Taylor series ("jets") and the recurrences of automatic differentiation.
+
+A jet is the coefficient array A[0..] of a function's expansion a(t + tau) = sum_k A[k] tau^k
+about a point t. Each function below gives coefficient ``k`` of a result from the
+coefficients 0..k of its arguments (and, where the recurrence needs them, the result's own
+coefficients below k), so that a series is built order by order, as the Taylor step needs it:
+the coefficient k + 1 of the state follows from the coefficient k of its derivative.
+
+The recurrences (Griewank & Walther, Evaluating Derivatives, 2nd ed., SIAM 2008, Sect. 13.2,
+doi:10.1137/1.9780898717761; Jorba & Zou, Experimental Mathematics 14 (2005) 99-117,
+doi:10.1080/10586458.2005.10128904), with A' the derivative in tau, whose coefficient j - 1
+is j A[j]:
+
+    product   (A B)_k = sum_{j=0}^{k} A_j B_{k-j}
+    quotient  Q = A / B:   Q_k = (A_k - sum_{j=1}^{k} B_j Q_{k-j}) / B_0
+    power     R = A^n (A_0 > 0), from R' A = n A' R:
+              k A_0 R_k = sum_{j=0}^{k-1} (n (k - j) - j) A_{k-j} R_j
+    exp       E = exp(G), from E' = G' E:   k E_k = sum_{j=1}^{k} j G_j E_{k-j}
+    atan      Z = atan(U), W = 1 + U^2, from Z' W = U':
+              k W_0 Z_k = k U_k - sum_{j=1}^{k-1} j Z_j W_{k-j}
+    tanh      T = tanh(U), from T' = (1 - T^2) U':
+              k T_k = sum_{j=1}^{k} j U_j (1 - T^2)_{k-j}
+    cos, sin of a linear argument w (t + tau) + phi: closed form.
+
+Each costs O(k) for coefficient k, so a series of order N costs O(N^2).
+"""
+
+from __future__ import annotations
+
+import math
+
+from braidsim.core.generic import inline_helper
+
+
+@inline_helper
+def jet_mul(A, B, k):
+    """Coefficient k of the product of the jets A and B."""
+    acc = 0.0
+    for j in range(k + 1):
+        acc += A[j] * B[k - j]
+    return acc
+
+
+@inline_helper
+def jet_mul_const(A, B, k):
+    """Coefficient k of A B, where an A of length 1 is the constant A[0] (its product is
+    A[0] B[k], not a sum of k + 1 products: a friction law under a constant normal force)."""
+    if A.shape[0] == 1:
+        return A[0] * B[k]
+    return jet_mul(A, B, k)
+
+
+@inline_helper
+def jet_sq(A, k):
+    """Coefficient k of A^2 (the product's symmetric half, doubled)."""
+    acc = 0.0
+    for j in range((k + 1) // 2):
+        acc += A[j] * A[k - j]
+    acc *= 2.0
+    if k % 2 == 0:
+        acc += A[k // 2] * A[k // 2]
+    return acc
+
+
+@inline_helper
+def jet_div(A, B, Q, k):
+    """Coefficient k of Q = A / B (B[0] != 0), given Q[0..k-1]."""
+    acc = A[k]
+    for j in range(1, k + 1):
+        acc -= B[j] * Q[k - j]
+    return acc / B[0]
+
+
+@inline_helper
+def jet_pow(A, R, n, k):
+    """Coefficient k of R = A^n (A[0] > 0), given R[0..k-1]."""
+    if k == 0:
+        a0 = A[0]
+        if n == 1.5:  # the Hertz exponent: cheaper than pow
+            return a0 * math.sqrt(a0)
+        return a0**n
+    acc = 0.0
+    for j in range(k):
+        acc += (n * (k - j) - j) * A[k - j] * R[j]
+    return acc / (k * A[0])
+
+
+@inline_helper
+def jet_exp(G, E, k):
+    """Coefficient k of E = exp(G), given E[0..k-1]."""
+    if k == 0:
+        return math.exp(G[0])
+    acc = 0.0
+    for j in range(1, k + 1):
+        acc += j * G[j] * E[k - j]
+    return acc / k
+
+
+@inline_helper
+def jet_atan(U, W, Z, k):
+    """Coefficient k of Z = atan(U); also writes W[k], the coefficient k of 1 + U^2 (W and Z
+    hold coefficients 0..k-1 from the earlier calls)."""
+    W[k] = jet_sq(U, k) + (1.0 if k == 0 else 0.0)
+    if k == 0:
+        return math.atan(U[0])
+    acc = k * U[k]
+    for j in range(1, k):
+        acc -= j * Z[j] * W[k - j]
+    return acc / (k * W[0])
+
+
+@inline_helper
+def jet_tanh(U, T, Q, k):
+    """Coefficient k of T = tanh(U); Q holds the coefficients of 1 - T^2: this call writes
+    Q[k] (T[0..k-1] and Q[0..k-1] from the earlier calls)."""
+    if k == 0:
+        t0 = math.tanh(U[0])
+        T[0] = t0
+        Q[0] = 1.0 - t0 * t0
+        return t0
+    acc = 0.0
+    for j in range(1, k + 1):
+        acc += j * U[j] * Q[k - j]
+    tk = acc / k
+    T[k] = tk
+    Q[k] = -jet_sq(T, k)
+    return tk
+
+
+@inline_helper
+def jet_cos_linear(a, w, phase, t, order, out, add):
+    """The coefficients out[0..order] of a cos(w (t + tau) + phase), added to ``out`` when
+    ``add`` (else written): a w^k / k! cos(w t + phase + k pi / 2)."""
+    th = w * t + phase
+    c = math.cos(th)
+    s = math.sin(th)
+    fk = a
+    for k in range(order + 1):
+        r = k & 3
+        cy = c if r == 0 else (-s if r == 1 else (-c if r == 2 else s))
+        if add:
+            out[k] += fk * cy
+        else:
+            out[k] = fk * cy
+        fk *= w / (k + 1)
