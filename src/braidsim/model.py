@@ -83,6 +83,8 @@ class Model:
         [s]
     implicit_rest : bool
         Integrate resting contacts with the implicit step (``simulation.resting_contacts``).
+    taylor_order : int
+        Order of the Taylor-series steps (``simulation.integrator = "taylor"``); 0: none.
     """
 
     scenario: Scenario
@@ -94,6 +96,7 @@ class Model:
     slot: PairModel
     duration: float
     implicit_rest: bool = False
+    taylor_order: int = 0
 
     def __repr__(self) -> str:
         laws = ", ".join(
@@ -203,6 +206,9 @@ def _transfer_times(sc: Scenario, t_start: float, dur: float) -> np.ndarray:
 
 
 STEPS_PER_SECOND = 50_000
+# the order of the Taylor-series steps (simulation.integrator = "taylor"): 12 took the fewest
+# CPU seconds on paper-3.3 of the orders tried in benchmarks/lean_taylor.py
+TAYLOR_ORDER = 12
 """Default step budget per simulated second (measured at the default tolerances, steps and
 rejected steps: paper-3.3 about 5,300, paper-3.4a 7,500, paper-3.4b 26,000), so that a long
 run is not cut short by a budget made for short ones."""
@@ -313,4 +319,5 @@ def build_model(
         omega_start, _ = horn_gear_state(record.horn_gear, 0.0)
         y0[3] = sc["initial.vy"] + sc["carrier.turning_radius"] * omega_start
     implicit = sc["simulation.resting_contacts"] == "implicit"
-    return Model(sc, record, options, y0, tr, track, slot, dur, implicit)
+    taylor = TAYLOR_ORDER if sc["simulation.integrator"] == "taylor" else 0
+    return Model(sc, record, options, y0, tr, track, slot, dur, implicit, taylor)

@@ -300,6 +300,16 @@ SCHEMA_LIST: list[ParamSpec] = [
         choices=("explicit", "implicit"),
     ),
     ParamSpec(
+        "simulation.integrator",
+        "choice",
+        "",
+        "dormand-prince",
+        "step of the motion: dormand-prince (Runge-Kutta 5(4) throughout) or taylor (Taylor "
+        "series of order 12 wherever they step farther than Dormand-Prince, which keeps the "
+        "rest: contact onsets, exits, clamped forces; compiled on first use)",
+        choices=("dormand-prince", "taylor"),
+    ),
+    ParamSpec(
         "simulation.max_steps",
         "int",
         "",

@@ -210,12 +210,11 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, flo
 
 def stats_dict(raw: RawRun) -> dict[str, Any]:
     """The solver's statistics by name (``steps``, ``rejected_steps``, ``events``,
-    ``rhs_evaluations``, ``implicit_steps``, ``transfers``, ``min_step``, ``max_step``)."""
+    ``rhs_evaluations``, ``implicit_steps``, ``taylor_steps``, ``transfers``, ``min_step``,
+    ``max_step``; a Taylor step counts one evaluation, at its end)."""
     rec = raw.stats[0]
-    out: dict[str, Any] = {
-        name: int(rec[name])
-        for name in ("steps", "rejected_steps", "events", "rhs_evaluations", "implicit_steps")
-    }
+    names = ("steps", "rejected_steps", "events", "rhs_evaluations", "implicit_steps")
+    out: dict[str, Any] = {name: int(rec[name]) for name in (*names, "taylor_steps")}
     out["transfers"] = int(rec["transfers"])
     out["min_step"] = float(rec["min_step"]) if math.isfinite(rec["min_step"]) else None
     out["max_step"] = float(rec["max_step"])
@@ -315,6 +314,7 @@ def run_model(
             restart=restart,
             tangents=tangents,
             implicit=model.implicit_rest,
+            taylor=model.taylor_order,
             max_rows=int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS)))
             if in_memory
             else None,

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from braidsim.core import interfaces as I
 from braidsim.core import layout as L
 from braidsim.core.interfaces import dissipation_index, model_size, series_columns
 from braidsim.core.solver.loop import EPISODE_RESERVE, EVENT_ROWS, integrate
@@ -186,6 +187,27 @@ def quadrature_prefix(model: Any, which: str) -> int:
     raise ValueError(f"quadratures: {which!r}; allowed 'dissipation' or 'friction'")
 
 
+def taylor_capable(model: Any) -> str:
+    """Why ``model`` cannot take Taylor steps ("" when it can): the model must register
+    :func:`~braidsim.core.interfaces.model_series` and its start, and each physics record in
+    its fields (found by the role it plays: a contact law, a friction law, an excitation)
+    the series of its function."""
+    for fn in (I.model_series, I.model_series_start):
+        if type(model) not in fn.generic.impls:
+            return f"the model {type(model).__name__} gives no Taylor series ({fn.__name__})"
+    roles = (
+        (I.contact_forces, I.contact_force_series),
+        (I.friction_force, I.friction_force_series),
+        (I.wall_motion, I.wall_series),
+    )
+    for field in getattr(model, "_fields", ()):
+        sub = getattr(model, field)
+        for primal, series in roles:
+            if type(sub) in primal.generic.impls and type(sub) not in series.generic.impls:
+                return f"{type(sub).__name__} ({field}) gives no Taylor series ({series.__name__})"
+    return ""
+
+
 def max_samples_per_step(sample_times: np.ndarray, max_step: float) -> int:
     """Most sample times in any half-open interval (t, t + max_step]: what one step can
     write."""
@@ -211,6 +233,7 @@ def run(
     episode_chunk: int = DEFAULT_EPISODE_CHUNK,
     tangents: Tangents | None = None,
     implicit: bool = False,
+    taylor: int = 0,
     max_rows: int | None = None,
 ) -> RawRun:
     """Integrate ``model`` with solver options ``opts`` from ``y0`` (or from ``restart``).
@@ -237,6 +260,11 @@ def run(
         runs with tangents always use Dormand-Prince. (A switch of the call, not a field of
         :class:`~braidsim.core.layout.SolverOptions`: one more field there made every step
         of every run 5 % slower.)
+    taylor : int
+        The order (>= 6) of Taylor-series steps, taken where they are longer than the
+        Dormand-Prince step (:mod:`braidsim.core.solver.taylor`); 0 (the default) compiles
+        none. The model and every physics record in it must give their series
+        (:func:`taylor_capable`); runs with tangents use Dormand-Prince only.
     max_rows : int, optional
         The most rows to keep or hand to ``series`` (give it for a sink that keeps them in
         memory): past it the run stops with :class:`SeriesOverflow` (the sample grid is
@@ -286,6 +314,12 @@ def run(
     IMP = None
     if implicit and SENS is None:
         IMP = L.implicit_work(n, 2 * model_sizes(model)[0])
+    TAY = None
+    if taylor and SENS is None:
+        why = taylor_capable(model)
+        if why:
+            raise ValueError(f"taylor: {why}")
+        TAY = L.taylor_work(n, int(taylor))
     sens_chunks: list[np.ndarray] = []
     sens_closed: list[np.ndarray] = []
     written = 0
@@ -293,7 +327,7 @@ def run(
     i_kind = list(series_columns(model)).index("kind")
     while True:
         status = integrate(
-            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP
+            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
         )
         r = RS[0]
         final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)

@@ -16,6 +16,8 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from braidsim.core.interfaces import TAYLOR_ROWS
+
 # ---- status codes of a run ----------------------------------------------------------------
 ST_OK = 0  # reached the end time
 ST_STEP_COLLAPSE = 1  # the step size fell below round-off
@@ -150,6 +152,37 @@ def implicit_work(n: int, m: int) -> ImplicitWork:
     )
 
 
+class TaylorWork(NamedTuple):
+    """The work arrays of the Taylor-series step (:mod:`braidsim.core.solver.taylor`) of
+    order N for a state of n components; ``None`` in their place compiles the step out.
+
+    Attributes
+    ----------
+    C : array (n, N + 1)
+        The state's Taylor coefficients at the step's start: y_i(t + tau) = sum_k C[i, k]
+        tau^k (each component's coefficients contiguous, as the recurrences read them).
+    W : array (TAYLOR_ROWS, N + 2)
+        The model's work rows (:func:`braidsim.core.interfaces.model_series`).
+    RT : array (N + 1, n)
+        The step's dense output: RT[k, i] = C[i, k] h^k, a polynomial in theta = tau / h.
+    """
+
+    C: np.ndarray
+    W: np.ndarray
+    RT: np.ndarray
+
+
+def taylor_work(n: int, order: int) -> TaylorWork:
+    """Work arrays of a Taylor step of ``order`` (>= 6) for n state components."""
+    if order < 6:
+        # (the dense output's readers tell a Taylor polynomial from the Runge-Kutta
+        # interpolant's 5 rows by its number of rows)
+        raise ValueError(f"taylor order: {order}; allowed >= 6")
+    return TaylorWork(
+        np.zeros((n, order + 1)), np.zeros((TAYLOR_ROWS, order + 2)), np.zeros((order + 1, n))
+    )
+
+
 class SensitivityWork(NamedTuple):
     """The forward sensitivities a run carries along k directions (``None`` for a run
     without them). Direction d is a tangent of the model record and of the initial state.
@@ -235,6 +268,7 @@ STATS_DTYPE = np.dtype(
         ("min_step", "f8"),  # [s]
         ("max_step", "f8"),  # [s]
         ("implicit_steps", "f8"),  # accepted steps of resting contacts (Radau IIA)
+        ("taylor_steps", "f8"),  # accepted Taylor-series steps
     ]
 )
 
@@ -272,6 +306,7 @@ RESTART_DTYPE = np.dtype(
         ("implicit_time", "f8"),  # [s] the time they covered
         ("rest_blocked", "f8"),  # 1: the implicit step did not pay; explicit until an event
         ("implicit_prev_h", "f8"),  # [s] the last step, when implicit (its polynomial in Q)
+        ("taylor_wait", "f8"),  # Runge-Kutta steps to take before a Taylor step is tried again
     ]
 )
 

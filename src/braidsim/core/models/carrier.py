@@ -34,9 +34,11 @@ from typing import Any, NamedTuple
 
 from braidsim.core.generic import inline_helper
 from braidsim.core.interfaces import (
+    SERIES_ROWS,
     apply_transfer,
     apply_transfer_jvp,
     contact_force_rates,
+    contact_force_series,
     contact_forces,
     contact_forces_jvp,
     contact_onset_step,
@@ -48,6 +50,9 @@ from braidsim.core.interfaces import (
     free_accel_bound,
     friction_force,
     friction_force_jvp,
+    friction_force_series,
+    model_series,
+    model_series_start,
     model_size,
     pair_gap_accel,
     pair_gaps,
@@ -62,7 +67,9 @@ from braidsim.core.interfaces import (
     wall_accel_bound,
     wall_motion,
     wall_motion_jvp,
+    wall_series,
 )
+from braidsim.core.jets import jet_mul, jet_sq
 from braidsim.core.physics.excitation import (
     HornGear,
     horn_gear_accel,
@@ -397,6 +404,112 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     row[24] = s
     row[25] = om
     row[27] = kind
+
+
+# ---- Taylor series -------------------------------------------------------------------------
+# The rows of the work array W (interfaces.TAYLOR_ROWS) the carrier's series use: the walls'
+# series from model_series_start, and per pair its penetration, rate, force and damping
+# force, then the work rows of its physics records (SERIES_ROWS each).
+R_H, R_HD, R_SL, R_SD, R_OM, R_LOAD, R_NX = range(7)  # track wall, its speed, slot wall, ...
+R_PT, R_PDT, R_NT, R_FCT = range(7, 11)  # track pair: p, p', N, F_c
+R_PS, R_PDS, R_NS, R_FCS = range(11, 15)  # slot pair
+R_FX, R_FY = 15, 16  # friction forces along x and y
+R_LAW_T = 17  # work rows of the track's contact law, then the slot's, then the friction's
+R_LAW_S = R_LAW_T + SERIES_ROWS
+R_FR_X = R_LAW_S + SERIES_ROWS
+R_FR_Y = R_FR_X + SERIES_ROWS
+
+
+@model_series_start.register(CarrierX)
+@model_series_start.register(CarrierXY)
+def _series_start(model, t, modes, order, W):
+    # the walls to order + 1, for their speeds to order
+    hz = wall_series(model.track, t, order + 1, W[R_H])
+    hz_slot = wall_series(model.horn_gear, t, order + 1, W[R_SL])
+    rc = model.horn_gear.turning_radius
+    for j in range(order + 1):
+        W[R_HD, j] = (j + 1) * W[R_H, j + 1]
+        W[R_SD, j] = (j + 1) * W[R_SL, j + 1]
+        # omega = s' / r_c (without a turning radius the centrifugal load m r_c omega^2 is 0)
+        W[R_OM, j] = W[R_SD, j] / rc if rc != 0.0 else 0.0
+        W[R_NX, j] = model.normal_x if j == 0 else 0.0
+    for j in range(order + 1):
+        # T1 cos(phi) + m r_c omega^2
+        W[R_LOAD, j] = model.mass_radius * jet_sq(W[R_OM], j) + (model.load_x if j == 0 else 0.0)
+    return min(hz, hz_slot)
+
+
+@inline_helper
+def _pair_series(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
+    """Coefficient k of the pair's (p', F_c, N) along coordinate i against the wall series
+    W[r_wall] (zeros when free); writes p up to k + 1 and p' to k in W[r_p], W[r_p + 1]."""
+    if mode == 0:
+        W[r_p + 1, k] = 0.0
+        return 0.0, 0.0
+    sg = -1.0 if mode < 0 else 1.0
+    if k == 0:
+        # p = h - x on the inner wall, x - h - eps on the outer one (interfaces.penetration)
+        W[r_p, 0] = sg * (C[i, 0] - W[r_wall, 0]) - (clearance if mode > 0 else 0.0)
+    W[r_p, k + 1] = sg * (C[i, k + 1] - W[r_wall, k + 1])
+    W[r_p + 1, k] = (k + 1) * W[r_p, k + 1]
+    _, fc, nn = contact_force_series(law, k, W[r_p], v0, W[r_law : r_law + SERIES_ROWS])
+    return fc, nn
+
+
+@model_series.register(CarrierX)
+@model_series.register(CarrierXY)
+def _series(model, k, modes, v0s, n_state, C, W):
+    # the equations of motion of the module docstring, coefficient by coefficient
+    n_coords, _, _ = model_size(model)
+    k1 = k + 1.0
+    C[0, k + 1] = C[1, k] / k1
+    mt = modes[0]
+    ms = modes[1] if n_coords == 2 else 0
+    fct, nt = _pair_series(
+        model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
+    )
+    W[R_FCT, k] = fct
+    W[R_NT, k] = nt
+    fx = friction_force_series(
+        model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
+    )
+    W[R_FX, k] = fx
+    C[1, k + 1] = (-mt * nt - fx - W[R_LOAD, k]) / model.mass / k1
+    if n_coords == 2:
+        C[2, k + 1] = C[3, k] / k1
+        fcs, ns = _pair_series(
+            model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+        )
+        W[R_FCS, k] = fcs
+        W[R_NS, k] = ns
+        # the pad's friction under |N_t| = N_t (a Taylor step keeps N_t >= 0)
+        fy = friction_force_series(
+            model.friction, k, C[3], W[R_NT], model.mu_y, W[R_FR_Y : R_FR_Y + SERIES_ROWS]
+        )
+        W[R_FY, k] = fy
+        load_y = model.load_y if k == 0 else 0.0
+        C[3, k + 1] = (-ms * ns - fy + load_y) / model.mass / k1
+    # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...)
+    q = 2 * n_coords
+    if n_state > q:
+        C[q, k + 1] = jet_mul(W[R_FCT], W[R_PDT], k) / k1
+        if n_coords == 2:
+            C[q + 1, k + 1] = jet_mul(W[R_FCS], W[R_PDS], k) / k1
+    q += n_coords
+    if n_state > q:  # the friction works
+        C[q, k + 1] = jet_mul(W[R_FX], C[1], k) / k1
+        if n_coords == 2:
+            C[q + 1, k + 1] = jet_mul(W[R_FY], C[3], k) / k1
+    q += n_coords
+    if n_state > q:  # all the quadratures
+        C[q, k + 1] = -jet_mul(W[R_LOAD], C[1], k) / k1
+        C[q + 1, k + 1] = -mt * jet_mul(W[R_NT], W[R_HD], k) / k1
+        if n_coords == 2:
+            C[q + 2, k + 1] = (model.load_y * C[3, k]) / k1
+            C[q + 3, k + 1] = -ms * jet_mul(W[R_NS], W[R_SD], k) / k1
+            C[q + 4, k + 1] = 0.0
+        else:
+            C[q + 2, k + 1] = 0.0
 
 
 # ---- tangents (forward sensitivities) ------------------------------------------------------

@@ -20,9 +20,11 @@ from typing import Any, NamedTuple
 
 from braidsim.core.generic import inline_helper
 from braidsim.core.interfaces import (
+    SERIES_ROWS,
     apply_transfer,
     apply_transfer_jvp,
     contact_force_rates,
+    contact_force_series,
     contact_forces,
     contact_forces_jvp,
     contact_onset_step,
@@ -31,6 +33,8 @@ from braidsim.core.interfaces import (
     describe_model,
     dissipation_index,
     free_accel_bound,
+    model_series,
+    model_series_start,
     model_size,
     pair_gap_accel,
     pair_gaps,
@@ -43,6 +47,7 @@ from braidsim.core.interfaces import (
     penetration_jvp,
     series_row,
 )
+from braidsim.core.jets import jet_cos_linear, jet_mul, jet_sq
 
 OSCILLATOR_COLUMNS = (
     "t",
@@ -167,6 +172,49 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     for i in range(3):
         row[7 + i] = y[2 + i] if 2 + i < n_state else math.nan
     row[10] = kind
+
+
+# ---- Taylor series -------------------------------------------------------------------------
+# rows of the work array: the forcing, the penetration, its rate, the damping force, then the
+# contact law's work rows
+R_FORCE, R_P, R_PD, R_FC, R_LAW = range(5)
+
+
+@model_series_start.register(ImpactOscillator)
+def _series_start(model, t, modes, order, W):
+    jet_cos_linear(
+        model.force_amplitude, model.force_frequency, model.force_phase, t, order, W[R_FORCE], False
+    )
+    return math.inf
+
+
+@model_series.register(ImpactOscillator)
+def _series(model, k, modes, v0s, n_state, C, W):
+    k1 = k + 1.0
+    C[0, k + 1] = C[1, k] / k1
+    mode = modes[0]
+    nn = 0.0
+    W[R_PD, k] = 0.0
+    W[R_FC, k] = 0.0
+    if mode != 0:
+        # p = -(x + gap_inner) on the inner wall, x - gap_outer on the outer one
+        if k == 0:
+            W[R_P, 0] = -(C[0, 0] + model.gap_inner) if mode < 0 else C[0, 0] - model.gap_outer
+        W[R_P, k + 1] = -C[0, k + 1] if mode < 0 else C[0, k + 1]
+        W[R_PD, k] = k1 * W[R_P, k + 1]
+        _, fc, nn = contact_force_series(
+            model.law, k, W[R_P], v0s[0], W[R_LAW : R_LAW + SERIES_ROWS]
+        )
+        W[R_FC, k] = fc
+    C[1, k + 1] = (
+        W[R_FORCE, k] - model.damping * C[1, k] - model.stiffness * C[0, k] - mode * nn
+    ) / (model.mass * k1)
+    if n_state > 2:  # (N - F_k) p' = F_c p'
+        C[2, k + 1] = jet_mul(W[R_FC], W[R_PD], k) / k1
+    if n_state > 3:
+        C[3, k + 1] = model.damping * jet_sq(C[1], k) / k1
+    if n_state > 4:
+        C[4, k + 1] = jet_mul(W[R_FORCE], C[1], k) / k1
 
 
 # ---- tangents (forward sensitivities) ------------------------------------------------------

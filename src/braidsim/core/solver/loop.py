@@ -54,7 +54,7 @@ from braidsim.core.solver.dopri5 import (
     rk_step,
 )
 from braidsim.core.solver.events import N_SUB, locate_event, sample_events
-from braidsim.core.solver.pairs import I_DN, I_PD, NI, gaps, pair_infos
+from braidsim.core.solver.pairs import I_DN, I_FC, I_FK, I_P, I_PD, NI, gaps, pair_infos
 from braidsim.core.solver.radau import (
     ATTEMPT_OK,
     implicit_attempt,
@@ -86,6 +86,13 @@ from braidsim.core.solver.tangent import (
     tangent_start,
     tangent_step,
     transfer_jump,
+)
+from braidsim.core.solver.taylor import (
+    RETEST,
+    taylor_coefficients,
+    taylor_dense,
+    taylor_shorten,
+    taylor_step_size,
 )
 
 EPISODE_RESERVE = 4  # impact-table rows one step can open at most
@@ -182,7 +189,7 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
 # nogil: the loop touches no Python object, so runs of a batch overlap on threads
 @njit(cache=True, error_model="numpy", nogil=True)
 def integrate(
-    record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS, IMP
+    record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
 ):
     """Integrate the model ``record`` from the restart record to ``opts.t_end``; returns a
     status.
@@ -224,6 +231,10 @@ def integrate(
         The work arrays of the implicit step of resting contacts
         (:mod:`braidsim.core.solver.radau`); ``None`` compiles it out (Dormand-Prince
         throughout).
+    TAY : TaylorWork or None
+        The work arrays of the Taylor-series step (:mod:`braidsim.core.solver.taylor`),
+        taken where it is longer than the Runge-Kutta step; ``None`` compiles it out. The
+        model must give its series (:func:`~braidsim.core.interfaces.model_series`).
     """
     # every function below reads the model through one pointer: numba would pass the
     # record to each call field by field, ~65 values for the carrier (see RecordRef)
@@ -351,6 +362,10 @@ def integrate(
     # error exponent of the first step of a contact: the force grows as s^n after onset, so
     # that step's error scales as h^(n+1), not h^5 (0: no contact step pending)
     onset_q = r.onset_q
+    tols = (opts.rtol, opts.atol_position, opts.atol_velocity)
+    force_rk = False  # a Taylor step was refused after the fact: a Runge-Kutta step next
+    h_rk = h
+    err_old_rk = err_old
 
     rhs(model, t, y, modes, v0s, n, K[0])
     pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
@@ -434,7 +449,64 @@ def integrate(
         # test around the explicit step, even one the compiler can fold, made every step of
         # paper-3.3 4-8 % slower)
         took_implicit = False
-        if IMP is None:
+        took_taylor = False
+        RCs = RC  # the dense output of the step: the Runge-Kutta interpolant or TAY.RT
+        if TAY is not None:
+            # the Taylor step where it is at least the Runge-Kutta step (module docstring
+            # of taylor.py); not in the first step of a contact (the force's series does not
+            # exist at p = 0), nor where a contact force is held at 0 by its clamp
+            try_taylor = onset_q == 0.0 and not force_rk
+            if IMP is not None:
+                if r.implicit:
+                    try_taylor = False
+            if r.taylor_wait > 0.0:
+                try_taylor = False
+                r.taylor_wait -= 1.0
+            for pair in range(n_pairs):
+                if modes[pair] != 0 and not (
+                    INF0[pair, I_P] > 0.0 and INF0[pair, I_FK] + INF0[pair, I_FC] >= 0.0
+                ):
+                    try_taylor = False
+            force_rk = False
+            if try_taylor:
+                hstop = min(hmax, t_stop - t)
+                horizon, used = taylor_coefficients(
+                    model, t, y, modes, v0s, n, TAY.C, TAY.W, n_dof2, tols, hstop
+                )
+                ht = taylor_step_size(
+                    TAY.C, used, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity, hstop
+                )
+                if ht > horizon:
+                    ht = horizon  # (a piecewise motion: to the end of its piece)
+                if ht >= h:
+                    took_taylor = True
+                    # the Runge-Kutta step and its controller's memory are carried over the
+                    # Taylor steps
+                    h_rk = h
+                    err_old_rk = err_old
+                    h = ht
+                    hits_stop = False
+                    if h >= (t_stop - t) * (1.0 - 1e-9):
+                        h = t_stop - t
+                        hits_stop = True
+                    taylor_dense(TAY.C, h, n, TAY.RT)
+                    RCs = TAY.RT
+                    dense_eval(1.0, RCs, y1, n)
+                    rhs(model, t + h, y1, modes, v0s, n, K[6])
+                    st.rhs_evaluations += 1
+                    nsteps += 1
+                    err = 0.0
+                else:
+                    # near a singularity: the Runge-Kutta steps from here on, starting no
+                    # longer than the series' own step (the distance to the singularity
+                    # bounds both; a step carried from elsewhere may cross it, as an exit,
+                    # in one step whose error estimate misses the p^n there)
+                    r.taylor_wait = RETEST - 1.0
+                    h = ht
+                    hits_stop = False
+        if took_taylor:
+            pass
+        elif IMP is None:
             rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
             st.rhs_evaluations += 6
             nsteps += 1
@@ -488,6 +560,13 @@ def integrate(
             if not math.isfinite(y1[i]):
                 finite = False
         if not finite or not math.isfinite(err):
+            if TAY is not None:
+                if took_taylor:
+                    # (a series that overflowed: the Runge-Kutta step decides)
+                    h = h_rk
+                    force_rk = True
+                    st.rejected_steps += 1
+                    continue
             if h < 1e-14 * max(1.0, t):
                 status = ST_NONFINITE
                 break
@@ -527,6 +606,9 @@ def integrate(
         if IMP is not None:
             if took_implicit:
                 stden = 0.0  # (an implicit step has no such stages: counted as non-stiff)
+        if TAY is not None:
+            if took_taylor:
+                stden = 0.0  # (nor has a Taylor step)
         if stden > 0.0 and h * math.sqrt(stnum / stden) > 3.25 and h < stiff_below:
             stiff_run += 1
             nonstiff_run = 0
@@ -566,21 +648,49 @@ def integrate(
         err_old = max(err, 1e-4)
         onset_q = 0.0
         h_next = min(h * fac, hmax)
+        if TAY is not None:
+            if took_taylor:
+                h_next = h_rk
+                err_old = err_old_rk
         if IMP is None:
-            dense_coeffs(y, y1, h, K, RC, n)
-        elif not took_implicit:
+            if not took_taylor:
+                dense_coeffs(y, y1, h, K, RC, n)
+        elif not took_implicit and not took_taylor:
             dense_coeffs(y, y1, h, K, RC, n)
         pair_infos(model, n_pairs, t + h, y1, K[6], modes, v0s, INF1)
+        if TAY is not None:
+            if took_taylor:
+                # a contact force that the law's clamp holds at 0 by the end of the step is
+                # not the series of the unclamped force: the step is taken again by the
+                # Runge-Kutta method
+                clamped = False
+                for pair in range(n_pairs):
+                    if modes[pair] != 0 and INF1[pair, I_FK] + INF1[pair, I_FC] < 0.0:
+                        clamped = True
+                if clamped:
+                    h = h_rk
+                    force_rk = True
+                    st.rejected_steps += 1
+                    continue
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
         # (the event functions read the coordinates and speeds only)
-        if sample_events(model, n_pairs, t, h, RC, modes, n_dof2, ys, GS, K[0], K[6], INF0, INF1):
+        if sample_events(model, n_pairs, t, h, RCs, modes, n_dof2, ys, GS, K[0], K[6], INF0, INF1):
             for j in range(2 * n_pairs):
-                th = locate_event(model, j, t, h, RC, modes, n_dof2, ys, GS)
+                th = locate_event(model, j, t, h, RCs, modes, n_dof2, ys, GS)
                 if th < theta_ev:
                     theta_ev = th
                     j_ev = j
+        if TAY is not None:
+            if took_taylor and j_ev >= 0 and modes[j_ev // 2] != 0:
+                # an exit: the contact force's series ends there (the branch point of
+                # p^n at p = 0), so the polynomial does not hold up to it; the Runge-Kutta
+                # step finds it
+                h = h_rk
+                force_rk = True
+                st.rejected_steps += 1
+                continue
         if j_ev >= 0:
             # recompute the step exactly to the event time
             he = theta_ev * h
@@ -588,7 +698,13 @@ def integrate(
                 he = 1e-16 * max(1.0, t)
             for i in range(n):
                 Ke[0, i] = K[0, i]
-            if IMP is None:
+            if took_taylor:
+                # the polynomial cut at the event
+                taylor_shorten(RCs, theta_ev, n)
+                dense_eval(1.0, RCs, ye, n)
+                rhs(model, t + he, ye, modes, v0s, n, Ke[6])
+                st.rhs_evaluations += 1
+            elif IMP is None:
                 rk_step(model, t, y, he, Ke, modes, v0s, n, yt, ye)
                 st.rhs_evaluations += 6
                 dense_coeffs(y, ye, he, Ke, RC, n)
@@ -619,7 +735,7 @@ def integrate(
             n,
             t,
             h_taken,
-            RC,
+            RCs,
             modes,
             v0s,
             open_ep,
@@ -639,6 +755,9 @@ def integrate(
             rec,
         )
         st.steps += 1
+        if TAY is not None:
+            if took_taylor:
+                st.taylor_steps += 1
         if IMP is not None:
             jac_fresh = False
             # a whole implicit step's polynomial starts the next one's Newton iterations
@@ -760,6 +879,7 @@ def integrate(
                 same_time_events = 0
             last_event_t = t_ev
             t = t_ev
+            r.taylor_wait = 0.0
             if IMP is not None:
                 r.implicit = 0
                 r.rest_run = 0

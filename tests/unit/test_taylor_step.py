@@ -1,0 +1,202 @@
+"""The Taylor-series step of the solver against closed forms, exact restitution, energy
+balances and the Dormand-Prince runs of the same models.
+
+A run with ``taylor=12`` takes Taylor steps wherever they are longer than the Dormand-Prince
+step; these tests check that most of its steps are Taylor steps, so that they test them."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+import pytest
+
+from braidsim import contact
+from braidsim.core import (
+    CoulombViscousFriction,
+    ImpactOscillator,
+    KelvinVoigtContact,
+    PowerLawContact,
+    TrackHarmonics,
+    run,
+    state_size,
+)
+from braidsim.core import layout as L
+from braidsim.core.driver import taylor_capable
+from braidsim.core.interfaces import contact_forces
+from braidsim.model import build_model
+from braidsim.params import load_scenario
+from braidsim.simulate import simulate
+
+ORDER = 12
+TIGHT = L.SolverOptions(
+    rtol=1e-12, atol_position=1e-16, atol_velocity=1e-14, max_step=1e-3, max_steps=10**7, t_end=0.0
+)
+
+
+def _taylor_share(raw: Any) -> float:
+    st = raw.stats[0]
+    return float(st["taylor_steps"] / st["steps"])
+
+
+def test_harmonic_oscillator_in_taylor_steps() -> None:
+    """No walls: x = x0 cos(w t), to the tolerance, almost all in Taylor steps."""
+    m, k, x0, T = 0.3, 2000.0, 0.01, 0.73
+    model = ImpactOscillator(
+        m, k, 0.0, 0.0, 0.0, 0.0, math.inf, math.inf, PowerLawContact(1e9, 1.5, 0.0)
+    )
+    w = math.sqrt(k / m)
+    raw = run(model, TIGHT._replace(t_end=T), np.array([x0, 0.0, 0.0, 0.0, 0.0]), taylor=ORDER)
+    assert raw.status == L.ST_OK
+    assert raw.y[0] == pytest.approx(x0 * math.cos(w * T), abs=1e-12)
+    assert raw.y[1] == pytest.approx(-x0 * w * math.sin(w * T), abs=1e-10)
+    assert _taylor_share(raw) > 0.95
+
+
+def _into_wall(v: float = 0.5, gap: float = 1e-3) -> L.SolverOptions:
+    return TIGHT._replace(t_end=gap / v + 0.004, max_step=1e-3)
+
+
+def test_elastic_hertz_impact_closed_form() -> None:
+    """Hertz impact from free flight: depth, peak force and rebound of the closed form."""
+    m, v, gap, K = 0.5, 0.5, 1e-3, 2e9
+    model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, PowerLawContact(K, 1.5, 0))
+    raw = run(model, _into_wall(), np.array([0.0, v, 0.0, 0.0, 0.0]), taylor=ORDER)
+    (ep,) = raw.episodes
+    p_m = (2.5 * m * v * v / (2 * K)) ** (1 / 2.5)
+    assert ep["t"] == pytest.approx(gap / v, rel=1e-12)
+    assert ep["rebound_velocity"] == pytest.approx(v, rel=1e-9)
+    assert ep["max_depth"] == pytest.approx(p_m, rel=1e-9)
+    assert ep["peak_force"] == pytest.approx(K * p_m**1.5, rel=1e-9)
+    assert abs(ep["dissipated_energy"]) < 1e-12
+    assert raw.stats[0]["taylor_steps"] > 10
+
+
+@pytest.mark.parametrize("name", ["hunt_crossley", "lankarani_nikravesh", "flores"])
+def test_restitution_of_a_free_impact_is_the_laws_exact_value(name: str) -> None:
+    """The laws' exact restitution (an independent quadrature) from Taylor steps in contact."""
+    m, v, gap, K = 0.5, 0.5, 1e-3, 2e9
+    d = contact.get_law(name).damping_factor(0.6)
+    model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, PowerLawContact(K, 1.5, d))
+    raw = run(model, _into_wall(), np.array([0.0, v, 0.0, 0.0, 0.0]), taylor=ORDER)
+    (ep,) = raw.episodes
+    e = ep["rebound_velocity"] / ep["velocity"]
+    assert e == pytest.approx(contact.effective_restitution(d), rel=1e-6)
+    assert ep["dissipated_energy"] == pytest.approx(0.5 * m * v * v * (1 - e * e), rel=1e-6)
+
+
+def test_energy_balance_of_the_forced_oscillator() -> None:
+    """The quadratures' series close the energy balance over many impacts."""
+    m, k, c, K = 1.0, 400.0, 0.8, 1e8
+    model = ImpactOscillator(m, k, c, 30.0, 25.0, 0.2, 2e-3, 1.5e-3, PowerLawContact(K, 1.5, 0.4))
+    raw = run(model, TIGHT._replace(t_end=2.0), np.array([0.0, 0.2, 0.0, 0.0, 0.0]), taylor=ORDER)
+    assert raw.episodes.size > 10
+    assert _taylor_share(raw) > 0.5
+    x, v, diss, visc, work = raw.y
+
+    def elastic(x: float) -> float:
+        p = max(0.0, -(x + 2e-3), x - 1.5e-3)
+        return K * p**2.5 / 2.5
+
+    e1 = 0.5 * m * v * v + 0.5 * k * x * x + elastic(x)
+    assert e1 == pytest.approx(0.5 * m * 0.2**2 - diss - visc + work, abs=1e-9 * max(1.0, work))
+
+
+@pytest.mark.parametrize("tension", [True, False])
+def test_kelvin_voigt_impact(tension: bool) -> None:
+    """With tension allowed, half a damped period at exactly e; clamped, the Taylor steps
+    must hand the end of the contact (N = 0 at p > 0) to the Runge-Kutta step, and the run
+    agrees with a Dormand-Prince run."""
+    m, k, v, gap, e = 1.2, 5e7, 0.4, 1e-3, 0.5
+    law = KelvinVoigtContact.for_restitution(k, e, m, allow_tension=tension)
+    model = ImpactOscillator(m, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, law)
+    opts = TIGHT._replace(t_end=gap / v + 0.01, max_step=1e-4)
+    y0 = np.array([0.0, v, 0.0, 0.0, 0.0])
+    (ep,) = run(model, opts, y0, taylor=ORDER).episodes
+    (ref,) = run(model, opts, y0).episodes
+    if tension:
+        zeta = law.damping / (2.0 * math.sqrt(k * m))
+        w_d = math.sqrt(k / m) * math.sqrt(1.0 - zeta**2)
+        assert ep["t_end"] - ep["t"] == pytest.approx(math.pi / w_d, rel=1e-9)
+        assert ep["rebound_velocity"] / ep["velocity"] == pytest.approx(e, rel=1e-8)
+    for col in ("t_end", "rebound_velocity", "peak_force", "max_depth", "dissipated_energy"):
+        assert ep[col] == pytest.approx(ref[col], rel=1e-8), col
+
+
+def test_viscous_friction_decays_the_speed_exponentially() -> None:
+    """The carrier in a wide gap, friction b v only: x' = v0 exp(-b t / m)."""
+    b, v0, T = 3.0, 0.2, 0.4
+    sc_model = build_model(load_scenario("paper-3.1"), 1.0)
+    rec = sc_model.record._replace(
+        friction=CoulombViscousFriction(1e-3, b),
+        mu_x=0.0,
+        load_x=0.0,
+        mass_radius=0.0,
+        track_clearance=1.0,
+        track=TrackHarmonics(np.zeros((0, 3))),
+    )
+    y0 = np.zeros(state_size(rec, True))
+    y0[:2] = (0.5, v0)
+    raw = run(rec, TIGHT._replace(t_end=T), y0, taylor=ORDER)
+    decay = math.exp(-b * T / rec.mass)
+    assert raw.y[1] == pytest.approx(v0 * decay, rel=1e-10)
+    assert raw.y[0] == pytest.approx(0.5 + v0 * rec.mass / b * (1 - decay), rel=1e-11)
+    assert raw.y[3] == pytest.approx(0.5 * rec.mass * v0 * v0 * (1 - decay**2), rel=1e-9)
+    assert _taylor_share(raw) > 0.95
+
+
+@pytest.mark.parametrize("scenario", ["paper-3.3", "paper-3.4a"])
+def test_carrier_runs_agree_with_dormand_prince(scenario: str) -> None:
+    """The x-only paper-3.3 and the xy paper-3.4a carrier: impact table of the Taylor run
+    against the Dormand-Prince run, both at tight tolerances, and the same energy balance."""
+    sc = load_scenario(scenario).with_overrides(
+        {
+            "simulation.rtol": 1e-12,
+            "simulation.atol_position": 1e-16,
+            "simulation.atol_velocity": 1e-13,
+        }
+    )
+    ref = simulate(sc, 0.1, series=False)
+    tay = simulate(sc.with_overrides({"simulation.integrator": "taylor"}), 0.1, series=False)
+    assert tay.stats["taylor_steps"] > 0.5 * tay.stats["steps"]
+    a, b = ref.impacts, tay.impacts
+    assert len(a) == len(b) and len(a) > 3
+    for col in ("t", "t_end", "velocity", "peak_force", "max_depth"):
+        np.testing.assert_allclose(b[col], a[col], rtol=1e-7, err_msg=col)
+    np.testing.assert_allclose(
+        b["dissipated_energy"], a["dissipated_energy"], rtol=1e-6, atol=1e-12
+    )
+
+
+def test_restarts_give_the_same_bits() -> None:
+    """A Taylor run flushed through a tiny impact table and series buffer equals the run in
+    one pass to the bit (the Taylor step keeps its state in the restart record)."""
+    model = build_model(load_scenario("paper-3.3"), 0.1)
+    args = dict(sample_times=np.linspace(0.0, 0.1, 2001), taylor=ORDER)
+    big = run(model.record, model.options, model.y0, **args)
+    small = run(model.record, model.options, model.y0, row_chunk=7, episode_chunk=8, **args)
+    assert big.episodes.size > 3 and big.stats[0]["taylor_steps"] > 100
+    np.testing.assert_array_equal(small.series, big.series)
+    for name in L.EPISODE_COLUMNS:
+        np.testing.assert_array_equal(small.episodes[name], big.episodes[name], err_msg=name)
+    np.testing.assert_array_equal(small.y, big.y)
+
+
+class _NoSeriesLaw(NamedTuple):
+    stiffness: float
+
+
+@contact_forces.register(_NoSeriesLaw)
+def _no_series_forces(law, p, p_dot, v0):  # type: ignore[no-untyped-def]
+    fk = law.stiffness * p
+    return fk, 0.0, fk
+
+
+def test_a_record_without_series_is_named() -> None:
+    m = ImpactOscillator(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, _NoSeriesLaw(1e6))
+    assert "_NoSeriesLaw (law)" in taylor_capable(m)
+    with pytest.raises(ValueError, match="contact_force_series"):
+        run(m, _into_wall(), np.array([0.0, 0.5, 0.0, 0.0, 0.0]), taylor=ORDER)
+    ok = ImpactOscillator(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, PowerLawContact(1, 1.5, 0))
+    assert taylor_capable(ok) == ""
