@@ -61,46 +61,29 @@ class CompiledOnly(CPUDispatcher):
         )
 
 
-# The floating-point liberties of :func:`series_helper`: sums may be reassociated (into several
-# accumulators, vectorised), multiply-adds contracted, reciprocals used; no NaN or infinity
-# assumptions, which would void the solver's checks of them.
-SERIES_FASTMATH = frozenset({"reassoc", "contract", "arcp", "nsz"})
-
-
-def helper(func: F, fastmath: frozenset[str] = frozenset()) -> F:
+def helper(func: F) -> F:
     """Compile ``func`` as a helper of the compiled core.
 
     No allocation, so compiled without numba's reference counting (NRT), whose atomic
     increment/decrement on every array argument of every call was over half the run time of
     the first kernel (paper-3.4a: 4.5 ms with it, 2.1 ms without); IEEE division (numpy's
     error model); cached on disk; callable from compiled code only (:class:`CompiledOnly`).
-    ``fastmath``: LLVM's fast-math flags for the function and all it inlines.
     """
     if getattr(numba_config, "DISABLE_JIT", False):  # numba's switch to run plain Python
         return func
-    options: dict[str, Any] = {
-        "nopython": True,
-        "error_model": "numpy",
-        "_nrt": False,
-        "no_cpython_wrapper": True,
-        "no_cfunc_wrapper": True,
-    }
-    if fastmath:
-        options["fastmath"] = set(fastmath)
-    disp = CompiledOnly(py_func=func, locals={}, targetoptions=options)
+    disp = CompiledOnly(
+        py_func=func,
+        locals={},
+        targetoptions={
+            "nopython": True,
+            "error_model": "numpy",
+            "_nrt": False,
+            "no_cpython_wrapper": True,
+            "no_cfunc_wrapper": True,
+        },
+    )
     disp.enable_caching()
     return cast(F, disp)
-
-
-def series_helper(func: F) -> F:
-    """A :func:`helper` whose sums may be reassociated (:data:`SERIES_FASTMATH`): for the
-    recurrences of Taylor series, whose coefficient k is a sum of k products. In IEEE order
-    each such sum is one chain of dependent additions, which held a Taylor step's series
-    of order 12 at ~4 cycles per term (the carrier's arctan friction: 255 ns for 12
-    coefficients, 100 ns without its product with the normal force); reassociated, the
-    compiler splits and vectorises it. The results then depend on the rounding of the
-    vector code, the same from run to run on one machine."""
-    return helper(func, SERIES_FASTMATH)
 
 
 # ``_nrt`` is numba's switch for reference counting; its type stubs do not list it
