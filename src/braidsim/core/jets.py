@@ -79,10 +79,19 @@ def jet_pow(A, R, n, k):
         if n == 1.5:  # the Hertz exponent: cheaper than pow
             return a0 * math.sqrt(a0)
         return a0**n
-    acc = 0.0
+    # sum_j (n (k - j) - j) A_{k-j} R_j = n k sum_j A_{k-j} R_j - (n + 1) sum_j j A_{k-j} R_j:
+    # two independent sums (the step waits on chains of dependent additions, not on their
+    # number) and no conversion of j in the loop; the reciprocal is taken apart from them
+    r = 1.0 / (k * A[0])
+    s0 = 0.0
+    s1 = 0.0
+    fj = 0.0
     for j in range(k):
-        acc += (n * (k - j) - j) * A[k - j] * R[j]
-    return acc / (k * A[0])
+        term = A[k - j] * R[j]
+        s0 += term
+        s1 += fj * term
+        fj += 1.0
+    return (n * k * s0 - (n + 1.0) * s1) * r
 
 
 @inline_helper
@@ -103,10 +112,13 @@ def jet_atan(U, W, Z, k):
     W[k] = jet_sq(U, k) + (1.0 if k == 0 else 0.0)
     if k == 0:
         return math.atan(U[0])
+    r = 1.0 / (k * W[0])
     acc = k * U[k]
+    fj = 1.0
     for j in range(1, k):
-        acc -= j * Z[j] * W[k - j]
-    return acc / (k * W[0])
+        acc -= fj * Z[j] * W[k - j]
+        fj += 1.0
+    return acc * r
 
 
 @inline_helper

@@ -420,19 +420,40 @@ R_FR_X = R_LAW_S + SERIES_ROWS
 R_FR_Y = R_FR_X + SERIES_ROWS
 
 
+@inline_helper
+def _constant_speed(hg):
+    """Whether the horn gear turns at the constant omega0 (no harmonics, no profile)."""
+    return hg.harmonics.shape[0] == 0 and hg.profile_times.shape[0] < 2
+
+
 @model_series_start.register(CarrierX)
 @model_series_start.register(CarrierXY)
 def _series_start(model, t, modes, order, W):
-    # the walls to order + 1, for their speeds to order
-    hz = wall_series(model.track, t, order + 1, W[R_H])
-    hz_slot = wall_series(model.horn_gear, t, order + 1, W[R_SL])
-    rc = model.horn_gear.turning_radius
+    # the walls to order + 1, for their speeds to order; a wall the equations do not read
+    # in these modes is left out (the track's when the track pair is free, the slot's in
+    # the x-only model at a constant horn-gear speed, whose omega series is omega0 alone)
+    n_coords, _, _ = model_size(model)
+    hz = math.inf
+    if modes[0] != 0:
+        hz = wall_series(model.track, t, order + 1, W[R_H])
+        for j in range(order + 1):
+            W[R_HD, j] = (j + 1) * W[R_H, j + 1]
+    hg = model.horn_gear
+    W[R_NX, 0] = model.normal_x  # (a constant: the friction reads coefficient 0 only)
+    if n_coords == 1 and _constant_speed(hg):
+        W[R_OM, 0] = hg.omega0
+        W[R_LOAD, 0] = model.mass_radius * hg.omega0 * hg.omega0 + model.load_x
+        for j in range(1, order + 1):
+            W[R_OM, j] = 0.0
+            W[R_LOAD, j] = 0.0
+        return hz
+    hz_slot = wall_series(hg, t, order + 1, W[R_SL])
+    rc = hg.turning_radius
+    irc = 1.0 / rc if rc != 0.0 else 0.0
     for j in range(order + 1):
-        W[R_HD, j] = (j + 1) * W[R_H, j + 1]
         W[R_SD, j] = (j + 1) * W[R_SL, j + 1]
         # omega = s' / r_c (without a turning radius the centrifugal load m r_c omega^2 is 0)
-        W[R_OM, j] = W[R_SD, j] / rc if rc != 0.0 else 0.0
-        W[R_NX, j] = model.normal_x if j == 0 else 0.0
+        W[R_OM, j] = W[R_SD, j] * irc
     for j in range(order + 1):
         # T1 cos(phi) + m r_c omega^2
         W[R_LOAD, j] = model.mass_radius * jet_sq(W[R_OM], j) + (model.load_x if j == 0 else 0.0)
@@ -461,8 +482,8 @@ def _pair_series(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
 def _series(model, k, modes, v0s, n_state, C, W):
     # the equations of motion of the module docstring, coefficient by coefficient
     n_coords, _, _ = model_size(model)
-    k1 = k + 1.0
-    C[0, k + 1] = C[1, k] / k1
+    ik1 = 1.0 / (k + 1.0)
+    C[0, k + 1] = C[1, k] * ik1
     mt = modes[0]
     ms = modes[1] if n_coords == 2 else 0
     fct, nt = _pair_series(
@@ -474,9 +495,9 @@ def _series(model, k, modes, v0s, n_state, C, W):
         model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
     )
     W[R_FX, k] = fx
-    C[1, k + 1] = (-mt * nt - fx - W[R_LOAD, k]) / model.mass / k1
+    C[1, k + 1] = (-mt * nt - fx - W[R_LOAD, k]) * (ik1 / model.mass)
     if n_coords == 2:
-        C[2, k + 1] = C[3, k] / k1
+        C[2, k + 1] = C[3, k] * ik1
         fcs, ns = _pair_series(
             model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
         )
@@ -488,25 +509,30 @@ def _series(model, k, modes, v0s, n_state, C, W):
         )
         W[R_FY, k] = fy
         load_y = model.load_y if k == 0 else 0.0
-        C[3, k + 1] = (-ms * ns - fy + load_y) / model.mass / k1
-    # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...)
+        C[3, k + 1] = (-ms * ns - fy + load_y) * (ik1 / model.mass)
+    # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...); a pair's
+    # terms are 0 while it is free (and its rows are not written then)
     q = 2 * n_coords
     if n_state > q:
-        C[q, k + 1] = jet_mul(W[R_FCT], W[R_PDT], k) / k1
+        C[q, k + 1] = jet_mul(W[R_FCT], W[R_PDT], k) * ik1 if mt != 0 else 0.0
         if n_coords == 2:
-            C[q + 1, k + 1] = jet_mul(W[R_FCS], W[R_PDS], k) / k1
+            C[q + 1, k + 1] = jet_mul(W[R_FCS], W[R_PDS], k) * ik1 if ms != 0 else 0.0
     q += n_coords
     if n_state > q:  # the friction works
-        C[q, k + 1] = jet_mul(W[R_FX], C[1], k) / k1
+        C[q, k + 1] = jet_mul(W[R_FX], C[1], k) * ik1
         if n_coords == 2:
-            C[q + 1, k + 1] = jet_mul(W[R_FY], C[3], k) / k1
+            C[q + 1, k + 1] = jet_mul(W[R_FY], C[3], k) * ik1
     q += n_coords
     if n_state > q:  # all the quadratures
-        C[q, k + 1] = -jet_mul(W[R_LOAD], C[1], k) / k1
-        C[q + 1, k + 1] = -mt * jet_mul(W[R_NT], W[R_HD], k) / k1
+        # (a constant load in the x-only model at a constant speed: one product)
+        if n_coords == 1 and _constant_speed(model.horn_gear):
+            C[q, k + 1] = -W[R_LOAD, 0] * C[1, k] * ik1
+        else:
+            C[q, k + 1] = -jet_mul(W[R_LOAD], C[1], k) * ik1
+        C[q + 1, k + 1] = -mt * jet_mul(W[R_NT], W[R_HD], k) * ik1 if mt != 0 else 0.0
         if n_coords == 2:
-            C[q + 2, k + 1] = (model.load_y * C[3, k]) / k1
-            C[q + 3, k + 1] = -ms * jet_mul(W[R_NS], W[R_SD], k) / k1
+            C[q + 2, k + 1] = (model.load_y * C[3, k]) * ik1
+            C[q + 3, k + 1] = -ms * jet_mul(W[R_NS], W[R_SD], k) * ik1 if ms != 0 else 0.0
             C[q + 4, k + 1] = 0.0
         else:
             C[q + 2, k + 1] = 0.0

@@ -57,7 +57,7 @@ def _forces(law, p, p_dot, v0):
 def _forces_series(law, k, P, v0, S):
     # F_k = K p^n by the power recurrence, which is linear in its result's coefficients, so
     # row 0 of S holds those of K p^n directly; F_c = (D / v0) (F_k p')_k with
-    # p'_j = (j + 1) P[j + 1]; N = F_k + F_c unclamped
+    # p'_j = (j + 1) P[j + 1] in row 1; N = F_k + F_c unclamped
     F = S[0]
     if k == 0:
         p = P[0]
@@ -69,11 +69,15 @@ def _forces_series(law, k, P, v0, S):
     if math.isinf(v0):  # a contact released elastically: no damping term
         return fk, 0.0, fk
     if k == 0:
+        S[1, 0] = P[1]
         fc = fk * law.damping * P[1] / v0
     else:
+        # (the rate p' kept in row 1 as it grows, so the sum converts no index)
+        D = S[1]
+        D[k] = (k + 1) * P[k + 1]
         acc = 0.0
         for j in range(k + 1):
-            acc += F[j] * ((k - j + 1) * P[k - j + 1])
+            acc += F[j] * D[k - j]
         fc = law.damping * acc / v0
     return fk, fc, fk + fc
 
