@@ -43,7 +43,7 @@ STOP_SAFETY = 1e-3
 
 
 # (in IEEE order: with the sums reassociated, which LLVM then vectorises, the carrier's series
-# of order 12 took 1.2-2.2 times as long, on sums of at most 13 terms)
+# of order 12 took 1.1-2.1 times as long, on sums of at most 13 terms)
 @helper
 def taylor_coefficients(model, t, y, modes, v0s, n, C, W, n_dof2, tol_scale, hstop):
     """Fill C[:n, 0..N] (N = C.shape[1] - 1) with the Taylor coefficients of the state at
