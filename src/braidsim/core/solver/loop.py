@@ -10,9 +10,13 @@ on with the same bits as an uninterrupted run (:mod:`braidsim.core.driver` drive
 from __future__ import annotations
 
 import math
+import types
+from typing import Any
 
 import numpy as np
 from numba import njit
+from numba import types as numba_types
+from numba.extending import overload
 
 from braidsim.core.generic import by_ref, helper
 from braidsim.core.interfaces import (
@@ -239,7 +243,7 @@ def integrate(
     # every function below reads the model through one pointer: numba would pass the
     # record to each call field by field, ~65 values for the carrier (see RecordRef)
     model = by_ref(record)
-    n_coords, n_pairs, n_quads = model_size(model)
+    n_coords, _, n_quads = model_size(model)
     n_dof2 = 2 * n_coords
     n = n_dof2
     if opts.energy:
@@ -253,12 +257,6 @@ def integrate(
         or (rows is not None and rows.shape[0] < row_reserve)
     ):
         return ST_BAD_ARRAYS
-    rec = opts.record_events
-    t_end = opts.t_end
-    hmax = opts.max_step
-    stiff_below = STIFF_STEP_FRACTION * hmax
-    st = STATS[0]
-    r = RS[0]
     y1 = np.empty(n)
     yt = np.empty(n)
     ys = np.empty(n)
@@ -269,8 +267,6 @@ def integrate(
     IX = np.zeros(NI)
     K = np.empty((7, n))
     Ke = np.empty((7, n))
-    jac_fresh = False  # the implicit step's Jacobian belongs to the current (t, y)
-    newton_iters = 0
     RC = np.empty((5, n))
     GS = np.empty((4, N_SUB + 1))
     if SENS is not None:
@@ -288,9 +284,55 @@ def integrate(
         prev_peak_t = np.zeros(2)
         if not arrays_fit(SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]):
             return ST_BAD_ARRAYS
+        SW = (KS, RCS, S1, SQ, ss, YS, sw, f_minus, y_minus, prev_depth_t, prev_peak_t)
+    else:
+        SW = None
     modes = np.zeros(2, dtype=np.int64)
     v0s = np.ones(2)
     open_ep = -np.ones(2, dtype=np.int64)
+    work = (y1, yt, ys, yd, ye, INF0, INF1, IX, K, Ke, RC, GS, modes, v0s, open_ep)
+    args = (record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS)
+    return _run_steps(args, SENS, IMP, TAY, work, SW)
+
+
+def _steps(
+    record,
+    opts,
+    y,
+    RS,
+    ST,
+    TR,
+    WIN,
+    rows,
+    row_reserve,
+    EP,
+    RANGES,
+    XSQ,
+    STATS,
+    SENS,
+    IMP,
+    TAY,
+    work,
+    SW,
+):
+    """The steps of :func:`integrate` (same arguments), on the work arrays it allocated:
+    ``work`` and, with sensitivities, ``SW``."""
+    model = by_ref(record)
+    n_coords, n_pairs, _ = model_size(model)
+    n_dof2 = 2 * n_coords
+    n = y.shape[0]  # (the state's size, checked by integrate)
+    rec = opts.record_events
+    t_end = opts.t_end
+    hmax = opts.max_step
+    stiff_below = STIFF_STEP_FRACTION * hmax
+    st = STATS[0]
+    r = RS[0]
+    y1, yt, ys, yd, ye, INF0, INF1, IX, K, Ke, RC, GS, modes, v0s, open_ep = work
+    jac_fresh = False  # the implicit step's Jacobian belongs to the current (t, y)
+    newton_iters = 0
+    if SENS is not None:
+        nsens = SENS.S.shape[0]
+        KS, RCS, S1, SQ, ss, YS, sw, f_minus, y_minus, prev_depth_t, prev_peak_t = SW
     modes[0] = int(r.mode_0)
     modes[1] = int(r.mode_1)
     v0s[0] = r.v0_0
@@ -950,3 +992,38 @@ def integrate(
     r.rows = nrow
     r.episodes = nep
     return status
+
+
+def _renamed(func: Any, name: str) -> Any:
+    """A copy of the function ``func`` under another name (its own entry in numba's cache,
+    which files a compiled function by its qualified name)."""
+    copy = types.FunctionType(
+        func.__code__, func.__globals__, name, func.__defaults__, func.__closure__
+    )
+    copy.__qualname__ = name
+    copy.__doc__ = func.__doc__
+    return copy
+
+
+# The loop proper is compiled twice. Without sensitivities it runs without numba's reference
+# counting (NRT), like the helpers it calls: inside ``integrate`` every array view it made (a
+# row K[0], a field TAY.C) was counted with an atomic increment and decrement at every use
+# (paper-3.3 and 3.4a 6-10 % faster without, the same bits: best of 30 runs in each of 5-6
+# alternated processes). With sensitivities it reads the
+# tangent records from a typed list, which needs NRT.
+_steps_sens = njit(cache=True, error_model="numpy")(_renamed(_steps, "_steps_sens"))
+_steps = helper(_steps)
+
+
+def _run_steps(args, SENS, IMP, TAY, work, SW):
+    """``_steps`` or ``_steps_sens``, by the type of ``SENS`` (compiled code only)."""
+    raise NotImplementedError
+
+
+# (an overload, because numba types both branches of ``if SENS is None`` for a SENS that is
+# not None, and ``_steps`` cannot be compiled for one)
+@overload(_run_steps)
+def _run_steps_typer(args, SENS, IMP, TAY, work, SW):
+    if isinstance(SENS, numba_types.NoneType):
+        return lambda args, SENS, IMP, TAY, work, SW: _steps(*args, SENS, IMP, TAY, work, SW)  # type: ignore[call-arg]
+    return lambda args, SENS, IMP, TAY, work, SW: _steps_sens(*args, SENS, IMP, TAY, work, SW)
