@@ -1009,8 +1009,8 @@ def _renamed(func: Any, name: str) -> Any:
 # counting (NRT), like the helpers it calls: inside ``integrate`` every array view it made (a
 # row K[0], a field TAY.C) was counted with an atomic increment and decrement at every use
 # (paper-3.3 and 3.4a 6-10 % faster without, the same bits: best of 30 runs in each of 5-6
-# alternated processes). With sensitivities it reads the
-# tangent records from a typed list, which needs NRT.
+# alternated processes). With sensitivities it reads the tangent records from a typed list,
+# which needs NRT.
 _steps_sens = njit(cache=True, error_model="numpy")(_renamed(_steps, "_steps_sens"))
 _steps = helper(_steps)
 
