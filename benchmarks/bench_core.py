@@ -146,10 +146,12 @@ class Peer:
 
 
 class BraidsimPeer(Peer):
-    name = "braidsim simulate()"
+    """braidsim's public call with the scenario's ``simulation.integrator``: Dormand-Prince
+    throughout, or Taylor-series steps where they are longer."""
 
-    def __init__(self, sc: Scenario) -> None:
-        self.sc = sc
+    def __init__(self, sc: Scenario, integrator: str = "dormand-prince") -> None:
+        self.sc = sc.with_overrides({"simulation.integrator": integrator})
+        self.name = "braidsim simulate()" + (" taylor" if integrator == "taylor" else "")
         self.scs: dict[float, Scenario] = {}
 
     def scenario(self, rtol: float) -> Scenario:
@@ -297,6 +299,8 @@ def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
         f"the lean loop at the same tolerances differs by {chk:.1e} (peak force)"
     )
     compare(BraidsimPeer(sc), lean, ref, repeats)
+    print("   with Taylor-series steps (simulation.integrator = taylor):")
+    compare(BraidsimPeer(sc, "taylor"), lean, ref, repeats)
 
 
 def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
@@ -589,20 +593,23 @@ def part_batch(sc: Scenario, args: argparse.Namespace) -> None:
         f"\n== batch: simulate_batch of {n} one-second {SCENARIO} runs "
         "(h_a 0.11-0.13 mm), one worker"
     )
-    simulate_batch(sc, sets[:1], 0.01)
-    best = math.inf
-    out = None
-    for _ in range(max(1, repeats // 5)):
-        c0 = time.process_time()
-        out = simulate_batch(sc, sets, 1.0, workers=1)
-        best = min(best, time.process_time() - c0)
-    assert out is not None
-    print(
-        f"   {n / best:.1f} one-second runs per CPU second ({best / n * 1e3:.2f} ms CPU per run; "
-        f"median {np.median(out.metrics['steps']):.0f} steps, "
-        f"{np.median(out.metrics['rhs_evaluations']):.0f} rhs evaluations per run; "
-        f"failed runs: {int(out.failed.sum())})"
-    )
+    for integrator in ("dormand-prince", "taylor"):
+        sci = sc.with_overrides({"simulation.integrator": integrator})
+        simulate_batch(sci, sets[:1], 0.01)
+        best = math.inf
+        out = None
+        for _ in range(max(1, repeats // 5)):
+            c0 = time.process_time()
+            out = simulate_batch(sci, sets, 1.0, workers=1)
+            best = min(best, time.process_time() - c0)
+        assert out is not None
+        print(
+            f"   {integrator}: {n / best:.1f} one-second runs per CPU second "
+            f"({best / n * 1e3:.2f} ms CPU per run; "
+            f"median {np.median(out.metrics['steps']):.0f} steps, "
+            f"{np.median(out.metrics['rhs_evaluations']):.0f} rhs evaluations per run; "
+            f"failed runs: {int(out.failed.sum())})"
+        )
     # the yardstick on the same sets at the scenario's tolerances: the lean loop's episodes only
     res = braidsim_call(sc)
     q0 = lean_dp5.lean_params(sc, res.stats["track_stiffness"], res.stats["track_damping_factor"])
