@@ -2,7 +2,9 @@
 balances and the Dormand-Prince runs of the same models.
 
 A run with ``taylor=12`` takes Taylor steps wherever they are longer than the Dormand-Prince
-step; these tests check that most of its steps are Taylor steps, so that they test them."""
+step; these tests check that most of its steps are Taylor steps, so that they test them.
+Those that compile the solver once more for a model or an output of their own are marked
+slow (``pytest -m slow``)."""
 
 from __future__ import annotations
 
@@ -103,6 +105,7 @@ def test_energy_balance_of_the_forced_oscillator() -> None:
     assert e1 == pytest.approx(0.5 * m * 0.2**2 - diss - visc + work, abs=1e-9 * max(1.0, work))
 
 
+@pytest.mark.slow  # (its own compile of the solver, ~30 s)
 @pytest.mark.parametrize("tension", [True, False])
 def test_kelvin_voigt_impact(tension: bool) -> None:
     """With tension allowed, half a damped period at exactly e; clamped, the Taylor steps
@@ -124,6 +127,7 @@ def test_kelvin_voigt_impact(tension: bool) -> None:
         assert ep[col] == pytest.approx(ref[col], rel=1e-8), col
 
 
+@pytest.mark.slow  # (its own compile of the solver, ~30 s)
 def test_viscous_friction_decays_the_speed_exponentially() -> None:
     """The carrier in a wide gap, friction b v only: x' = v0 exp(-b t / m)."""
     b, v0, T = 3.0, 0.2, 0.4
@@ -146,7 +150,9 @@ def test_viscous_friction_decays_the_speed_exponentially() -> None:
     assert _taylor_share(raw) > 0.95
 
 
-@pytest.mark.parametrize("scenario", ["paper-3.3", "paper-3.4a"])
+@pytest.mark.parametrize(
+    "scenario", ["paper-3.3", pytest.param("paper-3.4a", marks=pytest.mark.slow)]
+)
 def test_carrier_runs_agree_with_dormand_prince(scenario: str) -> None:
     """The x-only paper-3.3 and the xy paper-3.4a carrier: impact table of the Taylor run
     against the Dormand-Prince run, both at tight tolerances, and the same energy balance."""
@@ -169,6 +175,7 @@ def test_carrier_runs_agree_with_dormand_prince(scenario: str) -> None:
     )
 
 
+@pytest.mark.slow  # (its own compile of the solver, with a series buffer, ~30 s)
 def test_restarts_give_the_same_bits() -> None:
     """A Taylor run flushed through a tiny impact table and series buffer equals the run in
     one pass to the bit (the Taylor step keeps its state in the restart record)."""
