@@ -30,7 +30,7 @@ def enabled(quiet: bool = False) -> bool:
 
 #: the compiled entry point of the solver: (file under braidsim/, function name) (the check
 #: must not import it)
-ENTRY_POINTS = (("core/solver/loop.py", "_steps"),)
+ENTRY_POINTS = (("core/solver/loop.py", "integrate"),)
 
 
 def kernel_needs_compile() -> bool:

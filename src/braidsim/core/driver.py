@@ -19,7 +19,7 @@ import numpy as np
 from braidsim.core import interfaces as I
 from braidsim.core import layout as L
 from braidsim.core.interfaces import dissipation_index, model_size, series_columns
-from braidsim.core.solver.loop import EPISODE_RESERVE, EVENT_ROWS, integrate, work_arrays
+from braidsim.core.solver.loop import EPISODE_RESERVE, EVENT_ROWS, integrate
 
 SeriesSink = Callable[[np.ndarray], None]
 """Receives each chunk of series rows (a (rows, columns) array, a copy it may keep)."""
@@ -325,26 +325,9 @@ def run(
     written = 0
     event_rows = 0  # of those, the rows that are not samples (start, onsets, peaks, ...)
     i_kind = list(series_columns(model)).index("kind")
-    work = work_arrays(n, 2 * model_sizes(model)[0], SENS)
     while True:
         status = integrate(
-            model,
-            opts,
-            y,
-            RS,
-            ST,
-            TR,
-            WIN,
-            rows,
-            reserve,
-            EP,
-            RANGES,
-            XSQ,
-            STATS,
-            SENS,
-            IMP,
-            TAY,
-            work,
+            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
         )
         r = RS[0]
         final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)

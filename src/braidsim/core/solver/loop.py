@@ -10,8 +10,6 @@ on with the same bits as an uninterrupted run (:mod:`braidsim.core.driver` drive
 from __future__ import annotations
 
 import math
-import types
-from typing import Any
 
 import numpy as np
 from numba import njit
@@ -188,64 +186,11 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
     return nep
 
 
-def work_arrays(n: int, n_dof2: int, SENS: Any) -> tuple[tuple[np.ndarray, ...], Any]:
-    """The work arrays of :func:`integrate` for a state of n components (2 n_coords = n_dof2
-    of them coordinates and speeds) and the sensitivities ``SENS`` (``None``: none)."""
-    work = (
-        np.empty(n),  # y1: the state at the end of the step
-        np.empty(n),  # yt: a stage's state
-        np.empty(n),  # ys: the state inside a step (events, samples)
-        np.empty(n),  # yd: a derivative inside a step
-        np.empty(n),  # ye: the state at an event
-        np.zeros((2, NI)),  # INF0: pair summaries at the start of the step (the end of the last)
-        np.zeros((2, NI)),  # INF1: ... at its end
-        np.zeros(NI),  # IX
-        np.empty((7, n)),  # K: the stages
-        np.empty((7, n)),  # Ke: the stages of the step recomputed to an event
-        np.empty((5, n)),  # RC: the interpolant
-        np.empty((4, N_SUB + 1)),  # GS: event functions sampled over a step
-        np.zeros(2, dtype=np.int64),  # modes
-        np.ones(2),  # v0s
-        -np.ones(2, dtype=np.int64),  # open_ep
-    )
-    if SENS is None:
-        return work, None
-    nsens = SENS.S.shape[0]
-    sens_work = (
-        np.empty((nsens, 7, n_dof2)),  # KS
-        np.empty((nsens, 5, n_dof2)),  # RCS
-        np.empty((nsens, n_dof2)),  # S1
-        np.empty((nsens, n_dof2)),  # SQ: tangents at an instant inside a step
-        np.empty(n_dof2),  # ss
-        np.empty((7, n_dof2)),  # YS: stage states of a step, for the tangents
-        np.empty(n_dof2),  # sw
-        np.empty(n_dof2),  # f_minus
-        np.empty(n),  # y_minus
-        np.zeros(2),  # prev_depth_t
-        np.zeros(2),  # prev_peak_t
-    )
-    return work, sens_work
-
-
+# nogil: the loop touches no Python object, so runs of a batch overlap on threads
+@njit(cache=True, error_model="numpy", nogil=True)
 def integrate(
-    record: Any,
-    opts: Any,
-    y: np.ndarray,
-    RS: np.ndarray,
-    ST: np.ndarray,
-    TR: np.ndarray,
-    WIN: np.ndarray,
-    rows: np.ndarray | None,
-    row_reserve: int,
-    EP: np.ndarray,
-    RANGES: np.ndarray,
-    XSQ: np.ndarray | None,
-    STATS: np.ndarray,
-    SENS: Any,
-    IMP: Any,
-    TAY: Any,
-    work: tuple[tuple[np.ndarray, ...], Any],
-) -> int:
+    record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
+):
     """Integrate the model ``record`` from the restart record to ``opts.t_end``; returns a
     status.
 
@@ -290,68 +235,62 @@ def integrate(
         The work arrays of the Taylor-series step (:mod:`braidsim.core.solver.taylor`),
         taken where it is longer than the Runge-Kutta step; ``None`` compiles it out. The
         model must give its series (:func:`~braidsim.core.interfaces.model_series`).
-    work : tuple
-        The loop's work arrays, from :func:`work_arrays` for this state and these
-        sensitivities (kept across the calls of one run).
     """
-    loop, sens_work = work
+    # every function below reads the model through one pointer: numba would pass the
+    # record to each call field by field, ~65 values for the carrier (see RecordRef)
+    model = by_ref(record)
+    n_coords, n_pairs, n_quads = model_size(model)
+    n_dof2 = 2 * n_coords
+    n = n_dof2
+    if opts.energy:
+        # a prefix of the quadratures (the dissipations, then the friction works, come first)
+        n += n_quads if opts.quadratures < 0 else min(opts.quadratures, n_quads)
     if (
-        y.shape[0] != loop[0].shape[0]
+        y.shape[0] != n
         or WIN.shape[0] != RANGES.shape[0]
         or (XSQ is not None and XSQ.shape[0] != WIN.shape[0])
         or EP.shape[0] < EPISODE_RESERVE
         or (rows is not None and rows.shape[0] < row_reserve)
     ):
         return ST_BAD_ARRAYS
-    args = (record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS)
-    if SENS is None:
-        return int(_steps(*args, SENS, IMP, TAY, loop, sens_work))
-    n_dof2 = sens_work[0].shape[2]
-    if sens_work[8].shape[0] != y.shape[0] or not arrays_fit(
-        SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]
-    ):
-        return ST_BAD_ARRAYS
-    return int(_steps_sens(*args, SENS, IMP, TAY, loop, sens_work))
-
-
-def _steps(
-    record,
-    opts,
-    y,
-    RS,
-    ST,
-    TR,
-    WIN,
-    rows,
-    row_reserve,
-    EP,
-    RANGES,
-    XSQ,
-    STATS,
-    SENS,
-    IMP,
-    TAY,
-    work,
-    SW,
-):
-    """The steps of :func:`integrate` (same arguments), on the work arrays of
-    :func:`work_arrays`: ``work`` and, with sensitivities, ``SW``."""
-    model = by_ref(record)
-    n_coords, n_pairs, _ = model_size(model)
-    n_dof2 = 2 * n_coords
-    n = y.shape[0]  # (the state's size, checked by integrate)
     rec = opts.record_events
     t_end = opts.t_end
     hmax = opts.max_step
     stiff_below = STIFF_STEP_FRACTION * hmax
     st = STATS[0]
     r = RS[0]
-    y1, yt, ys, yd, ye, INF0, INF1, IX, K, Ke, RC, GS, modes, v0s, open_ep = work
+    y1 = np.empty(n)
+    yt = np.empty(n)
+    ys = np.empty(n)
+    yd = np.empty(n)
+    ye = np.empty(n)
+    INF0 = np.zeros((2, NI))  # pair summaries at the start of the step (the end of the last)
+    INF1 = np.zeros((2, NI))  # ... at its end
+    IX = np.zeros(NI)
+    K = np.empty((7, n))
+    Ke = np.empty((7, n))
     jac_fresh = False  # the implicit step's Jacobian belongs to the current (t, y)
     newton_iters = 0
+    RC = np.empty((5, n))
+    GS = np.empty((4, N_SUB + 1))
     if SENS is not None:
         nsens = SENS.S.shape[0]
-        KS, RCS, S1, SQ, ss, YS, sw, f_minus, y_minus, prev_depth_t, prev_peak_t = SW
+        KS = np.empty((nsens, 7, n_dof2))
+        RCS = np.empty((nsens, 5, n_dof2))
+        S1 = np.empty((nsens, n_dof2))
+        SQ = np.empty((nsens, n_dof2))  # tangents at an instant inside a step
+        ss = np.empty(n_dof2)
+        YS = np.empty((7, n_dof2))  # stage states of a step, for the tangents
+        sw = np.empty(n_dof2)
+        f_minus = np.empty(n_dof2)
+        y_minus = np.empty(n)
+        prev_depth_t = np.zeros(2)
+        prev_peak_t = np.zeros(2)
+        if not arrays_fit(SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]):
+            return ST_BAD_ARRAYS
+    modes = np.zeros(2, dtype=np.int64)
+    v0s = np.ones(2)
+    open_ep = -np.ones(2, dtype=np.int64)
     modes[0] = int(r.mode_0)
     modes[1] = int(r.mode_1)
     v0s[0] = r.v0_0
@@ -1011,29 +950,3 @@ def _steps(
     r.rows = nrow
     r.episodes = nep
     return status
-
-
-def _renamed(func: Any, name: str) -> Any:
-    """A copy of the function ``func`` under another name (its own entry in numba's cache,
-    which files a compiled function by its qualified name)."""
-    copy = types.FunctionType(
-        func.__code__, func.__globals__, name, func.__defaults__, func.__closure__
-    )
-    copy.__qualname__ = name
-    copy.__doc__ = func.__doc__
-    return copy
-
-
-# The loop proper is compiled twice. Without sensitivities it runs without numba's reference
-# counting (NRT), like the helpers it calls: when it allocated its work arrays itself, every
-# array view it made (a row K[0], a field TAY.C) was counted with an atomic increment and
-# decrement at every use (paper-3.3 and 3.4a 6-10 % faster without, the same bits: best of
-# 30 runs in each of 5-6 alternated processes). With sensitivities it reads the tangent
-# records from a typed list, which needs NRT. Both are called from Python: under a compiled caller,
-# which picked the variant through an overload, the big function was linked and optimised
-# at two more levels, and the cold compile of a run took 5-6 s more (35.5-36.3 against 30.1
-# s, one run each); nogil: the loop touches no Python object, so runs of a batch overlap on
-# threads.
-_steps_sens = njit(cache=True, error_model="numpy", nogil=True)(_renamed(_steps, "_steps_sens"))
-# (``_nrt`` is numba's switch for reference counting; its type stubs do not list it)
-_steps = njit(cache=True, error_model="numpy", nogil=True, _nrt=False)(_steps)  # type: ignore[call-overload]
