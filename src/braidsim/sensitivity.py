@@ -218,25 +218,27 @@ def check_differentiable(record: Any) -> None:
     function), whatever the field that holds it."""
     from braidsim.core import interfaces as I
 
-    for fn in (I.derivatives_jvp, I.pair_gaps_jvp, I.pair_law_jvp, I.apply_transfer_jvp):
-        if type(record) not in fn.generic.impls:
-            raise InputError(
-                f"sensitivity: the model {type(record).__name__} has no tangents (register "
-                f"{fn.__name__} for it)"
-            )
-    roles = (
-        (I.contact_forces, I.contact_forces_jvp),
-        (I.friction_force, I.friction_force_jvp),
-        (I.wall_motion, I.wall_motion_jvp),
+    missing = I.first_missing(
+        record,
+        (I.derivatives_jvp, I.pair_gaps_jvp, I.pair_law_jvp, I.apply_transfer_jvp),
+        (
+            (I.contact_forces, I.contact_forces_jvp),
+            (I.friction_force, I.friction_force_jvp),
+            (I.wall_motion, I.wall_motion_jvp),
+        ),
     )
-    for field in getattr(record, "_fields", ()):
-        sub = getattr(record, field)
-        for primal, tangent in roles:
-            if type(sub) in primal.generic.impls and type(sub) not in tangent.generic.impls:
-                raise InputError(
-                    f"sensitivity: {type(sub).__name__} ({field}) does not provide its "
-                    f"derivatives (register {tangent.__name__} for it)"
-                )
+    if missing is None:
+        return
+    field, sub, fn = missing
+    if sub is None:
+        raise InputError(
+            f"sensitivity: the model {type(record).__name__} has no tangents (register "
+            f"{fn.__name__} for it)"
+        )
+    raise InputError(
+        f"sensitivity: {type(sub).__name__} ({field}) does not provide its derivatives "
+        f"(register {fn.__name__} for it)"
+    )
 
 
 @dataclass

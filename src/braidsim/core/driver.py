@@ -192,20 +192,21 @@ def taylor_capable(model: Any) -> str:
     :func:`~braidsim.core.interfaces.model_series` and its start, and each physics record in
     its fields (found by the role it plays: a contact law, a friction law, an excitation)
     the series of its function."""
-    for fn in (I.model_series, I.model_series_start):
-        if type(model) not in fn.generic.impls:
-            return f"the model {type(model).__name__} gives no Taylor series ({fn.__name__})"
-    roles = (
-        (I.contact_forces, I.contact_force_series),
-        (I.friction_force, I.friction_force_series),
-        (I.wall_motion, I.wall_series),
+    missing = I.first_missing(
+        model,
+        (I.model_series, I.model_series_start),
+        (
+            (I.contact_forces, I.contact_force_series),
+            (I.friction_force, I.friction_force_series),
+            (I.wall_motion, I.wall_series),
+        ),
     )
-    for field in getattr(model, "_fields", ()):
-        sub = getattr(model, field)
-        for primal, series in roles:
-            if type(sub) in primal.generic.impls and type(sub) not in series.generic.impls:
-                return f"{type(sub).__name__} ({field}) gives no Taylor series ({series.__name__})"
-    return ""
+    if missing is None:
+        return ""
+    field, sub, fn = missing
+    if sub is None:
+        return f"the model {type(model).__name__} gives no Taylor series ({fn.__name__})"
+    return f"{type(sub).__name__} ({field}) gives no Taylor series ({fn.__name__})"
 
 
 def max_samples_per_step(sample_times: np.ndarray, max_step: float) -> int:

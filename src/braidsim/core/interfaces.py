@@ -47,6 +47,23 @@ def describe_model(cls: type, columns: tuple[str, ...], quads: tuple[str, ...]) 
     _QUADS[cls] = quads
 
 
+def first_missing(record: Any, model_functions: Any, roles: Any) -> tuple[str, Any, Any] | None:
+    """What a model record lacks of a group of generic functions (its tangents, its series):
+    ``("", None, fn)`` for the first of ``model_functions`` not registered for the record's
+    class; ``(field, value, companion)`` for the first field whose value implements the
+    primal of a ``(primal, companion)`` pair of ``roles`` (a contact law, a friction law, an
+    excitation, whatever the field's name) but not the companion; ``None`` when nothing."""
+    for fn in model_functions:
+        if type(record) not in fn.generic.impls:
+            return "", None, fn
+    for field in getattr(record, "_fields", ()):
+        sub = getattr(record, field)
+        for primal, companion in roles:
+            if type(sub) in primal.generic.impls and type(sub) not in companion.generic.impls:
+                return field, sub, companion
+    return None
+
+
 def series_columns(model: Any) -> tuple[str, ...]:
     """The columns of the sampled series of ``model`` (a record or its class)."""
     return _COLUMNS[model if isinstance(model, type) else type(model)]
