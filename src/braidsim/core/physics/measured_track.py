@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from braidsim.core.generic import helper
+from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp, wall_series
 
 _UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "m": 1.0, "mm": 1e-3, "um": 1e-6}
@@ -89,14 +89,18 @@ def _piece(tr, t):
     return i, ts[0] + tau - ts[i]
 
 
-@wall_motion.register(MeasuredTrack)
-def _motion(ex, t):
+@inline_helper
+def _cubic(ex, t):
+    """(piece index, local time s, c3, c2, c1, c0): the cubic c3 s^3 + c2 s^2 + c1 s + c0 of
+    the piece holding t."""
     i, s = _piece(ex, t)
     c = ex.coeffs
-    c3 = c[0, i]
-    c2 = c[1, i]
-    c1 = c[2, i]
-    c0 = c[3, i]
+    return i, s, c[0, i], c[1, i], c[2, i], c[3, i]
+
+
+@wall_motion.register(MeasuredTrack)
+def _motion(ex, t):
+    _, s, c3, c2, c1, c0 = _cubic(ex, t)
     h = ((c3 * s + c2) * s + c1) * s + c0
     hd = (3.0 * c3 * s + 2.0 * c2) * s + c1
     hdd = 6.0 * c3 * s + 2.0 * c2
@@ -107,12 +111,7 @@ def _motion(ex, t):
 def _series(ex, t, order, H):
     # the cubic c3 s^3 + c2 s^2 + c1 s + c0 of the piece holding t, about its local time s:
     # h(t + tau) = h + h' tau + (3 c3 s + c2) tau^2 + c3 tau^3, up to the piece's end
-    i, s = _piece(ex, t)
-    c = ex.coeffs
-    c3 = c[0, i]
-    c2 = c[1, i]
-    c1 = c[2, i]
-    c0 = c[3, i]
+    i, s, c3, c2, c1, c0 = _cubic(ex, t)
     H[0] = ((c3 * s + c2) * s + c1) * s + c0
     for k in range(1, order + 1):
         H[k] = 0.0
