@@ -504,53 +504,54 @@ def integrate(
                     r.taylor_wait = RETEST - 1.0
                     h = ht
                     hits_stop = False
-        if took_taylor:
-            pass
-        elif IMP is None:
-            rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
-            st.rhs_evaluations += 6
-            nsteps += 1
-            err = error_norm(y, y1, h, K, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity)
-        else:
-            evals_before = st.rhs_evaluations
-            if r.implicit:
-                took_implicit = True
-                nsteps += 1
-                code, err, newton_iters, nfev = implicit_attempt(
-                    model,
-                    t,
-                    y,
-                    h,
-                    K,
-                    modes,
-                    v0s,
-                    n,
-                    n_dof2,
-                    opts,
-                    jac_fresh,
-                    IMP,
-                    y1,
-                    RC,
-                    r.implicit_prev_h,
-                )
-                st.rhs_evaluations += nfev
-                jac_fresh = True
-                if code != ATTEMPT_OK:
-                    # the collocation equations did not converge (or a system is singular):
-                    # a shorter step
-                    if h < 1e-14 * max(1.0, t):
-                        status = ST_STEP_COLLAPSE
-                        break
-                    h *= 0.5
-                    st.rejected_steps += 1
-                    continue
-            else:
+        if not took_taylor:  # (the Taylor step was taken above)
+            if IMP is None:
                 rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
                 st.rhs_evaluations += 6
                 nsteps += 1
                 err = error_norm(
                     y, y1, h, K, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity
                 )
+            else:
+                evals_before = st.rhs_evaluations
+                if r.implicit:
+                    took_implicit = True
+                    nsteps += 1
+                    code, err, newton_iters, nfev = implicit_attempt(
+                        model,
+                        t,
+                        y,
+                        h,
+                        K,
+                        modes,
+                        v0s,
+                        n,
+                        n_dof2,
+                        opts,
+                        jac_fresh,
+                        IMP,
+                        y1,
+                        RC,
+                        r.implicit_prev_h,
+                    )
+                    st.rhs_evaluations += nfev
+                    jac_fresh = True
+                    if code != ATTEMPT_OK:
+                        # the collocation equations did not converge (or a system is singular):
+                        # a shorter step
+                        if h < 1e-14 * max(1.0, t):
+                            status = ST_STEP_COLLAPSE
+                            break
+                        h *= 0.5
+                        st.rejected_steps += 1
+                        continue
+                else:
+                    rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
+                    st.rhs_evaluations += 6
+                    nsteps += 1
+                    err = error_norm(
+                        y, y1, h, K, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity
+                    )
         if onset_q > 0.0:
             # the first step of a contact: its estimate misses the tau^n onset (on paper-3.3
             # this makes the peak forces about five times more accurate at the same cost)
@@ -658,20 +659,6 @@ def integrate(
         elif not took_implicit and not took_taylor:
             dense_coeffs(y, y1, h, K, RC, n)
         pair_infos(model, n_pairs, t + h, y1, K[6], modes, v0s, INF1)
-        if TAY is not None:
-            if took_taylor:
-                # a contact force that the law's clamp holds at 0 by the end of the step is
-                # not the series of the unclamped force: the step is taken again by the
-                # Runge-Kutta method
-                clamped = False
-                for pair in range(n_pairs):
-                    if modes[pair] != 0 and INF1[pair, I_FK] + INF1[pair, I_FC] < 0.0:
-                        clamped = True
-                if clamped:
-                    h = h_rk
-                    force_rk = True
-                    st.rejected_steps += 1
-                    continue
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
@@ -683,14 +670,21 @@ def integrate(
                     theta_ev = th
                     j_ev = j
         if TAY is not None:
-            if took_taylor and j_ev >= 0 and modes[j_ev // 2] != 0:
-                # an exit: the contact force's series ends there (the branch point of
-                # p^n at p = 0), so the polynomial does not hold up to it; the Runge-Kutta
-                # step finds it
-                h = h_rk
-                force_rk = True
-                st.rejected_steps += 1
-                continue
+            if took_taylor:
+                # the Taylor step is taken again by the Runge-Kutta method where its
+                # polynomial is not the solution: past an exit (the contact force's series
+                # ends at the branch point of p^n at p = 0), or where the law's clamp holds
+                # a contact force at 0 by the end of the step (not the series of the
+                # unclamped force)
+                refused = j_ev >= 0 and modes[j_ev // 2] != 0
+                for pair in range(n_pairs):
+                    if modes[pair] != 0 and INF1[pair, I_FK] + INF1[pair, I_FC] < 0.0:
+                        refused = True
+                if refused:
+                    h = h_rk
+                    force_rk = True
+                    st.rejected_steps += 1
+                    continue
         if j_ev >= 0:
             # recompute the step exactly to the event time
             he = theta_ev * h
