@@ -20,7 +20,8 @@ from numba import njit
 from braidsim import contact
 from braidsim.core import ImpactOscillator, PowerLawContact, derivatives, run, state_size
 from braidsim.core import layout as L
-from braidsim.core.solver.dopri5 import dense_coeffs, dense_deriv, dense_eval, rk_step
+from braidsim.core.solver.dense import dense_deriv, dense_eval
+from braidsim.core.solver.dopri5 import dense_coeffs, rk_step
 from braidsim.core.solver.pairs import I_DFC, I_DN, I_FC, I_FK, I_N, I_P, I_PD, NI, pair_info
 from braidsim.model import build_model
 from braidsim.params import load_scenario

@@ -92,7 +92,7 @@ inline_helper = njit(  # the smallest, hottest ones are inlined into their calle
 )  # type: ignore[call-overload]
 
 
-def _overload_inlined(stub: Callable[..., Any], typer: Callable[..., Any]) -> None:
+def overload_inlined(stub: Callable[..., Any], typer: Callable[..., Any]) -> None:
     """``numba.extending.overload(stub, inline="always")(typer)``, without the compile of each
     implementation on its own.
 
@@ -254,7 +254,7 @@ class GenericFunction:
         }
         exec(src, namespace)  # a fixed template over the stub's parameter names
         if inline:
-            _overload_inlined(stub, namespace["typer"])
+            overload_inlined(stub, namespace["typer"])
         else:
             overload(stub, inline="never")(namespace["typer"])
         self.inline = inline
@@ -302,7 +302,7 @@ def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> A
     field (the carrier's are about 65 with its tables), which cost more than the work of
     the small functions here. Measured on paper-3.3: 193 ns per right-hand-side evaluation
     with calls, 134 ns inlined (an inlined implementation is typed, never compiled alone:
-    see :func:`_overload_inlined`). The solver's own helpers, which are called, get the
+    see :func:`overload_inlined`). The solver's own helpers, which are called, get the
     model as a :class:`RecordRef` (:func:`by_ref`) instead.
 
     Returns the stub itself (compiled code resolves calls to it by name), carrying

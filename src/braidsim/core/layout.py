@@ -175,8 +175,7 @@ class TaylorWork(NamedTuple):
 def taylor_work(n: int, order: int) -> TaylorWork:
     """Work arrays of a Taylor step of ``order`` (>= 6) for n state components."""
     if order < 6:
-        # (the dense output's readers tell a Taylor polynomial from the Runge-Kutta
-        # interpolant's 5 rows by its number of rows)
+        # (the step stands in for the Dormand-Prince pair, of order 5, where it is longer)
         raise ValueError(f"taylor order: {order}; allowed >= 6")
     return TaylorWork(
         np.zeros((n, order + 1)), np.zeros((TAYLOR_ROWS, order + 2)), np.zeros((order + 1, n))

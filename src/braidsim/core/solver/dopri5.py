@@ -162,46 +162,19 @@ def dense_coeffs(y, y1, h, K, RC, n):
         )
 
 
-# A step's dense output is one of two polynomials in theta, told apart by their number of
-# rows: this pair's continuous extension (5 rows, the nested form below) or the Taylor
-# polynomial of a Taylor step (sum_k RC[k] theta^k, at least 7 rows: the order is >= 6,
-# :func:`braidsim.core.layout.taylor_work`).
-DENSE_ROWS = 5
-
-
 @inline_helper
-def dense_component(theta, RC, i):
-    """Component i of the state at fraction theta of the step."""
-    if RC.shape[0] != DENSE_ROWS:
-        deg = RC.shape[0] - 1
-        acc = RC[deg, i]
-        for k in range(deg - 1, -1, -1):
-            acc = acc * theta + RC[k, i]
-        return acc
+def interpolant_component(theta, RC, i):
+    """Component i of the state at fraction theta of the step, on the continuous extension
+    (the nested form of DOPRI5's CONTD5)."""
     th1 = 1.0 - theta
     return RC[0, i] + theta * (RC[1, i] + th1 * (RC[2, i] + theta * (RC[3, i] + th1 * RC[4, i])))
 
 
 @inline_helper
-def dense_eval(theta, RC, out, n):
-    """The state at fraction theta of the step."""
-    for i in range(n):
-        out[i] = dense_component(theta, RC, i)
-
-
-@inline_helper
-def dense_deriv(theta, h, RC, out, n):
+def interpolant_deriv(theta, h, RC, out, n):
     """Time derivative of the continuous extension at theta for the first ``n`` components
-    (d/dtheta of :func:`dense_eval`, divided by h); it equals the RK derivative at both
-    ends of the step."""
-    if RC.shape[0] != DENSE_ROWS:
-        deg = RC.shape[0] - 1
-        for i in range(n):
-            acc = deg * RC[deg, i]
-            for k in range(deg - 1, 0, -1):
-                acc = acc * theta + k * RC[k, i]
-            out[i] = acc / h
-        return
+    (d/dtheta of :func:`interpolant_component`, divided by h); it equals the RK derivative
+    at both ends of the step."""
     th1 = 1.0 - theta
     for i in range(n):
         b = RC[3, i] + th1 * RC[4, i]

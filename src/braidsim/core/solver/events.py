@@ -18,7 +18,7 @@ import math
 
 from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import free_accel_bound, pair_gaps
-from braidsim.core.solver.dopri5 import dense_eval
+from braidsim.core.solver.dense import dense_eval
 from braidsim.core.solver.pairs import I_GIN, I_GOUT, I_P, I_PDD
 
 N_SUB = 8  # a step is sampled at k / N_SUB, k = 0..N_SUB, for events and extremes

@@ -46,9 +46,9 @@ from braidsim.core.layout import (
     STIFF_STEP_FRACTION,
 )
 from braidsim.core.solver.calls import rhs
+from braidsim.core.solver.dense import dense_eval, step_output
 from braidsim.core.solver.dopri5 import (
     dense_coeffs,
-    dense_eval,
     error_norm,
     onset_error_ratio,
     rk_step,
@@ -450,7 +450,9 @@ def integrate(
         # paper-3.3 4-8 % slower)
         took_implicit = False
         took_taylor = False
-        RCs = RC  # the dense output of the step: the Runge-Kutta interpolant or TAY.RT
+        # the dense output of the step (braidsim.core.solver.dense): with the Taylor step
+        # compiled in, the Runge-Kutta interpolant or TAY.RT, told apart at run time
+        RCs = step_output(RC, TAY, False)
         if TAY is not None:
             # the Taylor step where it is at least the Runge-Kutta step (module docstring
             # of taylor.py); not in the first step of a contact (the force's series does not
@@ -490,7 +492,7 @@ def integrate(
                         h = t_stop - t
                         hits_stop = True
                     taylor_dense(TAY.C, h, n, TAY.RT)
-                    RCs = TAY.RT
+                    RCs = step_output(RC, TAY, True)
                     dense_eval(1.0, RCs, y1, n)
                     rhs(model, t + h, y1, modes, v0s, n, K[6])
                     st.rhs_evaluations += 1
@@ -694,7 +696,8 @@ def integrate(
                 Ke[0, i] = K[0, i]
             if took_taylor:
                 # the polynomial cut at the event
-                taylor_shorten(RCs, theta_ev, n)
+                if TAY is not None:
+                    taylor_shorten(TAY.RT, theta_ev, n)
                 dense_eval(1.0, RCs, ye, n)
                 rhs(model, t + he, ye, modes, v0s, n, Ke[6])
                 st.rhs_evaluations += 1

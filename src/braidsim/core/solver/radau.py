@@ -322,7 +322,7 @@ def _norm(v, scale, m):
 @helper
 def _finish(y, Z, n, y1, RC):
     """y1 = y + Z_3 and the dense coefficients RC of the collocation polynomial in the basis
-    of :func:`~braidsim.core.solver.dopri5.dense_component`: with the polynomial
+    of :func:`~braidsim.core.solver.dopri5.interpolant_component`: with the polynomial
     y + Q1 theta + Q2 theta^2 + Q3 theta^3, r0 = y, r1 = Q1 + Q2 + Q3, r2 = -Q2 - Q3,
     r3 = -Q3, r4 = 0."""
     for i in range(n):

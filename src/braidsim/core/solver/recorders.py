@@ -21,7 +21,7 @@ import numpy as np
 from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import series_row
 from braidsim.core.layout import END_ONGOING, KIND_PEAK, KIND_SAMPLE
-from braidsim.core.solver.dopri5 import dense_component, dense_deriv, dense_eval
+from braidsim.core.solver.dense import dense_component, dense_deriv, dense_eval
 from braidsim.core.solver.pairs import (
     I_DFC,
     I_DN,

@@ -54,6 +54,7 @@ from braidsim.core.interfaces import (
     penetration_jvp,
 )
 from braidsim.core.layout import ES_DEPTH, ES_PEAK, ES_T, ES_T_END, ES_VELOCITY
+from braidsim.core.solver.dense import dense_eval
 from braidsim.core.solver.dopri5 import (
     D1,
     D3,
@@ -69,7 +70,6 @@ from braidsim.core.solver.dopri5 import (
     E7,
     RK_A,
     RK_C,
-    dense_eval,
 )
 from braidsim.core.solver.pairs import gaps
 

@@ -14,7 +14,7 @@ be within its tolerance,
 
 so that the truncated tail is of the size of the tolerance; a step is never rejected for
 its error. The polynomial scaled to the step, RT[k, i] = C[i, k] h^k, is the step's dense
-output (:mod:`braidsim.core.solver.dopri5` reads both kinds), on which the loop finds
+output (:mod:`braidsim.core.solver.dense` reads both kinds), on which the loop finds
 events, extremes and samples as on the Runge-Kutta interpolant.
 
 Which step the loop takes (:func:`braidsim.core.solver.loop.integrate`) needs nothing of
@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from braidsim.core.generic import helper
+from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import model_series, model_series_start
 
 # In a run of Runge-Kutta steps the series is built again to test the rule only every
@@ -123,3 +123,26 @@ def taylor_shorten(RT, theta, n):
         tk *= theta
         for i in range(n):
             RT[k, i] *= tk
+
+
+@inline_helper
+def taylor_component(theta, RT, i):
+    """Component i of the state at fraction theta of a Taylor step: sum_k RT[k, i] theta^k
+    (Horner)."""
+    deg = RT.shape[0] - 1
+    acc = RT[deg, i]
+    for k in range(deg - 1, -1, -1):
+        acc = acc * theta + RT[k, i]
+    return acc
+
+
+@inline_helper
+def taylor_deriv(theta, h, RT, out, n):
+    """Time derivative of a Taylor step's polynomial at theta for the first ``n`` components:
+    sum_k k RT[k, i] theta^(k-1) / h."""
+    deg = RT.shape[0] - 1
+    for i in range(n):
+        acc = deg * RT[deg, i]
+        for k in range(deg - 1, 0, -1):
+            acc = acc * theta + k * RT[k, i]
+        out[i] = acc / h
