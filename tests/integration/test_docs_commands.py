@@ -5,7 +5,8 @@ command runs in a fresh folder that sees the repository's ``examples/``; a few r
 reduced size (``REDUCED``: the same command with smaller grids or durations), the longest as
 written only under ``-m slow`` (``SLOW``). Syntax summaries with placeholders (``TEMPLATES``)
 are checked by asking their command for ``--help``. A command the tables below do not know
-runs as written, so a new command in the docs is tested without editing this file.
+runs as written, so a new command in the docs is tested without editing this file. A
+command that the README test runs as written is left to it.
 """
 
 from __future__ import annotations
@@ -24,6 +25,9 @@ from helpers_commands import (
     run_braidsim,
     run_python,
 )
+
+from .test_readme_commands import COMMANDS as README_COMMANDS
+from .test_readme_commands import REDUCTIONS as README_REDUCTIONS
 
 DOCS = REPO / "docs"
 PAGES = sorted(DOCS.glob("*.md"))
@@ -63,9 +67,7 @@ SETUP = {
 
 # full-size runs of a minute or more: run as written only with -m slow
 SLOW = {
-    "braidsim paper --out results",
     "braidsim analyze results/run-folder",  # with its set-up run --out: about 12 s
-    "braidsim design examples/design16.toml --out design16",
     "braidsim design examples/design16.toml --out design16 --json",
     "braidsim machine design16/optimised_machine.toml --out m16opt",
     "braidsim machine examples/machine16.toml --out machine16",
@@ -100,11 +102,19 @@ def _is_template(cmd: str) -> bool:
     return "[" in cmd or any(w.isupper() and len(w) > 1 for w in shlex.split(cmd)[1:])
 
 
+# commands that the README test runs as written (its verb not reduced there): not run twice
+IN_README = {
+    shlex.join(["braidsim", *c.argv]) for c in README_COMMANDS if c.verb not in README_REDUCTIONS
+}
+
+
 def _command_cases() -> list[object]:
     cases = []
     for page in PAGES:
         for block in fenced_blocks(page):
             for cmd in braidsim_commands(block):
+                if cmd in IN_README and cmd not in REDUCED_N and cmd not in SETUP_N:
+                    continue
                 marks = [pytest.mark.slow] if cmd in SLOW_N else []
                 cases.append(pytest.param(cmd, id=f"{block.where}:{cmd[:60]}", marks=marks))
     return cases

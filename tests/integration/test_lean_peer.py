@@ -94,6 +94,7 @@ def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
     )
 
 
+@pytest.mark.slow  # (the benchmark's Taylor prototype, its own compile: ~15 s)
 @pytest.mark.parametrize(("switch", "peak_tol"), [("distance", 1e-8), ("step", 2e-8)])
 def test_lean_taylor_loop_matches_simulate_on_paper_3_3(switch: str, peak_tol: float) -> None:
     """The hybrid Taylor / DP5 loop (an experiment on what a Taylor method buys), with the

@@ -14,6 +14,9 @@ import pytest
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "continuation_operating_map.py"
 
 
+# (80 s of the default suite's 18 min: two continuations, three two-parameter curves and the
+# clearance map; the `braidsim continue` commands of the README and the docs stay in it)
+@pytest.mark.slow
 def test_example_small(tmp_path: Path) -> None:
     spec = importlib.util.spec_from_file_location("continuation_example", EXAMPLE)
     assert spec is not None and spec.loader is not None

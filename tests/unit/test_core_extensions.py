@@ -143,6 +143,7 @@ def test_measured_track_acceleration_bound_is_computed_once_and_holds() -> None:
     assert tr.accel_bound == pytest.approx(a * w * w, rel=1e-2)
 
 
+@pytest.mark.slow  # (its own compile of the solver for the measured track, ~30 s)
 def test_a_run_on_the_measured_record_equals_the_run_on_the_harmonic(tmp_path: Path) -> None:
     """The paper-3.3 carrier on the record of its own track vibration (written to CSV in mm
     and read back): the same impacts as on the harmonic track."""
