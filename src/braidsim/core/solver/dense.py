@@ -13,8 +13,10 @@ It is a polynomial in theta = (t - t0) / h of one of two kinds:
 The readers below are chosen by the type of the dense output when their caller is compiled.
 A loop compiled without the Taylor step passes a plain array and its readers hold the nested
 form alone: with the test of the kind and the Horner loop in every reader, the loop of
-paper-3.3 had 17 % more LLVM IR and 11 % more machine code (12,878 against 15,513 lines of
-IR), and took 3.6 s more of its cold compile (22.3 against 25.9 s, one pair of runs).
+paper-3.3 had 20 % more LLVM IR and 11 % more machine code (15,513 against 12,878 lines of
+IR, 17,738 against 16,031 of assembly). (The cold start, 20-21 s of CPU, could not tell the
+two apart on a shared 2-core machine: 19.2-22.0 against 16.5-22.5 s in three alternated
+pairs.)
 """
 
 from __future__ import annotations
