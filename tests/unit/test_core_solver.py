@@ -13,6 +13,7 @@ import math
 from typing import Any
 
 import numpy as np
+import numpy.polynomial.polynomial as P
 import pandas as pd
 import pytest
 from numba import njit
@@ -20,7 +21,7 @@ from numba import njit
 from braidsim import contact
 from braidsim.core import ImpactOscillator, PowerLawContact, derivatives, run, state_size
 from braidsim.core import layout as L
-from braidsim.core.solver.dense import dense_deriv, dense_eval
+from braidsim.core.solver.dense import StepPolynomial, dense_deriv, dense_eval
 from braidsim.core.solver.dopri5 import dense_coeffs, rk_step
 from braidsim.core.solver.pairs import I_DFC, I_DN, I_FC, I_FK, I_N, I_P, I_PD, NI, pair_info
 from braidsim.model import build_model
@@ -34,6 +35,13 @@ from braidsim.simulate import simulate
 def _step_and_interpolant(rec, t, y, h, K, modes, v0s, n, yt, y1, RC):
     rk_step(rec, t, y, h, K, modes, v0s, n, yt, y1)
     dense_coeffs(y, y1, h, K, RC, n)
+
+
+@njit
+def _deriv(theta, h, RC, out, n):
+    # (dense_deriv is chosen by the type of RC when its caller is compiled; called from
+    # Python it runs its Python reference)
+    dense_deriv(theta, h, RC, out, n)
 
 
 @njit
@@ -66,18 +74,43 @@ def _one_contact_step() -> tuple[object, np.ndarray, float, float, np.ndarray, i
 def test_dense_derivative_matches_the_stages_and_finite_differences() -> None:
     _, K, _, h, RC, n = _one_contact_step()
     d = np.empty(n)
-    dense_deriv(0.0, h, RC, d, 2)
+    _deriv(0.0, h, RC, d, 2)
     np.testing.assert_allclose(d[:2], K[0, :2], rtol=1e-9, atol=1e-12)
-    dense_deriv(1.0, h, RC, d, 2)
+    _deriv(1.0, h, RC, d, 2)
     np.testing.assert_allclose(d[:2], K[6, :2], rtol=1e-9, atol=1e-12)
     yp, ym = np.empty(n), np.empty(n)
     for theta in (0.2, 0.5, 0.9):
         e = 1e-5
         dense_eval(theta + e, RC, yp, n)
         dense_eval(theta - e, RC, ym, n)
-        dense_deriv(theta, h, RC, d, 2)
+        _deriv(theta, h, RC, d, 2)
         fd = (yp[:2] - ym[:2]) / (2 * e * h)
         np.testing.assert_allclose(d[:2], fd, rtol=1e-6)
+
+
+def test_a_step_polynomial_reads_as_its_interpolant_or_as_numpys_polynomial() -> None:
+    """In a loop with Taylor steps the readers get both polynomials: the interpolant's
+    values to the bit, the Taylor polynomial's as numpy's polyval and polyder give them;
+    compiled and in Python alike."""
+    rng = np.random.default_rng(7)
+    RC, RT = rng.standard_normal((5, 3)), rng.standard_normal((13, 3))
+    h = 2e-4
+    out, ref = np.empty(3), np.empty(3)
+    for theta in (0.0, 0.37, 1.0):
+        dense_eval(theta, StepPolynomial(RC, RT, False), out, 3)
+        dense_eval(theta, RC, ref, 3)
+        assert np.array_equal(out, ref)
+        _deriv(theta, h, StepPolynomial(RC, RT, False), out, 3)
+        _deriv(theta, h, RC, ref, 3)
+        assert np.array_equal(out, ref)
+        taylor = StepPolynomial(RC, RT, True)
+        dense_eval(theta, taylor, out, 3)
+        np.testing.assert_allclose(out, P.polyval(theta, RT), rtol=1e-13, atol=1e-13)
+        _deriv(theta, h, taylor, out, 3)
+        d_ref = P.polyval(theta, P.polyder(RT)) / h
+        np.testing.assert_allclose(out, d_ref, rtol=1e-13, atol=1e-13 / h)
+        dense_deriv(theta, h, taylor, ref, 3)  # the Python reference
+        np.testing.assert_allclose(ref, d_ref, rtol=1e-13, atol=1e-13 / h)
 
 
 def test_pair_summary_slopes_are_the_time_derivatives_of_the_forces() -> None:
@@ -89,7 +122,7 @@ def test_pair_summary_slopes_are_the_time_derivatives_of_the_forces() -> None:
     for theta in (0.3, 0.7):
         for th, out in ((theta, info), (theta + e, ip), (theta - e, im)):
             dense_eval(th, RC, ys, n)
-            dense_deriv(th, h, RC, yd, 2)
+            _deriv(th, h, RC, yd, 2)
             _pair_info(rec, 0, t + th * h, ys, yd, -1, v0, out)
         dt = 2 * e * h
         assert info[I_P] > 0.0

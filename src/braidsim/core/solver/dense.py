@@ -49,33 +49,6 @@ class StepPolynomial(NamedTuple):
     is_taylor: bool
 
 
-def dense_component(theta: float, RC: Any, i: int) -> float:
-    """Component i of the state at fraction theta of the step whose dense output is RC."""
-    if isinstance(RC, StepPolynomial):
-        if RC.is_taylor:
-            return float(taylor_component(theta, RC.taylor, i))
-        RC = RC.interpolant
-    return float(interpolant_component(theta, RC, i))
-
-
-def dense_deriv(theta: float, h: float, RC: Any, out: np.ndarray, n: int) -> None:
-    """Time derivative of the dense output RC at theta for the first ``n`` components; it
-    equals the step's derivative at both ends."""
-    if isinstance(RC, StepPolynomial):
-        if RC.is_taylor:
-            taylor_deriv(theta, h, RC.taylor, out, n)
-            return
-        RC = RC.interpolant
-    interpolant_deriv(theta, h, RC, out, n)
-
-
-def _plain(fn: Any) -> Any:
-    # the Python function of an inlined helper: handed to numba as the overload itself, it
-    # is inlined once, not through a second level of inlining (numba matches the arguments
-    # by name: the parameters are named as the stub's)
-    return getattr(fn, "py_func", fn)
-
-
 def _either_component(theta, RC, i):
     if RC.is_taylor:
         return taylor_component(theta, RC.taylor, i)
@@ -87,6 +60,29 @@ def _either_deriv(theta, h, RC, out, n):
         taylor_deriv(theta, h, RC.taylor, out, n)
     else:
         interpolant_deriv(theta, h, RC.interpolant, out, n)
+
+
+def dense_component(theta: float, RC: Any, i: int) -> float:
+    """Component i of the state at fraction theta of the step whose dense output is RC."""
+    if isinstance(RC, StepPolynomial):
+        return _either_component(theta, RC, i)
+    return interpolant_component(theta, RC, i)
+
+
+def dense_deriv(theta: float, h: float, RC: Any, out: np.ndarray, n: int) -> None:
+    """Time derivative of the dense output RC at theta for the first ``n`` components; it
+    equals the step's derivative at both ends."""
+    if isinstance(RC, StepPolynomial):
+        _either_deriv(theta, h, RC, out, n)
+    else:
+        interpolant_deriv(theta, h, RC, out, n)
+
+
+def _plain(fn: Any) -> Any:
+    # the Python function of an inlined helper: handed to numba as the overload itself, it
+    # is inlined once, not through a second level of inlining (numba matches the arguments
+    # by name: the parameters are named as the stub's)
+    return getattr(fn, "py_func", fn)
 
 
 def _component_typer(theta: Any, RC: Any, i: Any) -> Any:
@@ -105,23 +101,21 @@ def _deriv_typer(theta: Any, h: Any, RC: Any, out: Any, n: Any) -> Any:
     return None
 
 
+def _either(RC, TAY, is_taylor):
+    return StepPolynomial(RC, TAY.RT, is_taylor)
+
+
 def step_output(RC: np.ndarray, TAY: Any, is_taylor: bool) -> Any:
     """The dense output the loop hands to the readers: the interpolant RC itself where the
     Taylor step is compiled out (``TAY`` None), else ``StepPolynomial(RC, TAY.RT,
     is_taylor)``. (Chosen by the type of ``TAY``: numba prunes a test ``TAY is None`` only
     where ``TAY`` is None, so a branch in the loop would type both kinds in a loop with
     the Taylor step, and fail.)"""
-    if TAY is None:
-        return RC
-    return StepPolynomial(RC, TAY.RT, is_taylor)
+    return RC if TAY is None else _either(RC, TAY, is_taylor)
 
 
 def _interpolant_only(RC, TAY, is_taylor):
     return RC
-
-
-def _either(RC, TAY, is_taylor):
-    return StepPolynomial(RC, TAY.RT, is_taylor)
 
 
 def _output_typer(RC: Any, TAY: Any, is_taylor: Any) -> Any:
