@@ -177,6 +177,27 @@ def test_elastic_hertz_impact_closed_form() -> None:
     assert raw.y[1] == pytest.approx(-v, rel=1e-9)
 
 
+def test_an_int_given_for_a_float_field_neither_compiles_again_nor_changes_a_bit() -> None:
+    """numba compiles the solver for the types of the record's fields: ``run`` makes an int
+    given where a float is declared a float first (core.driver.as_declared)."""
+    from braidsim.core.solver.loop import integrate
+
+    m, K, v, gap = 1, 2e9, 0.5, 1e-3
+    floats = ImpactOscillator(
+        float(m), 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, gap, PowerLawContact(K, 1.5, 0.0)
+    )
+    ints = ImpactOscillator(m, 0, 0, 0, 0, 0, math.inf, gap, PowerLawContact(K, 1.5, 0))
+    y0 = np.array([0.0, v, 0.0, 0.0, 0.0])
+    a = run(floats, _free_flight_into_wall(), y0)
+    compiled = len(integrate.signatures)
+    b = run(ints, _free_flight_into_wall()._replace(max_steps=10**7, t_end=1), y0)
+    assert len(integrate.signatures) == compiled
+    c = run(floats, _free_flight_into_wall()._replace(max_steps=10**7, t_end=1.0), y0)
+    assert np.array_equal(b.y, c.y)
+    assert b.episodes.tobytes() == c.episodes.tobytes()
+    assert a.episodes.size == b.episodes.size == 1
+
+
 @pytest.mark.parametrize("name", ["hunt_crossley", "flores", "lankarani_nikravesh", "gonthier"])
 def test_restitution_of_a_free_impact_is_the_laws_exact_value(name: str) -> None:
     """With D(c_r) from the law, one free impact rebounds at the exact restitution of

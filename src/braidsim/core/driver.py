@@ -10,6 +10,8 @@ The run is integrated once; its bits do not depend on the buffer sizes.
 
 from __future__ import annotations
 
+import functools
+import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -137,6 +139,39 @@ class RawRun:
     def t(self) -> float:
         """Where the run stopped [s]."""
         return float(self.restart[0]["t"])
+
+
+@functools.cache
+def _float_fields(cls: type) -> frozenset[str]:
+    """The fields of a record class declared ``float``."""
+    try:
+        hints = typing.get_type_hints(cls)
+    except (NameError, TypeError):  # annotations that do not resolve: nothing to coerce
+        return frozenset()
+    return frozenset(name for name, hint in hints.items() if hint is float)
+
+
+def as_declared(record: Any) -> Any:
+    """``record`` with every integer given for a field declared ``float`` made a float, in
+    the records inside it too.
+
+    numba compiles the solver for the types of the record's fields, so
+    ``PowerLawContact(K, 1.5, 0)`` (an int damping) would compile the whole solver once
+    more, 20-30 s, for the same arithmetic as ``PowerLawContact(K, 1.5, 0.0)``.
+    """
+    fields = getattr(record, "_fields", None)
+    if fields is None or not isinstance(record, tuple):
+        return record
+    floats = _float_fields(type(record))
+    changes: dict[str, Any] = {}
+    for name, value in zip(fields, record, strict=True):
+        if name in floats and isinstance(value, int | np.integer) and not isinstance(value, bool):
+            changes[name] = float(value)
+        else:
+            inner = as_declared(value)
+            if inner is not value:
+                changes[name] = inner
+    return record._replace(**changes) if changes else record  # type: ignore[attr-defined]
 
 
 _PER_CLASS: dict[tuple[Any, ...], Any] = {}
@@ -272,6 +307,8 @@ def run(
         sized beforehand, but the event rows are not: a contact resting for hours has a
         peak of its force at every wobble of the solution).
     """
+    model = as_declared(model)
+    opts = as_declared(opts)
     _, n_pairs, n_quads = model_sizes(model)
     if n_pairs > L.MAX_PAIRS:
         # the solver keeps per-pair state in arrays of MAX_PAIRS, unchecked in compiled code
