@@ -83,6 +83,7 @@ def _free_carrier(friction: object, mu: float, v0: float) -> tuple[object, np.nd
     return rec, y0
 
 
+@pytest.mark.slow  # (the Coulomb-viscous law's own compile of the solver, ~30 s)
 def test_viscous_friction_decays_the_speed_exponentially() -> None:
     """mu = 0: m x'' = -b x', so x' = v0 exp(-b t / m), x = x0 + v0 m / b (1 - exp(-b t / m))."""
     b, v0, T = 3.0, 0.2, 0.4
@@ -95,6 +96,7 @@ def test_viscous_friction_decays_the_speed_exponentially() -> None:
     assert raw.y[3] == pytest.approx(0.5 * m * v0 * v0 * (1 - decay**2), rel=1e-8)  # friction work
 
 
+@pytest.mark.slow  # (the Coulomb-viscous law's own compile of the solver, ~30 s)
 def test_coulomb_friction_decelerates_at_mu_n_over_m() -> None:
     """b = 0, v >> v_hat: m x'' = -mu N, a constant deceleration while sliding."""
     mu, v0, T = 0.1, 0.5, 0.2

@@ -176,7 +176,11 @@ def test_linear_oscillator_sensitivities_match_the_closed_form() -> None:
     assert raw.y[0] == pytest.approx(float(_free_response(T, *args).real), rel=1e-10)
 
 
-@pytest.mark.parametrize("law_kind", ["hertz", "kelvin_voigt"])
+@pytest.mark.parametrize(
+    # (Kelvin-Voigt compiles the solver with tangents once more: ~25 s)
+    "law_kind",
+    ["hertz", pytest.param("kelvin_voigt", marks=pytest.mark.slow)],
+)
 def test_impact_oscillator_event_sensitivities(law_kind: str) -> None:
     """Onset time, approach speed, peak force, depth and exit time of every impact of a
     forced impact oscillator against central differences of the gap and of x0; the
