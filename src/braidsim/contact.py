@@ -58,6 +58,7 @@ the docs page *Contact and friction laws* (docs/laws.md) has the formulas and th
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -137,6 +138,8 @@ def damping_flores(c_r: float) -> float:
     return 8.0 * (1.0 - c_r) / (5.0 * c_r)
 
 
+# (every model built asks it for both pairs, a W0 and a Newton polish: kept per factor)
+@functools.lru_cache(maxsize=1024)
 def effective_restitution(damping_factor: float) -> float:
     """Exact restitution e of one impact under ``F = K p^n (1 + D pdot / v0)``.
 

@@ -189,6 +189,8 @@ def _transfer_times(sc: Scenario, t_start: float, dur: float) -> np.ndarray:
     end = t_start + dur
     times = [t for t in sc["transfer.times"] if t_start < t < end]
     period = sc["transfer.period"]
+    if not times and not period > 0.0:
+        return np.zeros(0)
     first = sc["transfer.first"]
     if period > 0.0 and first < end:
         # counted before any is made: a period of 1 ns over 0.1 s is 1e8 times, which

@@ -212,7 +212,7 @@ def stats_dict(raw: RawRun) -> dict[str, Any]:
     """The solver's statistics by name (``steps``, ``rejected_steps``, ``events``,
     ``rhs_evaluations``, ``implicit_steps``, ``taylor_steps``, ``transfers``, ``min_step``,
     ``max_step``; a Taylor step counts one evaluation, at its end)."""
-    rec = raw.stats[0]
+    rec = L.fields_of(raw.stats)
     names = ("steps", "rejected_steps", "events", "rhs_evaluations", "implicit_steps")
     out: dict[str, Any] = {name: int(rec[name]) for name in (*names, "taylor_steps")}
     out["transfers"] = int(rec["transfers"])
@@ -224,10 +224,10 @@ def stats_dict(raw: RawRun) -> dict[str, Any]:
 def final_state(raw: RawRun) -> State:
     """Where a run ended, with its contacts and step control: a run started from it
     (``simulate(..., start=state)``) continues it."""
-    r = raw.restart[0]
+    r = L.fields_of(raw.restart)
     return State(
         t=float(r["t"]),
-        y=tuple(float(v) for v in raw.y),
+        y=tuple(raw.y.tolist()),
         track_mode=int(r["mode_0"]),
         slot_mode=int(r["mode_1"]),
         track_v0=float(r["v0_0"]),
@@ -496,11 +496,12 @@ def simulate(
         tangents=tangents,
     )
     series_cols = {}
+    empty = np.zeros((len(CARRIER_COLUMNS), 0))  # (one array for the columns of no rows)
     for i, name in enumerate(CARRIER_COLUMNS):
         if raw.series is not None:
             series_cols[name] = raw.series[:, i].copy()
             continue
-        series_cols[name] = np.concatenate(columns[i]) if columns[i] else np.zeros(0)
+        series_cols[name] = np.concatenate(columns[i]) if columns[i] else empty[i]
         columns[i] = []
     if not model.two_dof:
         # the x-only carrier does not move tangentially: y and y' stay at their start values

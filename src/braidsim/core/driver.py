@@ -151,27 +151,57 @@ def _float_fields(cls: type) -> frozenset[str]:
     return frozenset(name for name, hint in hints.items() if hint is float)
 
 
+_PLANS: dict[type, tuple[bool, ...] | None] = {}
+
+
+def _declared_plan(cls: type) -> tuple[bool, ...] | None:
+    """For a record class (a ``NamedTuple``): whether each field is declared ``float``;
+    ``None`` for any other class (kept per class)."""
+    if cls in _PLANS:
+        return _PLANS[cls]
+    fields = getattr(cls, "_fields", None)
+    plan = None
+    if fields is not None and issubclass(cls, tuple):
+        floats = _float_fields(cls)
+        plan = tuple(name in floats for name in fields)
+    _PLANS[cls] = plan
+    return plan
+
+
+# values that are never records nor ints: passed over without a look at their class's plan
+_LEAVES = frozenset((float, np.ndarray, bool, str, type(None)))
+
+
 def as_declared(record: Any) -> Any:
     """``record`` with every integer given for a field declared ``float`` made a float, in
     the records inside it too.
 
     numba compiles the solver for the types of the record's fields, so
     ``PowerLawContact(K, 1.5, 0)`` (an int damping) would compile the whole solver once
-    more, 20-30 s, for the same arithmetic as ``PowerLawContact(K, 1.5, 0.0)``.
+    more, 20-30 s, for the same arithmetic as ``PowerLawContact(K, 1.5, 0.0)``. (Every run
+    passes its records through here: the plan of each class is kept, and floats and arrays
+    are passed over, so that the carrier's records take a few microseconds.)
     """
-    fields = getattr(record, "_fields", None)
-    if fields is None or not isinstance(record, tuple):
+    plan = _declared_plan(type(record))
+    if plan is None:
         return record
-    floats = _float_fields(type(record))
-    changes: dict[str, Any] = {}
-    for name, value in zip(fields, record, strict=True):
-        if name in floats and isinstance(value, int | np.integer) and not isinstance(value, bool):
-            changes[name] = float(value)
+    changes: dict[str, Any] | None = None
+    for i, value in enumerate(record):
+        kind = type(value)
+        if kind in _LEAVES:
+            continue
+        if plan[i] and (kind is int or isinstance(value, np.integer)):
+            new: Any = float(value)
+        elif _declared_plan(kind) is not None:
+            new = as_declared(value)
+            if new is value:
+                continue
         else:
-            inner = as_declared(value)
-            if inner is not value:
-                changes[name] = inner
-    return record._replace(**changes) if changes else record  # type: ignore[attr-defined]
+            continue
+        if changes is None:
+            changes = {}
+        changes[record._fields[i]] = new
+    return record._replace(**changes) if changes else record
 
 
 _PER_CLASS: dict[tuple[Any, ...], Any] = {}
@@ -222,11 +252,19 @@ def quadrature_prefix(model: Any, which: str) -> int:
     raise ValueError(f"quadratures: {which!r}; allowed 'dissipation' or 'friction'")
 
 
+# the classes (a model's and its fields') found to give every Taylor series: a registration
+# is never withdrawn, so the answer stays; a refusal is not kept (a series may be registered)
+_TAYLOR_CAPABLE: set[tuple[type, ...]] = set()
+
+
 def taylor_capable(model: Any) -> str:
     """Why ``model`` cannot take Taylor steps ("" when it can): the model must register
     :func:`~braidsim.core.interfaces.model_series` and its start, and each physics record in
     its fields (found by the role it plays: a contact law, a friction law, an excitation)
     the series of its function."""
+    classes = (type(model), *(type(v) for v in model))
+    if classes in _TAYLOR_CAPABLE:
+        return ""
     missing = I.first_missing(
         model,
         (I.model_series, I.model_series_start),
@@ -237,6 +275,7 @@ def taylor_capable(model: Any) -> str:
         ),
     )
     if missing is None:
+        _TAYLOR_CAPABLE.add(classes)
         return ""
     field, sub, fn = missing
     if sub is None:
@@ -396,11 +435,12 @@ def run(
             break
         if status == L.ST_EPISODES_FULL:
             _flush_episodes(EP, RS, closed, None if SENS is None else (SENS.ESENS, sens_closed))
-    episodes = np.concatenate(closed)
+    episodes = np.concatenate(closed) if len(closed) > 1 else closed[0]
     # in order of onset (a contact open across a flush was written after later ones), and
     # of pair where two begin at once (at the start: the order an uninterrupted run opens them)
     by_onset = np.lexsort((episodes["pair"], episodes["t"]))
-    episodes = episodes[by_onset]
+    if np.any(by_onset != np.arange(by_onset.size)):
+        episodes = episodes[by_onset]
     _close_open(episodes, RS, y, model, n)
     series_rows = None
     if keep:
@@ -486,9 +526,13 @@ def _flush_episodes(
 
 def _close_open(episodes: np.ndarray, RS: np.ndarray, y: np.ndarray, model: Any, n: int) -> None:
     """Close, in the output table, the contacts still open at the end of the run."""
-    t = float(RS[0]["t"])
+    r = RS[0]
+    modes = (int(r["mode_0"]), int(r["mode_1"]))
+    if modes == (0, 0):
+        return
+    t = float(r["t"])
     for pair in range(2):
-        if int(RS[0][f"mode_{pair}"]) == 0:
+        if modes[pair] == 0:
             continue
         # the open episode of this pair is the last row of the table for the pair that has
         # no end time yet

@@ -316,8 +316,7 @@ STARTED = 1.0  # a run under way (resumed after its buffers were flushed): nothi
 CONTINUED = 2.0  # a new run continuing an earlier one's state, contacts and step control
 
 
-def new_restart() -> np.ndarray:
-    """A restart record for a new run (one-element structured array)."""
+def _restart_template() -> np.ndarray:
     r = np.zeros(1, dtype=RESTART_DTYPE)
     r[0]["open_0"] = -1.0
     r[0]["open_1"] = -1.0
@@ -326,6 +325,21 @@ def new_restart() -> np.ndarray:
     r[0]["err_old"] = 1e-4
     r[0]["last_event_t"] = -1.0
     return r
+
+
+_NEW_RESTART = _restart_template()
+
+
+def new_restart() -> np.ndarray:
+    """A restart record for a new run (one-element structured array)."""
+    return _NEW_RESTART.copy()
+
+
+def fields_of(records: np.ndarray) -> dict[str, Any]:
+    """The first record of a structured array as ``{field: Python value}`` (one read of the
+    record instead of one per field)."""
+    names = records.dtype.names or ()
+    return dict(zip(names, records[0].item(), strict=True))
 
 
 def new_stats() -> np.ndarray:
