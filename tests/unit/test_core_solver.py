@@ -97,13 +97,13 @@ def test_a_step_polynomial_reads_as_its_interpolant_or_as_numpys_polynomial() ->
     h = 2e-4
     out, ref = np.empty(3), np.empty(3)
     for theta in (0.0, 0.37, 1.0):
-        dense_eval(theta, StepPolynomial(RC, RT, False), out, 3)
+        dense_eval(theta, StepPolynomial(RC, RT, np.zeros(1, dtype=np.int64)), out, 3)
         dense_eval(theta, RC, ref, 3)
         assert np.array_equal(out, ref)
-        _deriv(theta, h, StepPolynomial(RC, RT, False), out, 3)
+        _deriv(theta, h, StepPolynomial(RC, RT, np.zeros(1, dtype=np.int64)), out, 3)
         _deriv(theta, h, RC, ref, 3)
         assert np.array_equal(out, ref)
-        taylor = StepPolynomial(RC, RT, True)
+        taylor = StepPolynomial(RC, RT, np.ones(1, dtype=np.int64))
         dense_eval(theta, taylor, out, 3)
         np.testing.assert_allclose(out, P.polyval(theta, RT), rtol=1e-13, atol=1e-13)
         _deriv(theta, h, taylor, out, 3)

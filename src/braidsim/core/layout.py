@@ -165,11 +165,15 @@ class TaylorWork(NamedTuple):
         The model's work rows (:func:`braidsim.core.interfaces.model_series`).
     RT : array (N + 1, n)
         The step's dense output: RT[k, i] = C[i, k] h^k, a polynomial in theta = tau / h.
+    kind : array (1,) of int64
+        1 while the step in hand is a Taylor step, 0 otherwise: the dense output's readers
+        look here (:class:`braidsim.core.solver.dense.StepPolynomial`).
     """
 
     C: np.ndarray
     W: np.ndarray
     RT: np.ndarray
+    kind: np.ndarray
 
 
 def taylor_work(n: int, order: int) -> TaylorWork:
@@ -178,7 +182,10 @@ def taylor_work(n: int, order: int) -> TaylorWork:
         # (the step stands in for the Dormand-Prince pair, of order 5, where it is longer)
         raise ValueError(f"taylor order: {order}; allowed >= 6")
     return TaylorWork(
-        np.zeros((n, order + 1)), np.zeros((TAYLOR_ROWS, order + 2)), np.zeros((order + 1, n))
+        np.zeros((n, order + 1)),
+        np.zeros((TAYLOR_ROWS, order + 2)),
+        np.zeros((order + 1, n)),
+        np.zeros(1, dtype=np.int64),
     )
 
 

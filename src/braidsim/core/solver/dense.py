@@ -8,7 +8,9 @@ It is a polynomial in theta = (t - t0) / h of one of two kinds:
   collocation polynomial in the same form): a plain array;
 - in a loop compiled with the Taylor step, either that or the Taylor polynomial
   sum_k RT[k] theta^k of :mod:`braidsim.core.solver.taylor`, told apart at run time: a
-  :class:`StepPolynomial`.
+  :class:`StepPolynomial`. The loop makes it once, before its first step, and sets its
+  flag at each step: a record of arrays made at every step cost numba's reference counting
+  (an atomic increment and decrement of each array) at every step.
 
 The readers below are chosen by the type of the dense output when their caller is compiled.
 A loop compiled without the Taylor step passes a plain array and its readers hold the nested
@@ -40,23 +42,24 @@ class StepPolynomial(NamedTuple):
         The Runge-Kutta (or implicit) step's polynomial in the nested form.
     taylor : array (N + 1, n)
         The Taylor step's polynomial, RT[k, i] = C[i, k] h^k.
-    is_taylor : bool
-        Which of the two is the step's.
+    is_taylor : array (1,) of int
+        Which of the two is the step's: ``is_taylor[0]`` nonzero for the Taylor polynomial
+        (:attr:`braidsim.core.layout.TaylorWork.kind`, which the loop sets at each step).
     """
 
     interpolant: np.ndarray
     taylor: np.ndarray
-    is_taylor: bool
+    is_taylor: np.ndarray
 
 
 def _either_component(theta, RC, i):
-    if RC.is_taylor:
+    if RC.is_taylor[0]:
         return taylor_component(theta, RC.taylor, i)
     return interpolant_component(theta, RC.interpolant, i)
 
 
 def _either_deriv(theta, h, RC, out, n):
-    if RC.is_taylor:
+    if RC.is_taylor[0]:
         taylor_deriv(theta, h, RC.taylor, out, n)
     else:
         interpolant_deriv(theta, h, RC.interpolant, out, n)
@@ -101,24 +104,24 @@ def _deriv_typer(theta: Any, h: Any, RC: Any, out: Any, n: Any) -> Any:
     return None
 
 
-def _either(RC, TAY, is_taylor):
-    return StepPolynomial(RC, TAY.RT, is_taylor)
+def _either(RC, TAY):
+    return StepPolynomial(RC, TAY.RT, TAY.kind)
 
 
-def step_output(RC: np.ndarray, TAY: Any, is_taylor: bool) -> Any:
+def step_output(RC: np.ndarray, TAY: Any) -> Any:
     """The dense output the loop hands to the readers: the interpolant RC itself where the
     Taylor step is compiled out (``TAY`` None), else ``StepPolynomial(RC, TAY.RT,
-    is_taylor)``. (Chosen by the type of ``TAY``: numba prunes a test ``TAY is None`` only
+    TAY.kind)``. (Chosen by the type of ``TAY``: numba prunes a test ``TAY is None`` only
     where ``TAY`` is None, so a branch in the loop would type both kinds in a loop with
     the Taylor step, and fail.)"""
-    return RC if TAY is None else _either(RC, TAY, is_taylor)
+    return RC if TAY is None else _either(RC, TAY)
 
 
-def _interpolant_only(RC, TAY, is_taylor):
+def _interpolant_only(RC, TAY):
     return RC
 
 
-def _output_typer(RC: Any, TAY: Any, is_taylor: Any) -> Any:
+def _output_typer(RC: Any, TAY: Any) -> Any:
     return _interpolant_only if isinstance(TAY, types.NoneType) else _either
 
 

@@ -118,6 +118,14 @@ def _transfer(model, t, y):
 
 
 @helper
+def _dense_at(theta, RCs, out, n):
+    """:func:`~braidsim.core.solver.dense.dense_eval` as a call (inlined into the loop, whose
+    variables numba reference-counts, it cost an atomic increment and decrement of each
+    array of the dense output at every step)."""
+    dense_eval(theta, RCs, out, n)
+
+
+@helper
 def _onset_step(model, pair, v0):
     """:func:`~braidsim.core.interfaces.pair_onset_step` as a call (once per contact)."""
     return pair_onset_step(model, pair, v0)
@@ -367,8 +375,20 @@ def integrate(
     h_rk = h
     err_old_rk = err_old
 
-    rhs(model, t, y, modes, v0s, n, K[0])
-    pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
+    # the rows of the stages the loop hands to calls, and the step's dense output, made once:
+    # a view or a record of arrays made in the loop costs numba's reference counting (an
+    # atomic increment and decrement) at every step
+    K0 = K[0]
+    K6 = K[6]
+    Ke6 = Ke[6]
+    RCs = step_output(RC, TAY)
+    if TAY is not None:
+        TC, TW, TRT, TKIND = TAY.C, TAY.W, TAY.RT, TAY.kind
+    else:  # (never read: every use is under TAY is not None)
+        TC, TW, TRT, TKIND = RC, RC, RC, modes
+
+    rhs(model, t, y, modes, v0s, n, K0)
+    pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
     st.rhs_evaluations += 1
     if SENS is not None:
         tangent_start(model, SENS, t, y, modes, v0s, KS)
@@ -416,11 +436,11 @@ def integrate(
             nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_TRANSFER, rec)
             if SENS is not None:
                 # the tangents jump with the state (the new contacts need them)
-                rhs(model, t, y, modes, v0s, n, K[0])
-                transfer_jump(model, SENS, itr - 1, t, y_minus, f_minus, K[0], n_dof2, ss, sw)
+                rhs(model, t, y, modes, v0s, n, K0)
+                transfer_jump(model, SENS, itr - 1, t, y_minus, f_minus, K0, n_dof2, ss, sw)
             nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, reset, n, SENS)
-            rhs(model, t, y, modes, v0s, n, K[0])
-            pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
+            rhs(model, t, y, modes, v0s, n, K0)
+            pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
             st.rhs_evaluations += 1
             if SENS is not None:
                 for pair in range(reset):
@@ -450,10 +470,10 @@ def integrate(
         # paper-3.3 4-8 % slower)
         took_implicit = False
         took_taylor = False
-        # the dense output of the step (braidsim.core.solver.dense): with the Taylor step
-        # compiled in, the Runge-Kutta interpolant or TAY.RT, told apart at run time
-        RCs = step_output(RC, TAY, False)
         if TAY is not None:
+            # the step's dense output (RCs, braidsim.core.solver.dense) is the Runge-Kutta
+            # interpolant unless a Taylor step is taken below
+            TKIND[0] = 0
             # the Taylor step where it is at least the Runge-Kutta step (module docstring
             # of taylor.py); not in the first step of a contact (the force's series does not
             # exist at p = 0), nor where a contact force is held at 0 by its clamp
@@ -473,10 +493,10 @@ def integrate(
             if try_taylor:
                 hstop = min(hmax, t_stop - t)
                 horizon, used = taylor_coefficients(
-                    model, t, y, modes, v0s, n, TAY.C, TAY.W, n_dof2, tols, hstop
+                    model, t, y, modes, v0s, n, TC, TW, n_dof2, tols, hstop
                 )
                 ht = taylor_step_size(
-                    TAY.C, used, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity, hstop
+                    TC, used, n_dof2, opts.rtol, opts.atol_position, opts.atol_velocity, hstop
                 )
                 if ht > horizon:
                     ht = horizon  # (a piecewise motion: to the end of its piece)
@@ -491,10 +511,10 @@ def integrate(
                     if h >= (t_stop - t) * (1.0 - 1e-9):
                         h = t_stop - t
                         hits_stop = True
-                    taylor_dense(TAY.C, h, n, TAY.RT)
-                    RCs = step_output(RC, TAY, True)
-                    dense_eval(1.0, RCs, y1, n)
-                    rhs(model, t + h, y1, modes, v0s, n, K[6])
+                    taylor_dense(TC, h, n, TRT)
+                    TKIND[0] = 1
+                    _dense_at(1.0, RCs, y1, n)
+                    rhs(model, t + h, y1, modes, v0s, n, K6)
                     st.rhs_evaluations += 1
                     nsteps += 1
                     err = 0.0
@@ -660,12 +680,12 @@ def integrate(
                 dense_coeffs(y, y1, h, K, RC, n)
         elif not took_implicit and not took_taylor:
             dense_coeffs(y, y1, h, K, RC, n)
-        pair_infos(model, n_pairs, t + h, y1, K[6], modes, v0s, INF1)
+        pair_infos(model, n_pairs, t + h, y1, K6, modes, v0s, INF1)
         # ---- events on the interpolant
         theta_ev = 2.0
         j_ev = -1
         # (the event functions read the coordinates and speeds only)
-        if sample_events(model, n_pairs, t, h, RCs, modes, n_dof2, ys, GS, K[0], K[6], INF0, INF1):
+        if sample_events(model, n_pairs, t, h, RCs, modes, n_dof2, ys, GS, K0, K6, INF0, INF1):
             for j in range(2 * n_pairs):
                 th = locate_event(model, j, t, h, RCs, modes, n_dof2, ys, GS)
                 if th < theta_ev:
@@ -697,9 +717,9 @@ def integrate(
             if took_taylor:
                 # the polynomial cut at the event
                 if TAY is not None:
-                    taylor_shorten(TAY.RT, theta_ev, n)
-                dense_eval(1.0, RCs, ye, n)
-                rhs(model, t + he, ye, modes, v0s, n, Ke[6])
+                    taylor_shorten(TRT, theta_ev, n)
+                _dense_at(1.0, RCs, ye, n)
+                rhs(model, t + he, ye, modes, v0s, n, Ke6)
                 st.rhs_evaluations += 1
             elif IMP is None:
                 rk_step(model, t, y, he, Ke, modes, v0s, n, yt, ye)
@@ -713,7 +733,7 @@ def integrate(
                 rk_step(model, t, y, he, Ke, modes, v0s, n, yt, ye)
                 st.rhs_evaluations += 6
                 dense_coeffs(y, ye, he, Ke, RC, n)
-            pair_infos(model, n_pairs, t + he, ye, Ke[6], modes, v0s, INF1)
+            pair_infos(model, n_pairs, t + he, ye, Ke6, modes, v0s, INF1)
             h_taken = he
         else:
             h_taken = h
@@ -882,12 +902,12 @@ def integrate(
                 r.rest_run = 0
                 r.rest_blocked = 0
                 jac_fresh = False
-            rhs(model, t, y, modes, v0s, n, K[0])
-            pair_infos(model, n_pairs, t, y, K[0], modes, v0s, INF0)
+            rhs(model, t, y, modes, v0s, n, K0)
+            pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
             st.rhs_evaluations += 1
             if SENS is not None:
                 if not contact_event(
-                    model, SENS, pair, side, ev_onset, t, y, Ke[6], K[0], n_dof2, ev_ie, KS
+                    model, SENS, pair, side, ev_onset, t, y, Ke6, K0, n_dof2, ev_ie, KS
                 ):
                     status = ST_GRAZING
                     break
