@@ -174,14 +174,22 @@ def _size_xy(model):
 
 @inline_helper
 def _track_contact(model, t, y, mode, v0):
-    """(p', F_k, N) of the track pair and the wall's (h, h') at t."""
-    h, hd, _ = wall_motion(model.track, t)
+    """(p', F_k, N) of the track pair at t (zeros when free: the wall's motion is not
+    evaluated then, a sine and a cosine saved in every evaluation of a free flight)."""
     if mode == 0:
-        return 0.0, 0.0, 0.0, h, hd
+        return 0.0, 0.0, 0.0
+    h, hd, _ = wall_motion(model.track, t)
     u = y[0] - h
     p, pd = penetration(mode, u, model.track_clearance - u, y[1] - hd)
     fk, _, nn = contact_forces(model.track_law, p, pd, v0)
-    return pd, fk, nn, h, hd
+    return pd, fk, nn
+
+
+@inline_helper
+def _wall_speed(model, t):
+    """The track wall's speed h'(t) (for the work the wall does on the carrier)."""
+    _, hd, _ = wall_motion(model.track, t)
+    return hd
 
 
 @inline_helper
@@ -201,7 +209,7 @@ def _slot_contact(model, t, y, mode, v0, om, s):
 def _derivs_x(model, t, y, modes, v0s, n_state, out):
     om, _ = horn_gear_state(model.horn_gear, t)
     mt = modes[0]
-    pdt, fkt, nt, _, hd = _track_contact(model, t, y, mt, v0s[0])
+    pdt, fkt, nt = _track_contact(model, t, y, mt, v0s[0])
     fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
     load_x = model.load_x + model.mass_radius * om * om
     out[0] = y[1]
@@ -214,7 +222,7 @@ def _derivs_x(model, t, y, modes, v0s, n_state, out):
         out[3] = fx * y[1]
     if n_state > 4:  # all the quadratures
         out[4] = -load_x * y[1]
-        out[5] = -mt * nt * hd
+        out[5] = -mt * nt * _wall_speed(model, t) if mt != 0 else 0.0
         out[6] = 0.0  # transfers change the energy at an instant (apply_transfer)
 
 
@@ -223,7 +231,7 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
     om, s = horn_gear_state(model.horn_gear, t)
     mt = modes[0]
     ms = modes[1]
-    pdt, fkt, nt, _, hd = _track_contact(model, t, y, mt, v0s[0])
+    pdt, fkt, nt = _track_contact(model, t, y, mt, v0s[0])
     fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
     load_x = model.load_x + model.mass_radius * om * om
     pds, fks, ns = _slot_contact(model, t, y, ms, v0s[1], om, s)
@@ -240,7 +248,7 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
         out[7] = fy * y[3]
     if n_state > 8:  # all the quadratures
         out[8] = -load_x * y[1]
-        out[9] = -mt * nt * hd
+        out[9] = -mt * nt * _wall_speed(model, t) if mt != 0 else 0.0
         out[10] = model.load_y * y[3]
         out[11] = -ms * ns * model.horn_gear.turning_radius * om
         out[12] = 0.0  # transfers change the energy at an instant (apply_transfer)
@@ -584,7 +592,7 @@ def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
     dom, dsp = horn_gear_state_jvp(model.horn_gear, dm.horn_gear, t)
     m = model.mass
     mt = modes[0]
-    _, _, nt, _, _ = _track_contact(model, t, y, mt, v0s[0])
+    _, _, nt = _track_contact(model, t, y, mt, v0s[0])
     dnt = _track_contact_jvp(model, dm, t, y, s, mt, v0s[0], dv0s[0])
     fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
     dfx = friction_force_jvp(
