@@ -198,6 +198,29 @@ def test_an_int_given_for_a_float_field_neither_compiles_again_nor_changes_a_bit
     assert a.episodes.size == b.episodes.size == 1
 
 
+def test_as_declared_makes_ints_floats_only_where_a_float_is_declared() -> None:
+    """Python and numpy ints in float fields become floats, nested records included; a bool
+    field, an array and a record with nothing to change are left as they are (the same
+    object comes back)."""
+    from braidsim.core.driver import as_declared
+
+    law = PowerLawContact(np.int64(2), 1.5, 0, True)
+    model = ImpactOscillator(1, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, law)
+    out = as_declared(model)
+    assert type(out.mass) is float and out.mass == 1.0
+    assert type(out.law.stiffness) is float and out.law.stiffness == 2.0
+    assert type(out.law.damping) is float
+    assert out.law.allow_tension is True
+    assert as_declared(out) is out
+    arr = np.arange(3)
+    assert as_declared(arr) is arr
+    rec = L.new_stats()
+    rec[0]["steps"] = 7
+    fields = L.fields_of(rec)
+    assert fields["steps"] == 7 and fields["min_step"] == math.inf
+    assert list(fields) == list(L.STATS_DTYPE.names or ())
+
+
 @pytest.mark.parametrize("name", ["hunt_crossley", "flores", "lankarani_nikravesh", "gonthier"])
 def test_restitution_of_a_free_impact_is_the_laws_exact_value(name: str) -> None:
     """With D(c_r) from the law, one free impact rebounds at the exact restitution of
