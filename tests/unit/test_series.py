@@ -24,8 +24,10 @@ from numba import njit
 import braidsim.core  # noqa: F401  (registers every record; silences numba's IR warning)
 from braidsim.core.interfaces import (
     SERIES_ROWS,
+    contact_force_onset_series,
     contact_force_series,
     contact_forces,
+    contact_onset_power,
     friction_force,
     friction_force_series,
     wall_motion,
@@ -70,6 +72,19 @@ def _contact_series(law, P, v0, order, S, out):
         out[0, k] = fk
         out[1, k] = fc
         out[2, k] = nn
+
+
+@njit(boundscheck=True)
+def _contact_onset_series(law, Q, v0, order, S, out):
+    for k in range(order + 1):
+        fc, nn = contact_force_onset_series(law, k, Q, v0, S)
+        out[0, k] = fc
+        out[1, k] = nn
+
+
+@njit(boundscheck=True)
+def _onset_power(law):
+    return contact_onset_power(law)
 
 
 @njit(boundscheck=True)
@@ -317,6 +332,53 @@ def test_contact_force_series_converges_to_the_forces(law, v0: float) -> None:
             return forces(tau)[i]
 
         _assert_order(out[i], ORDER, force, T, max(abs(f0[i]), abs(f0[0])))
+
+
+ONSET_LAWS = [law for law in CONTACT_LAWS if not isinstance(law, PowerLawContact)] + [
+    PowerLawContact(1e9, 1.5, 0.8),
+    PowerLawContact(1e6, 1.0, 0.3),
+    PowerLawContact(1e7, 2.0, 0.4),
+]
+
+
+@pytest.mark.parametrize("v0", [0.3, math.inf])
+@pytest.mark.parametrize("law", ONSET_LAWS, ids=lambda law: f"{type(law).__name__}")
+def test_contact_onset_series_converges_to_the_forces(law, v0: float) -> None:
+    """From an onset: p(t + s^2) = s^2 q(s), q(0) > 0; (F_c, N) as series in s against the
+    law's forces along p(s) and p' = dp/dt = (dp/ds) / (2 s)."""
+    S_scale = 1e-2  # s scale [sqrt(s)] (1e-4 s of contact)
+    qpoly = _wavy(TOP + 8, 0.4, 0.3, S_scale, 0.9)  # q(s), q0 = p'(onset) = 0.4 m/s
+    ppoly = np.concatenate([[0.0, 0.0], qpoly])  # p = s^2 q
+    dppoly = _deriv(ppoly)  # dp/ds, whose constant term is 0
+    Q = qpoly[: TOP + 1].copy()  # the series reads Q[0..k]
+    out = np.full((2, TOP + 1), np.nan)
+    _contact_onset_series(law, Q, v0, TOP, _work(TOP), out)
+
+    def forces(s: float) -> tuple[float, float]:
+        rate = _horner(dppoly[1:], s) / 2.0  # (dp/ds) / (2 s)
+        fk, fc, _ = contact_forces.py(law, _horner(ppoly, s), rate, v0)
+        return fc, fk + fc  # N unclamped
+
+    m = _onset_power(law)
+    assert m == round(2 * getattr(law, "exponent", 1.0))
+    damped = isinstance(law, KelvinVoigtContact) or not math.isinf(v0)
+    if not damped:
+        assert np.all(out[0] == 0.0)
+    # the stiffness force starts at s^m (the damping force of Kelvin-Voigt at s^0)
+    fk_series = out[1] - out[0]
+    assert np.all(fk_series[:m] == 0.0)
+    scale = abs(forces(S_scale)[1])
+    for i in (0, 1) if damped else (1,):
+
+        def force(s: float, i: int = i) -> float:
+            return forces(s)[i]
+
+        _assert_order(out[i], ORDER, force, S_scale, scale)
+
+
+def test_a_power_law_of_non_integer_2n_has_no_onset_series() -> None:
+    assert _onset_power(PowerLawContact(3e8, 2.3, 0.5)) == 0
+    assert _onset_power(PowerLawContact(1e9, 1.5, 0.5)) == 3
 
 
 def test_power_law_series_is_the_closed_form_on_a_linear_penetration() -> None:

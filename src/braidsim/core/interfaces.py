@@ -309,6 +309,54 @@ def model_series(model, k, modes, v0s, n_state, C, W):
     raise NotImplementedError
 
 
+# The onset series: at a contact's onset p = 0 and p' > 0, so a power law's p^n has a branch
+# point there (no Taylor series in tau, and a radius of convergence equal to the time since
+# the onset just after it). In s = sqrt(tau) it is gone: p(t_on + s^2) = s^2 q(s) with q
+# analytic and q(0) = p'(t_on) > 0, so p^n = s^(2n) q(s)^n is a series in s wherever 2n is
+# an integer. The state then follows dy/ds = 2 s f(t_on + s^2, y), and the onset step expands
+# it in s (braidsim.core.solver.taylor, "The onset step"). A law or model without these
+# functions starts each contact with a Runge-Kutta step.
+
+
+@generic
+def contact_onset_power(law):
+    """The power m of s at which the law's stiffness force starts, K p^n = K s^m q^n (m = 2n),
+    when its forces are series in s = sqrt(t - t_onset) from an onset; 0 when they are not (a
+    non-integer 2n)."""
+    raise NotImplementedError
+
+
+@generic
+def contact_force_onset_series(law, k, Q, v0, S):
+    """Coefficient k, in s = sqrt(t - t_onset), of (F_c, N) of :func:`contact_forces` from a
+    contact's onset, where the penetration is p(t_onset + s^2) = s^2 q(s) with
+    q(s) = sum_j Q[j] s^j, Q[0] = p'(t_onset) > 0; reads Q[0..k]. The rate in the damping
+    term is p' = dp/dt = sum_j (j + 2) Q[j] s^j / 2. Unclamped, as
+    :func:`contact_force_series`."""
+    raise NotImplementedError
+
+
+@generic
+def model_onset_start(model, t, pair, modes, order, W):
+    """Prepare an onset step of ``order`` in s = sqrt(tau) from t, where pair ``pair`` has
+    just touched (p = 0 at t; ``modes`` hold its new mode): as :func:`model_series_start`,
+    with each series of time alone written in s (h(t + s^2): its coefficient j in tau at
+    s^(2 j)); return the time [s] over which they hold, or 0.0 when the model has no onset
+    series in these modes."""
+    raise NotImplementedError
+
+
+@generic
+def model_onset_series(model, k, pair, modes, v0s, n_state, C, W):
+    """Write C[:n_state, k + 2], the coefficient k + 2 in s = sqrt(tau) of the state from the
+    onset of pair ``pair``, after :func:`model_onset_start`: along t + s^2 the state follows
+    dy/ds = 2 s f, so (k + 2) C[:, k + 2] = 2 f_k, f_k the coefficient k of dy/dt (and
+    C[:, 1] = 0). Called for k = 0, 1, 2, ... in turn; the coordinates' C[i, k + 2] =
+    2 C[i + 1, k] / (k + 2) are known before f_k is, and the penetration's coefficients to
+    k + 2 with them."""
+    raise NotImplementedError
+
+
 # =======================================================================================
 # Tangents: directional derivatives for the forward sensitivities
 # =======================================================================================

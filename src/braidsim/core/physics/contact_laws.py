@@ -21,10 +21,12 @@ import math
 from typing import NamedTuple
 
 from braidsim.core.interfaces import (
+    contact_force_onset_series,
     contact_force_rates,
     contact_force_series,
     contact_forces,
     contact_forces_jvp,
+    contact_onset_power,
     contact_onset_step,
     contact_potential,
 )
@@ -80,6 +82,47 @@ def _forces_series(law, k, P, v0, S):
             acc += F[j] * D[k - j]
         fc = law.damping * acc / v0
     return fk, fc, fk + fc
+
+
+@contact_onset_power.register(PowerLawContact)
+def _onset_power(law):
+    # K p^n = K s^(2n) q^n is a series in s where 2n is an integer (Hertz: s^3)
+    m = 2.0 * law.exponent
+    if m >= 1.0 and m == math.floor(m):
+        return int(m)
+    return 0
+
+
+@contact_force_onset_series.register(PowerLawContact)
+def _forces_onset_series(law, k, Q, v0, S):
+    # p = s^2 q, so F_k = K s^m q^n (m = 2n): row 0 holds R = q^n (the power recurrence,
+    # Q[0] > 0), row 1 the rate p' = dp/dt = (j + 2) Q[j] / 2, row 2 F_k; F_c = (D / v0)
+    # (F_k p')_k, whose terms start at F_k's s^m, so that p' is read to k - m <= k
+    m = contact_onset_power(law)
+    F = S[2]
+    j = k - m
+    if j < 0:
+        F[k] = 0.0
+        return 0.0, 0.0
+    R = S[0]
+    n = law.exponent
+    if j == 0:
+        q0 = Q[0]
+        r = q0 * math.sqrt(q0) if n == 1.5 else q0**n
+    else:
+        r = jet_pow(Q, R, n, j)
+    R[j] = r
+    fk = law.stiffness * r
+    F[k] = fk
+    if math.isinf(v0):  # a contact released elastically: no damping term
+        return 0.0, fk
+    PD = S[1]
+    PD[j] = 0.5 * (j + 2) * Q[j]
+    acc = 0.0
+    for i in range(m, k + 1):
+        acc += F[i] * PD[k - i]
+    fc = law.damping * acc / v0
+    return fc, fk + fc
 
 
 @contact_forces_jvp.register(PowerLawContact)

@@ -24,10 +24,12 @@ import math
 from typing import NamedTuple
 
 from braidsim.core.interfaces import (
+    contact_force_onset_series,
     contact_force_rates,
     contact_force_series,
     contact_forces,
     contact_forces_jvp,
+    contact_onset_power,
     contact_onset_step,
     contact_potential,
 )
@@ -69,6 +71,20 @@ def _forces_series(law, k, P, v0, S):
     fk = law.stiffness * P[k]
     fc = law.damping * ((k + 1) * P[k + 1])
     return fk, fc, fk + fc
+
+
+@contact_onset_power.register(KelvinVoigtContact)
+def _onset_power(law):
+    return 2  # k p = k s^2 q
+
+
+@contact_force_onset_series.register(KelvinVoigtContact)
+def _forces_onset_series(law, k, Q, v0, S):
+    # p = s^2 q: F_k = k s^2 q, F_c = c p' with p' = sum_j (j + 2) Q[j] s^j / 2 (the force
+    # jumps to c p'(t_onset) at the onset)
+    fk = law.stiffness * Q[k - 2] if k >= 2 else 0.0
+    fc = law.damping * (0.5 * (k + 2) * Q[k])
+    return fc, fk + fc
 
 
 @contact_forces_jvp.register(KelvinVoigtContact)
