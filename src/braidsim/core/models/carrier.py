@@ -37,10 +37,12 @@ from braidsim.core.interfaces import (
     SERIES_ROWS,
     apply_transfer,
     apply_transfer_jvp,
+    contact_force_onset_series,
     contact_force_rates,
     contact_force_series,
     contact_forces,
     contact_forces_jvp,
+    contact_onset_power,
     contact_onset_step,
     contact_potential,
     derivatives,
@@ -51,6 +53,8 @@ from braidsim.core.interfaces import (
     friction_force,
     friction_force_jvp,
     friction_force_series,
+    model_onset_series,
+    model_onset_start,
     model_series,
     model_series_start,
     model_size,
@@ -544,6 +548,64 @@ def _series(model, k, modes, v0s, n_state, C, W):
             C[q + 4, k + 1] = 0.0
         else:
             C[q + 2, k + 1] = 0.0
+
+
+# ---- the onset series in s = sqrt(t - t_onset) (x-only carrier) ----------------------------
+
+
+@model_onset_start.register(CarrierX)
+def _onset_start(model, t, pair, modes, order, W):
+    # the series of time alone to order / 2 in tau, then spread to s: coefficient j of
+    # h(t + tau) is that of s^(2 j) in h(t + s^2), the odd ones are 0
+    if contact_onset_power(model.track_law) == 0:
+        return 0.0
+    half = order // 2
+    hz = model_series_start(model, t, modes, half, W)
+    for r in (R_H, R_HD, R_OM, R_LOAD):
+        for j in range(half, 0, -1):
+            W[r, 2 * j] = W[r, j]
+            W[r, 2 * j - 1] = 0.0
+        for j in range(2 * half + 1, order + 1):
+            W[r, j] = 0.0
+    return hz
+
+
+@model_onset_series.register(CarrierX)
+def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
+    # the x-only carrier's equations along t + s^2 (dy/ds = 2 s dy/dt), coefficient by
+    # coefficient: x first (its coefficient k + 2 is 2 x'_k / (k + 2)), then the
+    # penetration p = s^2 q to k + 2, i.e. q to k, then the forces and x''
+    c2 = 2.0 / (k + 2.0)
+    mt = modes[0]
+    sg = -1.0 if mt < 0 else 1.0
+    C[0, k + 2] = C[1, k] * c2
+    if k == 0:
+        W[R_PT, 0] = 0.0
+        W[R_PT, 1] = 0.0
+    W[R_PT, k + 2] = sg * (C[0, k + 2] - W[R_H, k + 2])
+    fct, nt = contact_force_onset_series(
+        model.track_law, k, W[R_PT, 2:], v0s[0], W[R_LAW_T : R_LAW_T + SERIES_ROWS]
+    )
+    W[R_FCT, k] = fct
+    W[R_NT, k] = nt
+    fx = friction_force_series(
+        model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
+    )
+    W[R_FX, k] = fx
+    C[1, k + 2] = (-mt * nt - fx - W[R_LOAD, k]) * (c2 / model.mass)
+    # the quadratures' integrands in s, as in _series; p' = dp/dt = (k + 2) q_k / 2
+    W[R_PDT, k] = 0.5 * (k + 2) * W[R_PT, k + 2]
+    if n_state > 2:
+        C[2, k + 2] = jet_mul(W[R_FCT], W[R_PDT], k) * c2
+    if n_state > 3:  # the friction work
+        C[3, k + 2] = jet_mul(W[R_FX], C[1], k) * c2
+    if n_state > 4:  # all the quadratures
+        if _constant_speed(model.horn_gear):
+            C[4, k + 2] = -W[R_LOAD, 0] * C[1, k] * c2
+        else:
+            C[4, k + 2] = -jet_mul(W[R_LOAD], C[1], k) * c2
+        C[5, k + 2] = -mt * jet_mul(W[R_NT], W[R_HD], k) * c2
+        C[6, k + 2] = 0.0
 
 
 # ---- tangents (forward sensitivities) ------------------------------------------------------

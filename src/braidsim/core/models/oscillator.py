@@ -23,16 +23,20 @@ from braidsim.core.interfaces import (
     SERIES_ROWS,
     apply_transfer,
     apply_transfer_jvp,
+    contact_force_onset_series,
     contact_force_rates,
     contact_force_series,
     contact_forces,
     contact_forces_jvp,
+    contact_onset_power,
     contact_onset_step,
     derivatives,
     derivatives_jvp,
     describe_model,
     dissipation_index,
     free_accel_bound,
+    model_onset_series,
+    model_onset_start,
     model_series,
     model_series_start,
     model_size,
@@ -215,6 +219,48 @@ def _series(model, k, modes, v0s, n_state, C, W):
         C[3, k + 1] = model.damping * jet_sq(C[1], k) / k1
     if n_state > 4:
         C[4, k + 1] = jet_mul(W[R_FORCE], C[1], k) / k1
+
+
+@model_onset_start.register(ImpactOscillator)
+def _onset_start(model, t, pair, modes, order, W):
+    # the forcing in s: F cos(Omega (t + s^2) + phi), coefficient j in tau at s^(2 j)
+    if contact_onset_power(model.law) == 0:
+        return 0.0
+    half = order // 2
+    model_series_start(model, t, modes, half, W)
+    for j in range(half, 0, -1):
+        W[R_FORCE, 2 * j] = W[R_FORCE, j]
+        W[R_FORCE, 2 * j - 1] = 0.0
+    for j in range(2 * half + 1, order + 1):
+        W[R_FORCE, j] = 0.0
+    return math.inf
+
+
+@model_onset_series.register(ImpactOscillator)
+def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
+    # the equation along t + s^2 (dy/ds = 2 s dy/dt): x first, then the penetration
+    # p = s^2 q to k + 2 (q to k), the contact force and x''
+    c2 = 2.0 / (k + 2.0)
+    mode = modes[0]
+    C[0, k + 2] = C[1, k] * c2
+    if k == 0:
+        W[R_P, 0] = 0.0
+        W[R_P, 1] = 0.0
+    W[R_P, k + 2] = -C[0, k + 2] if mode < 0 else C[0, k + 2]
+    fc, nn = contact_force_onset_series(
+        model.law, k, W[R_P, 2:], v0s[0], W[R_LAW : R_LAW + SERIES_ROWS]
+    )
+    W[R_FC, k] = fc
+    W[R_PD, k] = 0.5 * (k + 2) * W[R_P, k + 2]  # p' = dp/dt
+    C[1, k + 2] = (
+        W[R_FORCE, k] - model.damping * C[1, k] - model.stiffness * C[0, k] - mode * nn
+    ) * (c2 / model.mass)
+    if n_state > 2:
+        C[2, k + 2] = jet_mul(W[R_FC], W[R_PD], k) * c2
+    if n_state > 3:
+        C[3, k + 2] = model.damping * jet_sq(C[1], k) * c2
+    if n_state > 4:
+        C[4, k + 2] = jet_mul(W[R_FORCE], C[1], k) * c2
 
 
 # ---- tangents (forward sensitivities) ------------------------------------------------------
