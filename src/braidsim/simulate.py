@@ -210,11 +210,12 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, flo
 
 def stats_dict(raw: RawRun) -> dict[str, Any]:
     """The solver's statistics by name (``steps``, ``rejected_steps``, ``events``,
-    ``rhs_evaluations``, ``implicit_steps``, ``taylor_steps``, ``transfers``, ``min_step``,
-    ``max_step``; a Taylor step counts one evaluation, at its end)."""
+    ``rhs_evaluations``, ``implicit_steps``, ``taylor_steps`` (of them ``onset_steps``),
+    ``transfers``, ``min_step``, ``max_step``; a Taylor step counts one evaluation, at its
+    end)."""
     rec = L.fields_of(raw.stats)
     names = ("steps", "rejected_steps", "events", "rhs_evaluations", "implicit_steps")
-    out: dict[str, Any] = {name: int(rec[name]) for name in (*names, "taylor_steps")}
+    out: dict[str, Any] = {name: int(rec[name]) for name in (*names, "taylor_steps", "onset_steps")}
     out["transfers"] = int(rec["transfers"])
     out["min_step"] = float(rec["min_step"]) if math.isfinite(rec["min_step"]) else None
     out["max_step"] = float(rec["max_step"])

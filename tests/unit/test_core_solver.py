@@ -89,21 +89,40 @@ def test_dense_derivative_matches_the_stages_and_finite_differences() -> None:
 
 
 def test_a_step_polynomial_reads_as_its_interpolant_or_as_numpys_polynomial() -> None:
-    """In a loop with Taylor steps the readers get both polynomials: the interpolant's
-    values to the bit, the Taylor polynomial's as numpy's polyval and polyder give them;
-    compiled and in Python alike."""
+    """In a loop with Taylor steps the readers get all three polynomials: the
+    interpolant's values to the bit, the Taylor polynomial's as numpy's polyval and polyder
+    give them, the onset step's in sqrt(theta) likewise; compiled and in Python alike."""
     rng = np.random.default_rng(7)
     RC, RT = rng.standard_normal((5, 3)), rng.standard_normal((13, 3))
+    RS = rng.standard_normal((25, 3))
+    RS[1] = 0.0  # (dy/ds = 2 s dy/dt)
     h = 2e-4
+
+    def kind(k: int) -> np.ndarray:
+        return np.full(1, k, dtype=np.int64)
+
     out, ref = np.empty(3), np.empty(3)
     for theta in (0.0, 0.37, 1.0):
-        dense_eval(theta, StepPolynomial(RC, RT, np.zeros(1, dtype=np.int64)), out, 3)
+        dense_eval(theta, StepPolynomial(RC, RT, kind(0), RS), out, 3)
         dense_eval(theta, RC, ref, 3)
         assert np.array_equal(out, ref)
-        _deriv(theta, h, StepPolynomial(RC, RT, np.zeros(1, dtype=np.int64)), out, 3)
+        _deriv(theta, h, StepPolynomial(RC, RT, kind(0), RS), out, 3)
         _deriv(theta, h, RC, ref, 3)
         assert np.array_equal(out, ref)
-        taylor = StepPolynomial(RC, RT, np.ones(1, dtype=np.int64))
+        onset = StepPolynomial(RC, RT, kind(2), RS)
+        sigma = np.sqrt(theta)
+        dense_eval(theta, onset, out, 3)
+        np.testing.assert_allclose(out, P.polyval(sigma, RS), rtol=1e-13, atol=1e-13)
+        _deriv(theta, h, onset, out, 3)
+        # d/dt = (d/dsigma) / (2 sigma h); at sigma = 0 (where RS[1] = 0) 2 RS[2] / (2 h)
+        if theta > 0.0:
+            d_ref = P.polyval(sigma, P.polyder(RS)) / (2 * sigma * h)
+        else:
+            d_ref = RS[2] / h
+        np.testing.assert_allclose(out, d_ref, rtol=1e-12, atol=1e-12 / h)
+        dense_deriv(theta, h, onset, ref, 3)  # the Python reference
+        np.testing.assert_allclose(ref, d_ref, rtol=1e-12, atol=1e-12 / h)
+        taylor = StepPolynomial(RC, RT, kind(1), RS)
         dense_eval(theta, taylor, out, 3)
         np.testing.assert_allclose(out, P.polyval(theta, RT), rtol=1e-13, atol=1e-13)
         _deriv(theta, h, taylor, out, 3)

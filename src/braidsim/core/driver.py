@@ -22,6 +22,7 @@ from braidsim.core import interfaces as I
 from braidsim.core import layout as L
 from braidsim.core.interfaces import dissipation_index, model_size, series_columns
 from braidsim.core.solver.loop import EPISODE_RESERVE, EVENT_ROWS, integrate
+from braidsim.core.solver.taylor import ONSET_ORDER
 
 SeriesSink = Callable[[np.ndarray], None]
 """Receives each chunk of series rows (a (rows, columns) array, a copy it may keep)."""
@@ -283,6 +284,23 @@ def taylor_capable(model: Any) -> str:
     return f"{type(sub).__name__} ({field}) gives no Taylor series ({fn.__name__})"
 
 
+def onset_capable(model: Any) -> bool:
+    """Whether ``model`` can start its contacts with an onset step in s = sqrt(t - t_onset)
+    (:mod:`braidsim.core.solver.taylor`): it registers
+    :func:`~braidsim.core.interfaces.model_onset_series` and its start, and each contact law
+    in its fields the law's onset series. Where it cannot, a Taylor run starts each contact
+    with a Runge-Kutta step."""
+    missing = I.first_missing(
+        model,
+        (I.model_onset_series, I.model_onset_start),
+        (
+            (I.contact_forces, I.contact_force_onset_series),
+            (I.contact_forces, I.contact_onset_power),
+        ),
+    )
+    return missing is None
+
+
 def max_samples_per_step(sample_times: np.ndarray, max_step: float) -> int:
     """Most sample times in any half-open interval (t, t + max_step]: what one step can
     write."""
@@ -309,6 +327,7 @@ def run(
     tangents: Tangents | None = None,
     implicit: bool = False,
     taylor: int = 0,
+    taylor_onset: bool = True,
     max_rows: int | None = None,
 ) -> RawRun:
     """Integrate ``model`` with solver options ``opts`` from ``y0`` (or from ``restart``).
@@ -340,6 +359,10 @@ def run(
         Dormand-Prince step (:mod:`braidsim.core.solver.taylor`); 0 (the default) compiles
         none. The model and every physics record in it must give their series
         (:func:`taylor_capable`); runs with tangents use Dormand-Prince only.
+    taylor_onset : bool
+        With ``taylor``, start each contact with an onset step in s = sqrt(t - t_onset)
+        where the model gives its series there (:func:`onset_capable`; True, the default),
+        else with a Dormand-Prince step.
     max_rows : int, optional
         The most rows to keep or hand to ``series`` (give it for a sink that keeps them in
         memory): past it the run stops with :class:`SeriesOverflow` (the sample grid is
@@ -396,7 +419,8 @@ def run(
         why = taylor_capable(model)
         if why:
             raise ValueError(f"taylor: {why}")
-        TAY = L.taylor_work(n, int(taylor))
+        onset = ONSET_ORDER if taylor_onset and onset_capable(model) else None
+        TAY = L.taylor_work(n, int(taylor), onset)
     sens_chunks: list[np.ndarray] = []
     sens_closed: list[np.ndarray] = []
     written = 0

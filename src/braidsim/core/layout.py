@@ -166,26 +166,44 @@ class TaylorWork(NamedTuple):
     RT : array (N + 1, n)
         The step's dense output: RT[k, i] = C[i, k] h^k, a polynomial in theta = tau / h.
     kind : array (1,) of int64
-        1 while the step in hand is a Taylor step, 0 otherwise: the dense output's readers
-        look here (:class:`braidsim.core.solver.dense.StepPolynomial`).
+        1 while the step in hand is a Taylor step, 2 an onset step, 0 otherwise: the dense
+        output's readers look here (:class:`braidsim.core.solver.dense.StepPolynomial`).
+    CS : array (n, M + 1)
+        The state's coefficients in s = sqrt(tau) of an onset step of order M.
+    RS : array (M + 1, n)
+        The onset step's dense output, RS[k, i] = CS[i, k] S^k (a polynomial in sqrt(theta)).
+    onset : int or None
+        M, or ``None`` where the model has no onset series: the onset step is then compiled
+        out (and CS, RS are placeholders) and each contact starts with a Runge-Kutta step.
     """
 
     C: np.ndarray
     W: np.ndarray
     RT: np.ndarray
     kind: np.ndarray
+    CS: np.ndarray
+    RS: np.ndarray
+    onset: int | None
 
 
-def taylor_work(n: int, order: int) -> TaylorWork:
-    """Work arrays of a Taylor step of ``order`` (>= 6) for n state components."""
+def taylor_work(n: int, order: int, onset_order: int | None = None) -> TaylorWork:
+    """Work arrays of a Taylor step of ``order`` (>= 6) for n state components, and of an
+    onset step of ``onset_order`` in s (even, >= 12; ``None``: no onset step)."""
     if order < 6:
         # (the step stands in for the Dormand-Prince pair, of order 5, where it is longer)
         raise ValueError(f"taylor order: {order}; allowed >= 6")
+    if onset_order is not None and (onset_order < 12 or onset_order % 2):
+        # (the step size reads the last six coefficients; the walls fill the even ones)
+        raise ValueError(f"onset order: {onset_order}; allowed an even number >= 12")
+    m = 0 if onset_order is None else onset_order
     return TaylorWork(
         np.zeros((n, order + 1)),
-        np.zeros((TAYLOR_ROWS, order + 2)),
+        np.zeros((TAYLOR_ROWS, max(order, m) + 2)),
         np.zeros((order + 1, n)),
         np.zeros(1, dtype=np.int64),
+        np.zeros((n, m + 1)),
+        np.zeros((m + 1, n)),
+        onset_order,
     )
 
 
@@ -274,7 +292,8 @@ STATS_DTYPE = np.dtype(
         ("min_step", "f8"),  # [s]
         ("max_step", "f8"),  # [s]
         ("implicit_steps", "f8"),  # accepted steps of resting contacts (Radau IIA)
-        ("taylor_steps", "f8"),  # accepted Taylor-series steps
+        ("taylor_steps", "f8"),  # accepted Taylor-series steps (the onset steps included)
+        ("onset_steps", "f8"),  # accepted onset steps (Taylor series in sqrt(t - t_onset))
     ]
 )
 
@@ -313,6 +332,7 @@ RESTART_DTYPE = np.dtype(
         ("rest_blocked", "f8"),  # 1: the implicit step did not pay; explicit until an event
         ("implicit_prev_h", "f8"),  # [s] the last step, when implicit (its polynomial in Q)
         ("taylor_wait", "f8"),  # Runge-Kutta steps to take before a Taylor step is tried again
+        ("onset_pair", "f8"),  # the pair whose contact the pending first step starts (-1: none)
     ]
 )
 
@@ -331,6 +351,7 @@ def _restart_template() -> np.ndarray:
     r[0]["v0_1"] = 1.0
     r[0]["err_old"] = 1e-4
     r[0]["last_event_t"] = -1.0
+    r[0]["onset_pair"] = -1.0
     return r
 
 

@@ -6,11 +6,12 @@ It is a polynomial in theta = (t - t0) / h of one of two kinds:
 - the continuous extension of the Runge-Kutta step, 5 rows in the nested form of
   :func:`~braidsim.core.solver.dopri5.interpolant_component` (the implicit step writes its
   collocation polynomial in the same form): a plain array;
-- in a loop compiled with the Taylor step, either that or the Taylor polynomial
-  sum_k RT[k] theta^k of :mod:`braidsim.core.solver.taylor`, told apart at run time: a
-  :class:`StepPolynomial`. The loop makes it once, before its first step, and sets its
-  flag at each step: a record of arrays made at every step cost numba's reference counting
-  (an atomic increment and decrement of each array) at every step.
+- in a loop compiled with the Taylor step, either that, the Taylor polynomial
+  sum_k RT[k] theta^k of :mod:`braidsim.core.solver.taylor`, or an onset step's polynomial
+  in s, sum_k RS[k] sqrt(theta)^k, told apart at run time: a :class:`StepPolynomial`.
+  The loop makes it once, before its first step, and sets its flag at each step: a record
+  of arrays made at every step cost numba's reference counting (an atomic increment and
+  decrement of each array) at every step.
 
 The readers below are chosen by the type of the dense output when their caller is compiled.
 A loop compiled without the Taylor step passes a plain array and its readers hold the nested
@@ -30,7 +31,12 @@ from numba import types
 
 from braidsim.core.generic import inline_helper, overload_inlined, record_class
 from braidsim.core.solver.dopri5 import interpolant_component, interpolant_deriv
-from braidsim.core.solver.taylor import taylor_component, taylor_deriv
+from braidsim.core.solver.taylor import (
+    onset_component,
+    onset_deriv,
+    taylor_component,
+    taylor_deriv,
+)
 
 
 class StepPolynomial(NamedTuple):
@@ -43,24 +49,34 @@ class StepPolynomial(NamedTuple):
     taylor : array (N + 1, n)
         The Taylor step's polynomial, RT[k, i] = C[i, k] h^k.
     is_taylor : array (1,) of int
-        Which of the two is the step's: ``is_taylor[0]`` nonzero for the Taylor polynomial
+        Which of them is the step's: ``is_taylor[0]`` 0 for the interpolant, 1 for the
+        Taylor polynomial, 2 for the onset step's
         (:attr:`braidsim.core.layout.TaylorWork.kind`, which the loop sets at each step).
+    onset : array (M + 1, n)
+        The onset step's polynomial in s, RS[k, i] = C[i, k] S^k (read at sqrt(theta)).
     """
 
     interpolant: np.ndarray
     taylor: np.ndarray
     is_taylor: np.ndarray
+    onset: np.ndarray
 
 
 def _either_component(theta, RC, i):
-    if RC.is_taylor[0]:
+    kind = RC.is_taylor[0]
+    if kind == 1:
         return taylor_component(theta, RC.taylor, i)
+    if kind == 2:
+        return onset_component(theta, RC.onset, i)
     return interpolant_component(theta, RC.interpolant, i)
 
 
 def _either_deriv(theta, h, RC, out, n):
-    if RC.is_taylor[0]:
+    kind = RC.is_taylor[0]
+    if kind == 1:
         taylor_deriv(theta, h, RC.taylor, out, n)
+    elif kind == 2:
+        onset_deriv(theta, h, RC.onset, out, n)
     else:
         interpolant_deriv(theta, h, RC.interpolant, out, n)
 
@@ -105,13 +121,13 @@ def _deriv_typer(theta: Any, h: Any, RC: Any, out: Any, n: Any) -> Any:
 
 
 def _either(RC, TAY):
-    return StepPolynomial(RC, TAY.RT, TAY.kind)
+    return StepPolynomial(RC, TAY.RT, TAY.kind, TAY.RS)
 
 
 def step_output(RC: np.ndarray, TAY: Any) -> Any:
     """The dense output the loop hands to the readers: the interpolant RC itself where the
     Taylor step is compiled out (``TAY`` None), else ``StepPolynomial(RC, TAY.RT,
-    TAY.kind)``. (Chosen by the type of ``TAY``: numba prunes a test ``TAY is None`` only
+    TAY.kind, TAY.RS)``. (Chosen by the type of ``TAY``: numba prunes a test ``TAY is None`` only
     where ``TAY`` is None, so a branch in the loop would type both kinds in a loop with
     the Taylor step, and fail.)"""
     return RC if TAY is None else _either(RC, TAY)

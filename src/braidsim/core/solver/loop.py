@@ -89,12 +89,14 @@ from braidsim.core.solver.tangent import (
 )
 from braidsim.core.solver.taylor import (
     RETEST,
+    onset_step,
     taylor_coefficients,
     taylor_dense,
     taylor_shorten,
     taylor_step_size,
 )
 
+ONSET_RK_FRACTION = 0.25  # the Runge-Kutta step after an onset step, as its fraction
 EPISODE_RESERVE = 4  # impact-table rows one step can open at most
 EVENT_ROWS = 16  # series rows one step writes at most besides its samples
 # A contact rests when its fast mode holds the explicit step: h |lambda| (estimated from the
@@ -370,6 +372,7 @@ def integrate(
     # error exponent of the first step of a contact: the force grows as s^n after onset, so
     # that step's error scales as h^(n+1), not h^5 (0: no contact step pending)
     onset_q = r.onset_q
+    onset_pair = int(r.onset_pair)  # the pair whose contact that step starts
     tols = (opts.rtol, opts.atol_position, opts.atol_velocity)
     force_rk = False  # a Taylor step was refused after the fact: a Runge-Kutta step next
     h_rk = h
@@ -383,9 +386,9 @@ def integrate(
     Ke6 = Ke[6]
     RCs = step_output(RC, TAY)
     if TAY is not None:
-        TC, TW, TRT, TKIND = TAY.C, TAY.W, TAY.RT, TAY.kind
+        TC, TW, TRT, TRS, TKIND = TAY.C, TAY.W, TAY.RT, TAY.RS, TAY.kind
     else:  # (never read: every use is under TAY is not None)
-        TC, TW, TRT, TKIND = RC, RC, RC, modes
+        TC, TW, TRT, TRS, TKIND = RC, RC, RC, RC, modes
 
     rhs(model, t, y, modes, v0s, n, K0)
     pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
@@ -474,10 +477,46 @@ def integrate(
             # the step's dense output (RCs, braidsim.core.solver.dense) is the Runge-Kutta
             # interpolant unless a Taylor step is taken below
             TKIND[0] = 0
+            # the first step of a contact: the onset step in s = sqrt(t - t_onset) where the
+            # model has its series (compiled out where it has none: taylor.onset_step)
+            if onset_q > 0.0 and onset_pair >= 0 and not force_rk:
+                if INF0[onset_pair, I_PD] > 0.0:
+                    ho = onset_step(
+                        model,
+                        t,
+                        y,
+                        onset_pair,
+                        modes,
+                        v0s,
+                        n,
+                        n_dof2,
+                        tols,
+                        min(hmax, t_stop - t),
+                        t_stop - t,
+                        TAY,
+                    )
+                    if ho > 0.0:
+                        took_taylor = True
+                        # the Runge-Kutta step carried: a quarter of the distance to the
+                        # onset's branch point at the step's end (where a Dormand-Prince step
+                        # passes its error test, measured on paper-3.3), not the onset's
+                        # guess, which the Taylor steps would then have to beat
+                        h_rk = min(h, ONSET_RK_FRACTION * ho)
+                        err_old_rk = err_old
+                        h = ho
+                        hits_stop = h >= (t_stop - t) * (1.0 - 1e-9)
+                        if hits_stop:
+                            h = t_stop - t
+                        TKIND[0] = 2
+                        _dense_at(1.0, RCs, y1, n)
+                        rhs(model, t + h, y1, modes, v0s, n, K6)
+                        st.rhs_evaluations += 1
+                        nsteps += 1
+                        err = 0.0
             # the Taylor step where it is at least the Runge-Kutta step (module docstring
             # of taylor.py); not in the first step of a contact (the force's series does not
             # exist at p = 0), nor where a contact force is held at 0 by its clamp
-            try_taylor = onset_q == 0.0 and not force_rk
+            try_taylor = onset_q == 0.0 and not force_rk and not took_taylor
             if IMP is not None:
                 if r.implicit:
                     try_taylor = False
@@ -670,6 +709,7 @@ def integrate(
                 fac = min(10.0, max(0.2, radau_safety(newton_iters) * err ** (-0.25)))
         err_old = max(err, 1e-4)
         onset_q = 0.0
+        onset_pair = -1
         h_next = min(h * fac, hmax)
         if TAY is not None:
             if took_taylor:
@@ -717,7 +757,10 @@ def integrate(
             if took_taylor:
                 # the polynomial cut at the event
                 if TAY is not None:
-                    taylor_shorten(TRT, theta_ev, n)
+                    if TKIND[0] == 2:
+                        taylor_shorten(TRS, math.sqrt(theta_ev), n)
+                    else:
+                        taylor_shorten(TRT, theta_ev, n)
                 _dense_at(1.0, RCs, ye, n)
                 rhs(model, t + he, ye, modes, v0s, n, Ke6)
                 st.rhs_evaluations += 1
@@ -775,6 +818,8 @@ def integrate(
         if TAY is not None:
             if took_taylor:
                 st.taylor_steps += 1
+                if TKIND[0] == 2:
+                    st.onset_steps += 1
         if IMP is not None:
             jac_fresh = False
             # a whole implicit step's polynomial starts the next one's Newton iterations
@@ -873,6 +918,7 @@ def integrate(
                 # start the contact with a step of a fraction of its duration estimated from
                 # the elastic closed form, and rescale a rejected first step by its own law
                 h_on, onset_q = _onset_step(model, pair, vlat)
+                onset_pair = pair
                 h = min(h, h_on)
             else:
                 # exit
@@ -944,6 +990,7 @@ def integrate(
     r.h = h
     r.err_old = err_old
     r.onset_q = onset_q
+    r.onset_pair = onset_pair
     r.stiff_run = stiff_run
     r.nonstiff_run = nonstiff_run
     r.same_time_events = same_time_events

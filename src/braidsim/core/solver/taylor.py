@@ -25,14 +25,39 @@ friction law at v = +-i v_hat) the radius of convergence, and with it the Taylor
 shrinks to zero while the Runge-Kutta step does not (benchmarks/README.md, "A route to
 1.5", measured this rule within 10-15 % of one that knows where the model's
 singularities are).
+
+The onset step. At a contact's onset the penetration is 0 and grows, so a power law's p^n
+has a branch point there: no series in tau, and just after the onset a radius of
+convergence equal to the time since it. In s = sqrt(tau) the branch point is gone:
+p(t + s^2) = s^2 q(s), q(0) = p'(t) > 0, so p^n = s^(2n) q^n is a series in s wherever 2n is
+an integer (:func:`~braidsim.core.interfaces.contact_force_onset_series`), and the state
+follows dy/ds = 2 s dy/dt. The first step of a contact is one series of order ONSET_ORDER
+in s (:func:`~braidsim.core.interfaces.model_onset_series`), its length S from the last
+six coefficients of each coordinate and speed (the series interleaves sub-series, the even
+powers of the free motion and the force's s^(2n + j), so that two consecutive coefficients
+can both be small by accident):
+
+    S = min over i, k in N - 5..N of (tol_i / |C[i, k]|)^(1/k),   h = S^2.
+
+Its dense output RS[k, i] = C[i, k] S^k is a polynomial in sqrt(theta), theta = tau / h
+(:mod:`braidsim.core.solver.dense`). Measured in benchmarks/README.md ("The onset step in
+the core").
 """
 
 from __future__ import annotations
 
 import math
+from typing import Any
 
-from braidsim.core.generic import helper, inline_helper
-from braidsim.core.interfaces import model_series, model_series_start
+from numba import types
+
+from braidsim.core.generic import helper, inline_helper, overload_inlined
+from braidsim.core.interfaces import (
+    model_onset_series,
+    model_onset_start,
+    model_series,
+    model_series_start,
+)
 
 # In a run of Runge-Kutta steps the series is built again to test the rule only every
 # RETEST-th step (testing at every step cost 5-8 % of a run in the benchmark's loop)
@@ -40,6 +65,8 @@ RETEST = 4
 # the lowest order at which the series may stop (:func:`taylor_coefficients`)
 MIN_ORDER = 3
 STOP_SAFETY = 1e-3
+# the order of the onset step in s (the prototype's: benchmarks/lean_taylor.py)
+ONSET_ORDER = 24
 
 
 # (in IEEE order: with the sums reassociated, which LLVM then vectorises, the carrier's series
@@ -92,10 +119,19 @@ def taylor_step_size(C, used, n_dof2, rtol, atol_x, atol_v, hstop):
     order = C.shape[1] - 1
     if used < order:
         return hstop
-    h = hstop
+    return _last_terms_step(C, n_dof2, rtol, atol_x, atol_v, order - 1, hstop)
+
+
+@inline_helper
+def _last_terms_step(C, n_dof2, rtol, atol_x, atol_v, k_first, hmax):
+    """min(hmax, min over i < n_dof2, k_first <= k <= N of (tol_i / |C[i, k]|)^(1/k)),
+    tol_i = atol_i + rtol |C[i, 0]|: the step at which each of those terms is its
+    tolerance."""
+    order = C.shape[1] - 1
+    h = hmax
     for i in range(n_dof2):
         tol = (atol_x if i % 2 == 0 else atol_v) + rtol * abs(C[i, 0])
-        for k in range(order - 1, order + 1):
+        for k in range(k_first, order + 1):
             c = abs(C[i, k])
             if c > 0.0:
                 hk = math.exp(math.log(tol / c) / k)
@@ -146,3 +182,109 @@ def taylor_deriv(theta, h, RT, out, n):
         for k in range(deg - 1, 0, -1):
             acc = acc * theta + k * RT[k, i]
         out[i] = acc / h
+
+
+# ---- the onset step --------------------------------------------------------------------------
+
+
+@helper
+def onset_coefficients(model, t, y, pair, modes, v0s, n, C, W):
+    """Fill C[:n, 0..M] (M = C.shape[1] - 1) with the state's coefficients in s from the onset
+    of pair ``pair`` at (t, y); return the time over which the model's series hold, 0.0 when
+    the model has none in these modes."""
+    order = C.shape[1] - 1
+    horizon = model_onset_start(model, t, pair, modes, order, W)
+    if not horizon > 0.0:
+        return 0.0
+    for i in range(n):
+        C[i, 0] = y[i]
+        C[i, 1] = 0.0
+    for k in range(order - 1):
+        model_onset_series(model, k, pair, modes, v0s, n, C, W)
+    return horizon
+
+
+@helper
+def onset_step_size(C, n_dof2, rtol, atol_x, atol_v, smax):
+    """The onset step's length in s (module docstring), at most ``smax``."""
+    return _last_terms_step(C, n_dof2, rtol, atol_x, atol_v, C.shape[1] - 6, smax)
+
+
+@helper
+def _onset_taylor(model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left, CS, W, RS):
+    horizon = onset_coefficients(model, t, y, pair, modes, v0s, n, CS, W)
+    if not horizon > 0.0:
+        return 0.0
+    rtol, atol_x, atol_v = tols
+    s = onset_step_size(CS, n_dof2, rtol, atol_x, atol_v, math.sqrt(min(hstop, horizon)))
+    h = s * s
+    if h >= t_left * (1.0 - 1e-9):
+        h = t_left  # (the loop reaches its stop exactly)
+        s = math.sqrt(h)
+    if not (h > 0.0 and math.isfinite(h)):
+        return 0.0
+    taylor_dense(CS, s, n, RS)
+    return h
+
+
+def onset_step(model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left, TAY):
+    """The onset step from (t, y), where pair ``pair`` has just touched: writes the step's
+    dense output into ``TAY.RS`` and returns its length h [s], at most ``hstop`` (``t_left``
+    exactly when it reaches the loop's stop); 0.0 when the model has no onset series in
+    these modes, or its work arrays were not made (``TAY.onset`` None: compiled out)."""
+    # (compiled code calls _no_onset or _with_onset, chosen by the type of TAY.onset)
+    if TAY.onset is None:
+        return 0.0
+    return _with_onset(model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left, TAY)
+
+
+def _no_onset(model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left, TAY):
+    return 0.0
+
+
+def _with_onset(model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left, TAY):
+    return _onset_taylor(
+        model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left, TAY.CS, TAY.W, TAY.RS
+    )
+
+
+def _onset_typer(
+    model: Any,
+    t: Any,
+    y: Any,
+    pair: Any,
+    modes: Any,
+    v0s: Any,
+    n: Any,
+    n_dof2: Any,
+    tols: Any,
+    hstop: Any,
+    t_left: Any,
+    TAY: Any,
+) -> Any:
+    onset = TAY.types[TAY.fields.index("onset")]
+    return _no_onset if isinstance(onset, types.NoneType) else _with_onset
+
+
+overload_inlined(onset_step, _onset_typer)
+
+
+@inline_helper
+def onset_component(theta, RS, i):
+    """Component i of the state at fraction theta (of the time) of an onset step: its
+    polynomial in s at sqrt(theta)."""
+    return taylor_component(math.sqrt(theta), RS, i)
+
+
+@inline_helper
+def onset_deriv(theta, h, RS, out, n):
+    """Time derivative of an onset step's polynomial at theta for the first ``n`` components:
+    with sigma = sqrt(theta), d/dt = (d/dsigma) / (2 sigma h) = sum_{k>=2} k RS[k, i]
+    sigma^(k-2) / (2 h) (RS[1] = 0: dy/ds = 2 s dy/dt), finite at the onset itself."""
+    deg = RS.shape[0] - 1
+    sg = math.sqrt(theta)
+    for i in range(n):
+        acc = deg * RS[deg, i]
+        for k in range(deg - 1, 1, -1):
+            acc = acc * sg + k * RS[k, i]
+        out[i] = acc / (2.0 * h)
