@@ -144,7 +144,9 @@ def refine_extreme(model, kind, pair, mode, v0, t0, h, g0, g1, RC, n_dof2, n, ys
         mid = lo + glo * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
-        dense_eval(mid, RC, ys, n)
+        # (the pair's summary reads the coordinates and speeds only: the quadratures are
+        # evaluated once, at the root)
+        dense_eval(mid, RC, ys, n_dof2)
         dense_deriv(mid, h, RC, yd, n_dof2)
         pair_info(model, pair, t0 + mid * h, ys, yd, mode, v0, info)
         gm = extreme_slope(kind, info)
