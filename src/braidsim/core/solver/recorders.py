@@ -151,6 +151,7 @@ def refine_extreme(model, kind, pair, mode, v0, t0, h, g0, g1, RC, n_dof2, n, ys
         pair_info(model, pair, t0 + mid * h, ys, yd, mode, v0, info)
         gm = extreme_slope(kind, info)
         if gm == 0.0:
+            dense_eval(mid, RC, ys, n)  # (the quadratures too, for the caller)
             return mid
         if gm > 0.0:
             lo = mid
