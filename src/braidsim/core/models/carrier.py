@@ -489,10 +489,59 @@ def _pair_series(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
     return fc, nn
 
 
+@inline_helper
+def _motion_series(model, k, j, fac, mt, ms, n_state, C, W):
+    """From the pairs' force rows at coefficient k (W[R_NT], W[R_FCT], ...): the friction,
+    the speeds' C[1, j] (and C[3, j]) and the quadratures' C[q, j], each coefficient k of
+    its derivative times ``fac``: j = k + 1, fac = 1 / (k + 1) in time (:func:`_series`),
+    j = k + 2, fac = 2 / (k + 2) in s from an onset (:func:`_onset_series`)."""
+    n_coords, _, _ = model_size(model)
+    fx = friction_force_series(
+        model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
+    )
+    W[R_FX, k] = fx
+    C[1, j] = (-mt * W[R_NT, k] - fx - W[R_LOAD, k]) * (fac / model.mass)
+    if n_coords == 2:
+        # the pad's friction under |N_t| = N_t (a Taylor step keeps N_t >= 0)
+        fy = friction_force_series(
+            model.friction, k, C[3], W[R_NT], model.mu_y, W[R_FR_Y : R_FR_Y + SERIES_ROWS]
+        )
+        W[R_FY, k] = fy
+        load_y = model.load_y if k == 0 else 0.0
+        C[3, j] = (-ms * W[R_NS, k] - fy + load_y) * (fac / model.mass)
+    # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...); a pair's
+    # terms are 0 while it is free (and its rows are not written then)
+    q = 2 * n_coords
+    if n_state > q:
+        C[q, j] = jet_mul(W[R_FCT], W[R_PDT], k) * fac if mt != 0 else 0.0
+        if n_coords == 2:
+            C[q + 1, j] = jet_mul(W[R_FCS], W[R_PDS], k) * fac if ms != 0 else 0.0
+    q += n_coords
+    if n_state > q:  # the friction works
+        C[q, j] = jet_mul(W[R_FX], C[1], k) * fac
+        if n_coords == 2:
+            C[q + 1, j] = jet_mul(W[R_FY], C[3], k) * fac
+    q += n_coords
+    if n_state > q:  # all the quadratures
+        # (a constant load in the x-only model at a constant speed: one product)
+        if n_coords == 1 and _constant_speed(model.horn_gear):
+            C[q, j] = -W[R_LOAD, 0] * C[1, k] * fac
+        else:
+            C[q, j] = -jet_mul(W[R_LOAD], C[1], k) * fac
+        C[q + 1, j] = -mt * jet_mul(W[R_NT], W[R_HD], k) * fac if mt != 0 else 0.0
+        if n_coords == 2:
+            C[q + 2, j] = (model.load_y * C[3, k]) * fac
+            C[q + 3, j] = -ms * jet_mul(W[R_NS], W[R_SD], k) * fac if ms != 0 else 0.0
+            C[q + 4, j] = 0.0
+        else:
+            C[q + 2, j] = 0.0
+
+
 @model_series.register(CarrierX)
 @model_series.register(CarrierXY)
 def _series(model, k, modes, v0s, n_state, C, W):
-    # the equations of motion of the module docstring, coefficient by coefficient
+    # the equations of motion of the module docstring, coefficient by coefficient: the
+    # coordinates' coefficient k + 1 from the speeds' k, the pairs' forces, then the rest
     n_coords, _, _ = model_size(model)
     ik1 = 1.0 / (k + 1.0)
     C[0, k + 1] = C[1, k] * ik1
@@ -503,11 +552,6 @@ def _series(model, k, modes, v0s, n_state, C, W):
     )
     W[R_FCT, k] = fct
     W[R_NT, k] = nt
-    fx = friction_force_series(
-        model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
-    )
-    W[R_FX, k] = fx
-    C[1, k + 1] = (-mt * nt - fx - W[R_LOAD, k]) * (ik1 / model.mass)
     if n_coords == 2:
         C[2, k + 1] = C[3, k] * ik1
         fcs, ns = _pair_series(
@@ -515,53 +559,28 @@ def _series(model, k, modes, v0s, n_state, C, W):
         )
         W[R_FCS, k] = fcs
         W[R_NS, k] = ns
-        # the pad's friction under |N_t| = N_t (a Taylor step keeps N_t >= 0)
-        fy = friction_force_series(
-            model.friction, k, C[3], W[R_NT], model.mu_y, W[R_FR_Y : R_FR_Y + SERIES_ROWS]
-        )
-        W[R_FY, k] = fy
-        load_y = model.load_y if k == 0 else 0.0
-        C[3, k + 1] = (-ms * ns - fy + load_y) * (ik1 / model.mass)
-    # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...); a pair's
-    # terms are 0 while it is free (and its rows are not written then)
-    q = 2 * n_coords
-    if n_state > q:
-        C[q, k + 1] = jet_mul(W[R_FCT], W[R_PDT], k) * ik1 if mt != 0 else 0.0
-        if n_coords == 2:
-            C[q + 1, k + 1] = jet_mul(W[R_FCS], W[R_PDS], k) * ik1 if ms != 0 else 0.0
-    q += n_coords
-    if n_state > q:  # the friction works
-        C[q, k + 1] = jet_mul(W[R_FX], C[1], k) * ik1
-        if n_coords == 2:
-            C[q + 1, k + 1] = jet_mul(W[R_FY], C[3], k) * ik1
-    q += n_coords
-    if n_state > q:  # all the quadratures
-        # (a constant load in the x-only model at a constant speed: one product)
-        if n_coords == 1 and _constant_speed(model.horn_gear):
-            C[q, k + 1] = -W[R_LOAD, 0] * C[1, k] * ik1
-        else:
-            C[q, k + 1] = -jet_mul(W[R_LOAD], C[1], k) * ik1
-        C[q + 1, k + 1] = -mt * jet_mul(W[R_NT], W[R_HD], k) * ik1 if mt != 0 else 0.0
-        if n_coords == 2:
-            C[q + 2, k + 1] = (model.load_y * C[3, k]) * ik1
-            C[q + 3, k + 1] = -ms * jet_mul(W[R_NS], W[R_SD], k) * ik1 if ms != 0 else 0.0
-            C[q + 4, k + 1] = 0.0
-        else:
-            C[q + 2, k + 1] = 0.0
+    _motion_series(model, k, k + 1, ik1, mt, ms, n_state, C, W)
 
 
-# ---- the onset series in s = sqrt(t - t_onset) (x-only carrier) ----------------------------
+# ---- the onset series in s = sqrt(t - t_onset) --------------------------------------------
 
 
 @model_onset_start.register(CarrierX)
+@model_onset_start.register(CarrierXY)
 def _onset_start(model, t, pair, modes, order, W):
-    # the series of time alone to order / 2 in tau, then spread to s: coefficient j of
-    # h(t + tau) is that of s^(2 j) in h(t + s^2), the odd ones are 0
-    if contact_onset_power(model.track_law) == 0:
+    # one pair touching while the other is free (the force of a pair already in contact
+    # would need its rate p' = dp/dt in s, which its law's series does not take); the series
+    # of time alone to order / 2 in tau, then spread to s: coefficient j of h(t + tau) is
+    # that of s^(2 j) in h(t + s^2), the odd ones are 0
+    n_coords, _, _ = model_size(model)
+    if n_coords == 2 and modes[1 - pair] != 0:
+        return 0.0
+    law = model.track_law if pair == 0 else model.slot_law
+    if contact_onset_power(law) == 0:
         return 0.0
     half = order // 2
     hz = model_series_start(model, t, modes, half, W)
-    for r in (R_H, R_HD, R_OM, R_LOAD):
+    for r in (R_H, R_HD, R_SL, R_SD, R_OM, R_LOAD):
         for j in range(half, 0, -1):
             W[r, 2 * j] = W[r, j]
             W[r, 2 * j - 1] = 0.0
@@ -570,42 +589,48 @@ def _onset_start(model, t, pair, modes, order, W):
     return hz
 
 
+@inline_helper
+def _pair_onset(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
+    """Coefficient k in s of the pair's (F_c, N) from its onset along coordinate i, whose
+    coefficient k + 2 is known; writes p to k + 2 and p' = dp/dt to k in W[r_p], W[r_p + 1]
+    (zeros when the pair is free)."""
+    if mode == 0:
+        W[r_p + 1, k] = 0.0
+        return 0.0, 0.0
+    sg = -1.0 if mode < 0 else 1.0
+    if k == 0:
+        W[r_p, 0] = 0.0  # (the onset: p = 0, and p = s^2 q has no term in s)
+        W[r_p, 1] = 0.0
+    W[r_p, k + 2] = sg * (C[i, k + 2] - W[r_wall, k + 2])
+    W[r_p + 1, k] = 0.5 * (k + 2) * W[r_p, k + 2]
+    return contact_force_onset_series(law, k, W[r_p, 2:], v0, W[r_law : r_law + SERIES_ROWS])
+
+
 @model_onset_series.register(CarrierX)
+@model_onset_series.register(CarrierXY)
 def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
-    # the x-only carrier's equations along t + s^2 (dy/ds = 2 s dy/dt), coefficient by
-    # coefficient: x first (its coefficient k + 2 is 2 x'_k / (k + 2)), then the
-    # penetration p = s^2 q to k + 2, i.e. q to k, then the forces and x''
+    # the equations of _series along t + s^2 (dy/ds = 2 s dy/dt), coefficient by
+    # coefficient: the coordinates first (coefficient k + 2 is 2 x'_k / (k + 2)), then the
+    # penetration p = s^2 q to k + 2, i.e. q to k, then the forces and the rest; the other
+    # pair is free (_onset_start)
+    n_coords, _, _ = model_size(model)
     c2 = 2.0 / (k + 2.0)
     mt = modes[0]
-    sg = -1.0 if mt < 0 else 1.0
+    ms = modes[1] if n_coords == 2 else 0
     C[0, k + 2] = C[1, k] * c2
-    if k == 0:
-        W[R_PT, 0] = 0.0
-        W[R_PT, 1] = 0.0
-    W[R_PT, k + 2] = sg * (C[0, k + 2] - W[R_H, k + 2])
-    fct, nt = contact_force_onset_series(
-        model.track_law, k, W[R_PT, 2:], v0s[0], W[R_LAW_T : R_LAW_T + SERIES_ROWS]
+    fct, nt = _pair_onset(
+        model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
     )
     W[R_FCT, k] = fct
     W[R_NT, k] = nt
-    fx = friction_force_series(
-        model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
-    )
-    W[R_FX, k] = fx
-    C[1, k + 2] = (-mt * nt - fx - W[R_LOAD, k]) * (c2 / model.mass)
-    # the quadratures' integrands in s, as in _series; p' = dp/dt = (k + 2) q_k / 2
-    W[R_PDT, k] = 0.5 * (k + 2) * W[R_PT, k + 2]
-    if n_state > 2:
-        C[2, k + 2] = jet_mul(W[R_FCT], W[R_PDT], k) * c2
-    if n_state > 3:  # the friction work
-        C[3, k + 2] = jet_mul(W[R_FX], C[1], k) * c2
-    if n_state > 4:  # all the quadratures
-        if _constant_speed(model.horn_gear):
-            C[4, k + 2] = -W[R_LOAD, 0] * C[1, k] * c2
-        else:
-            C[4, k + 2] = -jet_mul(W[R_LOAD], C[1], k) * c2
-        C[5, k + 2] = -mt * jet_mul(W[R_NT], W[R_HD], k) * c2
-        C[6, k + 2] = 0.0
+    if n_coords == 2:
+        C[2, k + 2] = C[3, k] * c2
+        fcs, ns = _pair_onset(
+            model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+        )
+        W[R_FCS, k] = fcs
+        W[R_NS, k] = ns
+    _motion_series(model, k, k + 2, c2, mt, ms, n_state, C, W)
 
 
 # ---- tangents (forward sensitivities) ------------------------------------------------------
