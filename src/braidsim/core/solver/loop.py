@@ -508,11 +508,6 @@ def integrate(
                         if hits_stop:
                             h = t_stop - t
                         TKIND[0] = 2
-                        _dense_at(1.0, RCs, y1, n)
-                        rhs(model, t + h, y1, modes, v0s, n, K6)
-                        st.rhs_evaluations += 1
-                        nsteps += 1
-                        err = 0.0
             # the Taylor step where it is at least the Runge-Kutta step (module docstring
             # of taylor.py); not in the first step of a contact (the force's series does not
             # exist at p = 0), nor where a contact force is held at 0 by its clamp
@@ -552,11 +547,6 @@ def integrate(
                         hits_stop = True
                     taylor_dense(TC, h, n, TRT)
                     TKIND[0] = 1
-                    _dense_at(1.0, RCs, y1, n)
-                    rhs(model, t + h, y1, modes, v0s, n, K6)
-                    st.rhs_evaluations += 1
-                    nsteps += 1
-                    err = 0.0
                 else:
                     # near a singularity: the Runge-Kutta steps from here on, starting no
                     # longer than the series' own step (the distance to the singularity
@@ -565,6 +555,14 @@ def integrate(
                     r.taylor_wait = RETEST - 1.0
                     h = ht
                     hits_stop = False
+            if took_taylor:
+                # the end of a series step (onset or Taylor): the state from its polynomial
+                # and f there; no error estimate, no rejection
+                _dense_at(1.0, RCs, y1, n)
+                rhs(model, t + h, y1, modes, v0s, n, K6)
+                st.rhs_evaluations += 1
+                nsteps += 1
+                err = 0.0
         if not took_taylor:  # (the Taylor step was taken above)
             if IMP is None:
                 rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
