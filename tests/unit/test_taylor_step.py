@@ -62,7 +62,13 @@ def _into_wall(v: float = 0.5, gap: float = 1e-3) -> L.SolverOptions:
 
 @pytest.mark.parametrize(
     ("n", "onset"),
-    [(1.5, True), (1.5, False), (2.0, True), (2.3, True)],
+    [
+        (1.5, True),
+        # (its own compile of the solver, without the onset step, ~40 s)
+        pytest.param(1.5, False, marks=pytest.mark.slow),
+        (2.0, True),
+        (2.3, True),
+    ],
     ids=["hertz-onset-step", "hertz-runge-kutta-onset", "n2-onset-step", "n2.3-no-onset-series"],
 )
 def test_elastic_power_law_impact_closed_form(n: float, onset: bool) -> None:
