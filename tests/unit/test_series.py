@@ -20,6 +20,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 from numba import njit
+from numpy.polynomial import polynomial as P
 
 import braidsim.core  # noqa: F401  (registers every record; silences numba's IR warning)
 from braidsim.core.interfaces import (
@@ -38,6 +39,7 @@ from braidsim.core.jets import (
     jet_cos_linear,
     jet_div,
     jet_exp,
+    jet_in_sqrt,
     jet_mul,
     jet_pow,
     jet_sq,
@@ -168,6 +170,18 @@ def _wavy(n: int, x0: float, scale: float, time: float, seed: float) -> np.ndarr
 
 def _close(got: np.ndarray, want: np.ndarray, rtol: float = 1e-13) -> None:
     np.testing.assert_allclose(got, want, rtol=rtol, atol=0.0)
+
+
+def test_jet_in_sqrt_is_the_polynomial_in_s_squared() -> None:
+    """a(t + s^2) from the coefficients of a(t + tau): numpy's polynomial at tau = s^2."""
+    a = _wavy(13, 0.7, 1.3, 1.0, 0.2)
+    out = np.full(26, np.nan)
+    out[:13] = a
+    jet_in_sqrt(out, 12, 25)
+    np.testing.assert_array_equal(out[0::2], a)
+    np.testing.assert_array_equal(out[1::2], 0.0)
+    for s in (0.3, 0.9):
+        assert P.polyval(s, out) == pytest.approx(P.polyval(s * s, a), rel=1e-14)
 
 
 def test_jet_mul_and_sq_are_the_polynomial_products() -> None:

@@ -21,6 +21,7 @@ is j A[j]:
     tanh      T = tanh(U), from T' = (1 - T^2) U':
               k T_k = sum_{j=1}^{k} j U_j (1 - T^2)_{k-j}
     cos, sin of a linear argument w (t + tau) + phi: closed form.
+    in s      A(t + s^2) for s = sqrt(tau): coefficient j at s^(2 j), the odd ones 0.
 
 Each costs O(k) for coefficient k, so a series of order N costs O(N^2).
 """
@@ -155,3 +156,15 @@ def jet_cos_linear(a, w, phase, t, order, out, add):
         else:
             out[k] = fk * cy
         fk *= w / (k + 1)
+
+
+@inline_helper
+def jet_in_sqrt(A, half, order):
+    """Rewrite in place the coefficients A[0..half] of a(t + tau) as those of a(t + s^2) in
+    s = sqrt(tau), A[0..order] (order >= 2 half): coefficient j at s^(2 j), the odd ones 0
+    (the series in time of an onset step, :mod:`braidsim.core.solver.taylor`)."""
+    for j in range(half, 0, -1):
+        A[2 * j] = A[j]
+        A[2 * j - 1] = 0.0
+    for j in range(2 * half + 1, order + 1):
+        A[j] = 0.0

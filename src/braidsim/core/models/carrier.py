@@ -73,7 +73,7 @@ from braidsim.core.interfaces import (
     wall_motion_jvp,
     wall_series,
 )
-from braidsim.core.jets import jet_mul, jet_sq
+from braidsim.core.jets import jet_in_sqrt, jet_mul, jet_sq
 from braidsim.core.physics.excitation import (
     HornGear,
     horn_gear_accel,
@@ -581,11 +581,7 @@ def _onset_start(model, t, pair, modes, order, W):
     half = order // 2
     hz = model_series_start(model, t, modes, half, W)
     for r in (R_H, R_HD, R_SL, R_SD, R_OM, R_LOAD):
-        for j in range(half, 0, -1):
-            W[r, 2 * j] = W[r, j]
-            W[r, 2 * j - 1] = 0.0
-        for j in range(2 * half + 1, order + 1):
-            W[r, j] = 0.0
+        jet_in_sqrt(W[r], half, order)
     return hz
 
 

@@ -51,7 +51,7 @@ from braidsim.core.interfaces import (
     penetration_jvp,
     series_row,
 )
-from braidsim.core.jets import jet_cos_linear, jet_mul, jet_sq
+from braidsim.core.jets import jet_cos_linear, jet_in_sqrt, jet_mul, jet_sq
 
 OSCILLATOR_COLUMNS = (
     "t",
@@ -228,11 +228,7 @@ def _onset_start(model, t, pair, modes, order, W):
         return 0.0
     half = order // 2
     model_series_start(model, t, modes, half, W)
-    for j in range(half, 0, -1):
-        W[R_FORCE, 2 * j] = W[R_FORCE, j]
-        W[R_FORCE, 2 * j - 1] = 0.0
-    for j in range(2 * half + 1, order + 1):
-        W[R_FORCE, j] = 0.0
+    jet_in_sqrt(W[R_FORCE], half, order)
     return math.inf
 
 
