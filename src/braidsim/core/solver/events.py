@@ -151,10 +151,14 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
     gs[0] = max(gs[0], 0.0)
     lo = -1.0
     hi = -1.0
+    glo = 0.0
+    ghi = 0.0
     for k in range(1, N_SUB + 1):
         if gs[k] < 0.0:
             lo = (k - 1) / N_SUB
             hi = k / N_SUB
+            glo = gs[k - 1]  # (the samples are the function at these points)
+            ghi = gs[k]
             break
         if (
             k < N_SUB
@@ -168,18 +172,31 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
             if dip < 2.0:
                 lo = (k - 1) / N_SUB
                 hi = dip
+                glo = gs[k - 1]
+                ghi = _event_at(model, j, t0, h, hi, RC, modes, n, ys)
                 break
     if hi < 0.0:
         return 2.0
-    # Illinois on [lo, hi] with g(lo) >= 0 > g(hi)
-    glo = max(_event_at(model, j, t0, h, lo, RC, modes, n, ys), 0.0)
-    ghi = _event_at(model, j, t0, h, hi, RC, modes, n, ys)
+    # Illinois on [lo, hi] with g(lo) >= 0 > g(hi): the secant's zero, the value kept at an
+    # end halved when the other end moves twice in a row; a zero within half the tolerance
+    # of an end is moved that far inside, so that the bracket closes from that end's side
+    # next (else the last steps creep towards the root from one side)
+    glo = max(glo, 0.0)
+    tol = 1e-15 * max(1.0, abs(t0) / max(h, 1e-300))
     side = 0
     for _ in range(200):
-        if hi - lo <= 1e-15 * max(1.0, abs(t0) / max(h, 1e-300)) or hi - lo < 1e-16:
+        if hi - lo <= tol:
             break
-        denom = glo - ghi
-        mid = hi - ghi * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
+        if glo > 0.0:
+            mid = lo + glo * (hi - lo) / (glo - ghi)
+            if mid - lo < 0.5 * tol:
+                mid = lo + 0.5 * tol
+            elif hi - mid < 0.5 * tol:
+                mid = hi - 0.5 * tol
+        else:
+            # g(lo) = 0: the secant's zero is lo itself, and on a run of exact zeros (a
+            # function flat to the last bit over a short step) the steps would creep; halve
+            mid = 0.5 * (lo + hi)
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
         gm = _event_at(model, j, t0, h, mid, RC, modes, n, ys)

@@ -142,6 +142,12 @@ def refine_extreme(model, kind, pair, mode, v0, t0, h, g0, g1, RC, n_dof2, n, ys
             break
         denom = glo - ghi
         mid = lo + glo * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
+        # (a zero within half the tolerance of an end is moved that far inside, so that the
+        # bracket closes from that end's side: :func:`~braidsim.core.solver.events.locate_event`)
+        if mid - lo < 0.5e-12:
+            mid = lo + 0.5e-12
+        elif hi - mid < 0.5e-12:
+            mid = hi - 0.5e-12
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
         # (the pair's summary reads the coordinates and speeds only: the quadratures are
