@@ -220,11 +220,7 @@ def integrate_dop853(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
                         for _ in range(100):
                             if hi - lo <= 1e-14:
                                 break
-                            mid = (
-                                hi - ghi * (hi - lo) / (glo - ghi) if glo > ghi else 0.5 * (lo + hi)
-                            )
-                            if not (lo < mid < hi):
-                                mid = 0.5 * (lo + hi)
+                            mid = L.illinois_point(lo, hi, glo, ghi, 1e-14)
                             gm = L.event_g(t + mid * h, dense(mid, x, F, 0), side, mode, q)
                             if gm < 0.0:
                                 hi = mid
@@ -284,9 +280,7 @@ def integrate_dop853(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
                 for _ in range(100):
                     if hi - lo <= 1e-12:
                         break
-                    th = lo + glo * (hi - lo) / (glo - ghi)
-                    if not (lo < th < hi):
-                        th = 0.5 * (lo + hi)
+                    th = L.illinois_point(lo, hi, glo, ghi, 1e-12)
                     tt = t + th * h_taken
                     xt = dense(th, x, F, 0)
                     vt = dense(th, v, F, 1)

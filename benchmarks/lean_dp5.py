@@ -150,6 +150,25 @@ def event_g(t, x, side, mode, q):
 
 
 @jit
+def illinois_point(lo, hi, glo, ghi, tol):
+    """The next point of the Illinois method on [lo, hi] with g(lo) = glo >= 0 > g(hi) = ghi
+    (or, for a peak, slope glo > 0 >= ghi): the secant's zero, moved half the tolerance
+    ``tol`` inside where it falls closer to an end (so that the bracket closes from that
+    side); the midpoint where glo = 0 or the point is not inside."""
+    if glo > 0.0:
+        mid = lo + glo * (hi - lo) / (glo - ghi)
+        if mid - lo < 0.5 * tol:
+            mid = lo + 0.5 * tol
+        elif hi - mid < 0.5 * tol:
+            mid = hi - 0.5 * tol
+    else:  # g(lo) = 0: the secant would stay at lo (a run of exact zeros): halve
+        mid = 0.5 * (lo + hi)
+    if not (lo < mid < hi):
+        mid = 0.5 * (lo + hi)
+    return mid
+
+
+@jit
 def dense(th, r0, r1, r2, r3, r4):
     """The continuous extension at fraction th of the step."""
     t1 = 1.0 - th
@@ -280,9 +299,7 @@ def integrate_lean(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
                     for _ in range(100):
                         if hi - lo <= 1e-14:
                             break
-                        mid = hi - ghi * (hi - lo) / (glo - ghi) if glo > ghi else 0.5 * (lo + hi)
-                        if not (lo < mid < hi):
-                            mid = 0.5 * (lo + hi)
+                        mid = illinois_point(lo, hi, glo, ghi, 1e-14)
                         gm = event_g(
                             t + mid * h, dense(mid, x, x1 - x, x2c, x3c, x4c), side, mode, q
                         )
@@ -330,9 +347,7 @@ def integrate_lean(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
                 for _ in range(100):
                     if hi - lo <= 1e-12:
                         break
-                    th = lo + glo * (hi - lo) / (glo - ghi)
-                    if not (lo < th < hi):
-                        th = 0.5 * (lo + hi)
+                    th = illinois_point(lo, hi, glo, ghi, 1e-12)
                     tt = t + th * h_taken
                     xt = dense(th, x, x1 - x, x2c, x3c, x4c)
                     vt = dense(th, v, v1 - v, v2c, v3c, v4c)

@@ -98,6 +98,7 @@ from lean_dp5 import (
     dp_step,
     event_g,
     force_slope,
+    illinois_point,
     normal_force,
     penetration,
     wall,
@@ -508,9 +509,7 @@ def integrate_taylor(
                     for _ in range(100):
                         if hi - lo <= 1e-14 * sh:
                             break
-                        mid = hi - ghi * (hi - lo) / (glo - ghi) if glo > ghi else 0.5 * (lo + hi)
-                        if not (lo < mid < hi):
-                            mid = 0.5 * (lo + hi)
+                        mid = illinois_point(lo, hi, glo, ghi, 1e-14 * sh)
                         gm = horner(PP, order_s, mid)
                         if gm < 0.0:
                             hi = mid
@@ -555,9 +554,7 @@ def integrate_taylor(
                 for _ in range(100):
                     if hi - lo <= 1e-12 * s_ev:
                         break
-                    sm = lo + glo * (hi - lo) / (glo - ghi)
-                    if not (lo < sm < hi):
-                        sm = 0.5 * (lo + hi)
+                    sm = illinois_point(lo, hi, glo, ghi, 1e-12 * s_ev)
                     gm = horner(SL, order_s - 2, sm)
                     nm = horner(NF, order_s - 1, sm)
                     if nm > EP[ie, EP_PEAK]:
@@ -629,11 +626,7 @@ def integrate_taylor(
                         for _ in range(100):
                             if hi - lo <= 1e-14:
                                 break
-                            mid = (
-                                hi - ghi * (hi - lo) / (glo - ghi) if glo > ghi else 0.5 * (lo + hi)
-                            )
-                            if not (lo < mid < hi):
-                                mid = 0.5 * (lo + hi)
+                            mid = illinois_point(lo, hi, glo, ghi, 1e-14)
                             gm = event_g(
                                 t + mid * h, dense(mid, x, x1 - x, x2c, x3c, x4c), side, mode, q
                             )
@@ -681,9 +674,7 @@ def integrate_taylor(
                 for _ in range(100):
                     if hi - lo <= 1e-12:
                         break
-                    th = lo + glo * (hi - lo) / (glo - ghi)
-                    if not (lo < th < hi):
-                        th = 0.5 * (lo + hi)
+                    th = illinois_point(lo, hi, glo, ghi, 1e-12)
                     tt = t + th * h_taken
                     xt = dense(th, x, x1 - x, x2c, x3c, x4c)
                     vt = dense(th, v, v1 - v, v2c, v3c, v4c)
@@ -782,11 +773,7 @@ def integrate_taylor(
                         for _ in range(100):
                             if hi - lo <= 1e-14:
                                 break
-                            mid = (
-                                hi - ghi * (hi - lo) / (glo - ghi) if glo > ghi else 0.5 * (lo + hi)
-                            )
-                            if not (lo < mid < hi):
-                                mid = 0.5 * (lo + hi)
+                            mid = illinois_point(lo, hi, glo, ghi, 1e-14)
                             gm = gval(G, NG, mid * ht, side, mode, eps)
                             if gm < 0.0:
                                 hi = mid
@@ -832,9 +819,7 @@ def integrate_taylor(
                     for _ in range(100):
                         if hi - lo <= 1e-12 * h_taken:
                             break
-                        tau = lo + glo * (hi - lo) / (glo - ghi)
-                        if not (lo < tau < hi):
-                            tau = 0.5 * (lo + hi)
+                        tau = illinois_point(lo, hi, glo, ghi, 1e-12 * h_taken)
                         gm = horner(SL, nu - 2, tau)
                         nm = horner(NF, nu - 1, tau)
                         if nm > EP[ie, EP_PEAK]:
