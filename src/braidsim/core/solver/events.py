@@ -184,6 +184,7 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
     glo = max(glo, 0.0)
     tol = 1e-15 * max(1.0, abs(t0) / max(h, 1e-300))
     side = 0
+    zstep = 0.5 * tol  # the step past an lo where g = 0 exactly (doubled while it stays 0)
     for _ in range(200):
         if hi - lo <= tol:
             break
@@ -193,10 +194,13 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
                 mid = lo + 0.5 * tol
             elif hi - mid < 0.5 * tol:
                 mid = hi - 0.5 * tol
+            zstep = 0.5 * tol
         else:
-            # g(lo) = 0: the secant's zero is lo itself, and on a run of exact zeros (a
-            # function flat to the last bit over a short step) the steps would creep; halve
-            mid = 0.5 * (lo + hi)
+            # g(lo) = 0 exactly: the secant's zero is lo itself. The event is just past it
+            # (a secant that landed on the root) or past a run of exact zeros (a function
+            # flat to the last bit over a short step): steps from lo that double
+            mid = min(lo + zstep, 0.5 * (lo + hi))
+            zstep *= 2.0
         if not (lo < mid < hi):
             mid = 0.5 * (lo + hi)
         gm = _event_at(model, j, t0, h, mid, RC, modes, n, ys)
