@@ -284,12 +284,18 @@ def taylor_capable(model: Any) -> str:
     return f"{type(sub).__name__} ({field}) gives no Taylor series ({fn.__name__})"
 
 
+_ONSET_CAPABLE: set[tuple[type, ...]] = set()
+
+
 def onset_capable(model: Any) -> bool:
     """Whether ``model`` can start its contacts with an onset step in s = sqrt(t - t_onset)
     (:mod:`braidsim.core.solver.taylor`): it registers
     :func:`~braidsim.core.interfaces.model_onset_series` and its start, and each contact law
     in its fields the law's onset series. Where it cannot, a Taylor run starts each contact
-    with a Runge-Kutta step."""
+    with a Runge-Kutta step. (A yes is kept per class, as in :func:`taylor_capable`.)"""
+    classes = (type(model), *(type(v) for v in model))
+    if classes in _ONSET_CAPABLE:
+        return True
     missing = I.first_missing(
         model,
         (I.model_onset_series, I.model_onset_start),
@@ -298,6 +304,8 @@ def onset_capable(model: Any) -> bool:
             (I.contact_forces, I.contact_onset_power),
         ),
     )
+    if missing is None:
+        _ONSET_CAPABLE.add(classes)
     return missing is None
 
 
