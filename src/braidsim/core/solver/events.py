@@ -47,6 +47,23 @@ def event_active(j, modes):
     return mode == 0 or mode == side
 
 
+@inline_helper
+def secant_point(lo, hi, glo, ghi, tol):
+    """The next point of the Illinois method on [lo, hi], where the function is glo > 0
+    at lo and ghi <= 0 at hi: the zero of the secant, moved half the tolerance ``tol``
+    inside where it falls nearer an end, so that the bracket closes from that end's side
+    next (else the last steps creep towards the root from one side); the midpoint where
+    that point is not strictly inside (or not a number)."""
+    mid = lo + glo * (hi - lo) / (glo - ghi)
+    if mid - lo < 0.5 * tol:
+        mid = lo + 0.5 * tol
+    elif hi - mid < 0.5 * tol:
+        mid = hi - 0.5 * tol
+    if not (lo < mid < hi):
+        mid = 0.5 * (lo + hi)
+    return mid
+
+
 @helper
 def _event_at(model, j, t0, h, theta, RC, modes, n, ys):
     dense_eval(theta, RC, ys, n)
@@ -177,10 +194,8 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
                 break
     if hi < 0.0:
         return 2.0
-    # Illinois on [lo, hi] with g(lo) >= 0 > g(hi): the secant's zero, the value kept at an
-    # end halved when the other end moves twice in a row; a zero within half the tolerance
-    # of an end is moved that far inside, so that the bracket closes from that end's side
-    # next (else the last steps creep towards the root from one side)
+    # Illinois on [lo, hi] with g(lo) >= 0 > g(hi) (:func:`secant_point`; the value kept
+    # at an end halved when the other end moves twice in a row)
     glo = max(glo, 0.0)
     tol = 1e-15 * max(1.0, abs(t0) / max(h, 1e-300))
     side = 0
@@ -189,11 +204,7 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
         if hi - lo <= tol:
             break
         if glo > 0.0:
-            mid = lo + glo * (hi - lo) / (glo - ghi)
-            if mid - lo < 0.5 * tol:
-                mid = lo + 0.5 * tol
-            elif hi - mid < 0.5 * tol:
-                mid = hi - 0.5 * tol
+            mid = secant_point(lo, hi, glo, ghi, tol)
             zstep = 0.5 * tol
         else:
             # g(lo) = 0 exactly: the secant's zero is lo itself. The event is just past it
@@ -201,8 +212,8 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
             # flat to the last bit over a short step): steps from lo that double
             mid = min(lo + zstep, 0.5 * (lo + hi))
             zstep *= 2.0
-        if not (lo < mid < hi):
-            mid = 0.5 * (lo + hi)
+            if not (lo < mid < hi):
+                mid = 0.5 * (lo + hi)
         gm = _event_at(model, j, t0, h, mid, RC, modes, n, ys)
         if gm < 0.0:
             hi = mid

@@ -22,6 +22,7 @@ from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import series_row
 from braidsim.core.layout import END_ONGOING, KIND_PEAK, KIND_SAMPLE
 from braidsim.core.solver.dense import dense_component, dense_deriv, dense_eval
+from braidsim.core.solver.events import secant_point
 from braidsim.core.solver.pairs import (
     I_DFC,
     I_DN,
@@ -140,16 +141,7 @@ def refine_extreme(model, kind, pair, mode, v0, t0, h, g0, g1, RC, n_dof2, n, ys
     for _ in range(100):
         if hi - lo <= 1e-12:
             break
-        denom = glo - ghi
-        mid = lo + glo * (hi - lo) / denom if denom > 0.0 else 0.5 * (lo + hi)
-        # (a zero within half the tolerance of an end is moved that far inside, so that the
-        # bracket closes from that end's side: :func:`~braidsim.core.solver.events.locate_event`)
-        if mid - lo < 0.5e-12:
-            mid = lo + 0.5e-12
-        elif hi - mid < 0.5e-12:
-            mid = hi - 0.5e-12
-        if not (lo < mid < hi):
-            mid = 0.5 * (lo + hi)
+        mid = secant_point(lo, hi, glo, ghi, 1e-12)
         # (the pair's summary reads the coordinates and speeds only: the quadratures are
         # evaluated once, at the root)
         dense_eval(mid, RC, ys, n_dof2)
