@@ -474,18 +474,30 @@ class LeanTaylorPeer(LeanPeer):
 
     name = "hybrid Taylor loop"
 
-    def __init__(self, q: np.ndarray, x0: float, v0: float, switch: str = "distance") -> None:
+    def __init__(
+        self,
+        q: np.ndarray,
+        x0: float,
+        v0: float,
+        switch: str = "distance",
+        exit_steps: bool = False,
+    ) -> None:
         super().__init__(q, x0, v0)
         self.switch = switch
+        self.exit_steps = exit_steps
         if switch != "distance":
             self.name = f"Taylor, {switch} switch"
+        if exit_steps:
+            self.name = "Taylor + exit steps"
 
     def runner(self) -> Callable[..., tuple[np.ndarray, np.ndarray]]:
         import functools
 
         import lean_taylor
 
-        return functools.partial(lean_taylor.run_taylor, switch=self.switch)
+        return functools.partial(
+            lean_taylor.run_taylor, switch=self.switch, exit_steps=self.exit_steps
+        )
 
     def stats(self, st: np.ndarray) -> dict[str, float]:
         import lean_taylor
@@ -501,6 +513,7 @@ class LeanTaylorPeer(LeanPeer):
             "taylor_flight": st[lean_taylor.S_TAYLOR_FLIGHT],
             "dp_contact": st[lean_taylor.S_DP_CONTACT],
             "events": st[lean_taylor.S_EV],
+            "exit_steps": st[lean_taylor.S_SIGMA],
         }
 
 
@@ -515,7 +528,8 @@ def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:
     )
     print(
         "   the DP5 steps where the model's nearest singularity is closer than the DP5 step "
-        "('distance'), then where the Taylor step is shorter than it ('step', generic)"
+        "('distance'), then where the Taylor step is shorter than it ('step', generic); "
+        "then the distance switch against itself with exit steps in sigma = sqrt(p)"
     )
     res = reference(sc)
     lean = lean_peer(sc, res)
@@ -523,6 +537,11 @@ def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:
         taylor = LeanTaylorPeer(lean.q, lean.x0, lean.v0, switch)
         compare(lean, taylor, res.impacts, args.repeats)
         _taylor_breakdown(taylor, res.impacts)
+    # what the exit step buys (lean_taylor.tcoef_sigma), each calibrated on its own
+    taylor = LeanTaylorPeer(lean.q, lean.x0, lean.v0)
+    exits = LeanTaylorPeer(lean.q, lean.x0, lean.v0, exit_steps=True)
+    compare(exits, taylor, res.impacts, args.repeats)
+    _taylor_breakdown(exits, res.impacts)
 
 
 def _taylor_breakdown(taylor: LeanTaylorPeer, ref: Any) -> None:
@@ -539,6 +558,11 @@ def _taylor_breakdown(taylor: LeanTaylorPeer, ref: Any) -> None:
             f"{int(st['taylor_flight'])} in flight), {int(st['dp_contact'])} DP5 steps "
             f"(all in contact), {int(st['rejected'])} rejected, {int(st['dp5'])} DP5 "
             f"evaluations, {int(st['events'])} events"
+            + (
+                f", {int(st['exit_steps'])} of the steps in contact exit steps"
+                if taylor.exit_steps
+                else ""
+            )
         )
 
 

@@ -55,8 +55,17 @@ at p = 0, where the exit event is) and the last term the distance to the poles o
 atan(v / v_hat) at v = +-i v_hat to first order. Near these the Taylor step shrinks
 towards zero while the DP step does not. In free flight every step is a Taylor step.
 
+Exit steps in sigma = sqrt(p) (``exit_steps=True``; :func:`tcoef_sigma`). At an exit p^1.5
+has a branch point again, which the Taylor steps in t approach geometrically and the DP5 steps
+finish. With sigma as the independent variable (p = sigma^2, dt/dsigma = 2 sigma / p') the
+force is K sigma^3 (1 + (D / v0) p'), and the motion is analytic in sigma wherever p' != 0,
+the exit (sigma = 0) included: once past the deepest point and below SIGMA_P of its depth, one
+series in sigma reaches the exit, or two or three do. The exit is then where sigma = 0, with
+no root to find. Its limit is the deepest point (p' = 0, where dt/dsigma is infinite).
+
 Measured with ``bench_core.py --part taylor``: about 2x faster than the lean DP5 loop at
-peak-force accuracy 2.5e-6 and 2.5x at 1.2e-7.
+peak-force accuracy 2.5e-6 and 2.5x at 1.2e-7; the exit steps take 1.07-1.09 and 1.19-1.23
+times less time at those accuracies (benchmarks/README.md, "Exit steps in sqrt(p)").
 """
 
 from __future__ import annotations
@@ -106,7 +115,9 @@ from lean_dp5 import (
 
 # stats: lean_dp5's S_* (S_NFEV: DP5 evaluations only; S_ACC: all accepted steps) and
 S_TAYLOR, S_TAYLOR_CONTACT, S_DP_CONTACT, S_TAYLOR_FLIGHT = range(4, 8)
-NSTAT = 8
+# the exit steps in sigma = sqrt(p) (``exit_steps``): taken, and tried
+S_SIGMA, S_SIGMA_TRIED = 8, 9
+NSTAT = 10
 NSAMP = 4  # event checks per Taylor step, at i / NSAMP of it
 # DP in contact where (time since the onset) / DP_ONSET, (time to the exit) / DP_EXIT or the
 # distance to the friction poles is below the DP step (measured best on paper-3.3)
@@ -115,6 +126,12 @@ DP_EXIT = 4.0
 # the generic switch (``switch="step"``): inside a run of DP steps, the series is built again
 # to check the rule only every RETEST-th step (every step cost 5-8 % more, measured)
 RETEST = 4
+# an exit step in sigma that does not reach the exit is taken where it covers at least this
+# fraction of sigma = sqrt(p); exit steps are tried below this fraction of the contact's
+# deepest p (above it the deepest point limits them: tried at every step past it, three in
+# four failed on paper-3.3)
+SIGMA_MIN = 0.25
+SIGMA_P = 0.2
 
 jit = njit(cache=True, error_model="numpy")
 # the coefficient recurrences only: sums reassociated, reciprocals allowed (8 % off a whole
@@ -135,6 +152,32 @@ def wallcoef(t, q, N, HW, INV):
         cy = c if r == 0 else (-s if r == 1 else (-c if r == 2 else s))
         HW[k] = fk * cy
         fk *= w * INV[k + 1]
+
+
+@jit_fast
+def friction_coef(k, V, A, F, ivh, load, INV):
+    """Coefficient k of -(F atan(U) + load), U = V / v_hat, from V[0..k]: W = 1 + U^2 by a
+    Cauchy product and Z = atan U from Z' W = U', k Z_k W_0 = k U_k - sum_{j=1}^{k-1} j Z_j
+    W_{k-j}. Work rows A[0] = U, A[1] = W, A[2] = j Z_j."""
+    A[0, k] = V[k] * ivh
+    if k == 0:
+        u0 = A[0, 0]
+        A[1, 0] = 1.0 + u0 * u0
+        A[2, 0] = 0.0
+        return -(F * math.atan(u0) + load)
+    sw = 0.0
+    for j in range((k + 1) // 2):
+        sw += A[0, j] * A[0, k - j]
+    sw *= 2.0
+    if k % 2 == 0:
+        sw += A[0, k // 2] * A[0, k // 2]
+    A[1, k] = sw
+    sz = 0.0
+    for j in range(1, k):
+        sz += A[2, j] * A[1, k - j]
+    zj = (k * A[0, k] - sz) / A[1, 0]
+    A[2, k] = zj
+    return -F * zj * INV[k]
 
 
 @jit_fast
@@ -160,36 +203,13 @@ def tcoef(t, x, v, mode, dv0, q, N, X, V, HW, PP, PW, NF, A, INV, hstop, tx, tv)
     n1 = n + 1.0
     eps = q[Q_EPS]
     sg = -1.0 if mode < 0 else 1.0
-    iw0 = 1.0
     ip0 = 1.0
     hk = 1.0  # hstop^k
     prev_ok = False
     for k in range(N):
         X[k + 1] = V[k] * INV[k + 1]
         # friction: W = 1 + U^2 by a Cauchy product, Z from Z' W = U'
-        A[0, k] = V[k] * ivh
-        zk = 0.0
-        if k == 0:
-            u0 = A[0, 0]
-            A[1, 0] = 1.0 + u0 * u0
-            iw0 = 1.0 / A[1, 0]
-            A[2, 0] = 0.0
-            zk = math.atan(u0)
-            acc = -(F * zk + q[Q_LOAD])
-        else:
-            sw = 0.0
-            for j in range((k + 1) // 2):
-                sw += A[0, j] * A[0, k - j]
-            sw *= 2.0
-            if k % 2 == 0:
-                sw += A[0, k // 2] * A[0, k // 2]
-            A[1, k] = sw
-            sz = 0.0
-            for j in range(1, k):
-                sz += A[2, j] * A[1, k - j]
-            zj = (k * A[0, k] - sz) * iw0
-            A[2, k] = zj
-            acc = -F * zj * INV[k]
+        acc = friction_coef(k, V, A, F, ivh, q[Q_LOAD], INV)
         if mode != 0:
             # contact: p^n from P' p = n p' P (p_0 > 0 away from the onset), then N
             if k == 0:
@@ -252,7 +272,6 @@ def tcoef_s(t, x, v, mode, dv0, q, N, X, V, HW, PS, R, NS, A, INV):
     V[1] = 0.0
     PS[0] = 0.0
     PS[1] = 0.0
-    iw0 = 1.0
     iq0 = 1.0
     acc_prev = 0.0
     for k in range(N):
@@ -262,27 +281,7 @@ def tcoef_s(t, x, v, mode, dv0, q, N, X, V, HW, PS, R, NS, A, INV):
             hk = HW[(k + 1) // 2] if (k + 1) % 2 == 0 else 0.0
             PS[k + 1] = sg * (X[k + 1] - hk)
         # friction: Z = atan(U), U = V / v_hat
-        A[0, k] = V[k] * ivh
-        if k == 0:
-            u0 = A[0, 0]
-            A[1, 0] = 1.0 + u0 * u0
-            iw0 = 1.0 / A[1, 0]
-            A[2, 0] = 0.0
-            acc = -(F * math.atan(u0) + q[Q_LOAD])
-        else:
-            sw = 0.0
-            for j in range((k + 1) // 2):
-                sw += A[0, j] * A[0, k - j]
-            sw *= 2.0
-            if k % 2 == 0:
-                sw += A[0, k // 2] * A[0, k // 2]
-            A[1, k] = sw
-            sz = 0.0
-            for j in range(1, k):
-                sz += A[2, j] * A[1, k - j]
-            zj = (k * A[0, k] - sz) * iw0
-            A[2, k] = zj
-            acc = -F * zj * INV[k]
+        acc = friction_coef(k, V, A, F, ivh, q[Q_LOAD], INV)
         # contact: the force starts at s^3; R = q^n by the power rule, q_0 = p'(onset) > 0
         nk = 0.0
         if k >= 3:
@@ -308,6 +307,72 @@ def tcoef_s(t, x, v, mode, dv0, q, N, X, V, HW, PS, R, NS, A, INV):
         NS[k] = nk
         acc -= mode * nk
         acc_prev = acc
+
+
+@jit_fast
+def tcoef_sigma(t, x, v, mode, dv0, q, N, T, V, CS, SN, PD, QI, G, AC, NF, A, INV):
+    """Series in delta = sigma - sigma0 of a contact's exit phase, sigma = sqrt(p) the
+    independent variable (n = 1.5), from (t, x, v) with p > 0: T[0..N] the time since t and
+    V[0..N] the speed; NF[0..N-1] the normal force. Returns sigma0 = sqrt(p(t)).
+
+    With p = sigma^2, dt/dsigma = 2 sigma / p' (p' = s (x' - h'(t)), s the wall's sign) and
+    dx'/dsigma = x'' dt/dsigma; x follows from p = sigma^2 and the wall. Where p' != 0 these
+    are analytic in sigma, also at the exit (sigma = 0), where p^1.5 = sigma^3 has no branch
+    point: one series can reach the exit, which in t is a branch point every Taylor step in
+    t must approach geometrically. The wall's phase u = w (t + T) + phase by
+    k C_k = -sum_{j=1}^k j u_j S_{k-j}, k S_k = sum_{j=1}^k j u_j C_{k-j} (C = cos u,
+    S = sin u); 1/p' by the reciprocal's recurrence; the friction as in :func:`tcoef`.
+    """
+    im = 1.0 / q[Q_MASS]
+    F = q[Q_FRIC]
+    ivh = 1.0 / q[Q_VHAT]
+    K = q[Q_K]
+    w = q[Q_W]
+    ha = q[Q_HA]
+    sg = -1.0 if mode < 0 else 1.0
+    em = q[Q_EPS] if mode > 0 else 0.0
+    u0 = w * t + q[Q_PH]
+    CS[0] = math.cos(u0)
+    SN[0] = math.sin(u0)
+    p0 = sg * (x - ha * CS[0]) - em
+    s0 = math.sqrt(p0)
+    P3 = (s0 * s0 * s0, 3.0 * s0 * s0, 3.0 * s0, 1.0)
+    T[0] = 0.0
+    V[0] = v
+    for k in range(N):
+        if k >= 1:
+            sc = 0.0
+            ss = 0.0
+            for j in range(1, k + 1):
+                ju = j * w * T[j]
+                sc += ju * SN[k - j]
+                ss += ju * CS[k - j]
+            CS[k] = -sc * INV[k]
+            SN[k] = ss * INV[k]
+        PD[k] = sg * (V[k] + ha * w * SN[k])  # p' = s (x' - h'), h' = -h_a w sin u
+        if k == 0:
+            QI[0] = 1.0 / PD[0]
+            G[0] = 2.0 * s0 * QI[0]
+        else:
+            sq = 0.0
+            for j in range(1, k + 1):
+                sq += PD[j] * QI[k - j]
+            QI[k] = -sq * QI[0]
+            G[k] = 2.0 * (s0 * QI[k] + QI[k - 1])  # dt/dsigma = 2 (sigma0 + delta) / p'
+        acc = friction_coef(k, V, A, F, ivh, q[Q_LOAD], INV)  # (as tcoef)
+        # N = K sigma^3 (1 + dv0 p'), sigma^3 = (sigma0 + delta)^3 = sum_j P3[j] delta^j
+        sp = P3[0] * PD[k]
+        for j in range(1, min(k, 3) + 1):
+            sp += P3[j] * PD[k - j]
+        nk = K * ((P3[k] if k <= 3 else 0.0) + dv0 * sp)
+        NF[k] = nk
+        AC[k] = (acc - mode * nk) * im
+        sag = 0.0
+        for j in range(k + 1):
+            sag += AC[j] * G[k - j]
+        V[k + 1] = sag * INV[k + 1]
+        T[k + 1] = G[k] * INV[k + 1]
+    return s0
 
 
 @jit
@@ -341,6 +406,21 @@ def horner(C, deg, tau):
 
 
 @jit
+def last_terms_step(X, V, nu, tx, tv, hmax):
+    """Jorba & Zou's first rule: min(hmax, (tol / |c_k|)^(1/k)) over c = X, V (tolerances tx,
+    tv) and k = nu - 1, nu."""
+    h = hmax
+    for k in (nu - 1, nu):
+        cx = abs(X[k])
+        if cx > 0.0:
+            h = min(h, (tx / cx) ** (1.0 / k))
+        cx = abs(V[k])
+        if cx > 0.0:
+            h = min(h, (tv / cx) ** (1.0 / k))
+    return h
+
+
+@jit
 def gval(G, N, tau, side, mode, eps):
     """Event function from the polynomial G[0..N] at tau: in free flight G = x - h (inner wall,
     side -1: G; outer wall, side +1: eps - G), in contact G = p; an event when it turns < 0."""
@@ -352,7 +432,7 @@ def gval(G, N, tau, side, mode, eps):
 
 @jit
 def integrate_taylor(
-    t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, order, order_s, generic
+    t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats, order, order_s, generic, sigma
 ):
     """Integrate from t = 0 to t_end with Taylor steps of order ``order`` (s-steps of order
     ``order_s`` at onsets) and DP5 steps near singularities; returns (status, episodes).
@@ -374,6 +454,16 @@ def integrate_taylor(
     NF = np.zeros(NM + 2)
     G = np.zeros(NM + 2)
     SL = np.zeros(NM + 2)
+    # the exit step's series (tcoef_sigma)
+    ST = np.zeros(NM + 2)
+    SV = np.zeros(NM + 2)
+    SCS = np.zeros(NM + 2)
+    SSN = np.zeros(NM + 2)
+    SPD = np.zeros(NM + 2)
+    SQI = np.zeros(NM + 2)
+    SG = np.zeros(NM + 2)
+    SAC = np.zeros(NM + 2)
+    SNF = np.zeros(NM + 2)
     INV = np.zeros(NM + 3)
     for k in range(1, NM + 3):
         INV[k] = 1.0 / k
@@ -417,8 +507,79 @@ def integrate_taylor(
     lerr_old = math.log(1e-4)
     pc1 = pdc1 = pddc1 = 0.0
     dp_run = 0  # DP steps in a row in this contact (generic rule)
+    pmax = 0.0  # the deepest p of this contact so far
     nu = order
     while t < t_end:
+        # ---- the exit step in sigma = sqrt(p) (tcoef_sigma): in contact after the deepest
+        # point (p' < 0); taken where its series reaches SIGMA_MIN of the way to the exit
+        if mode == 0:
+            pmax = 0.0
+        elif pc > pmax:
+            pmax = pc
+        if sigma and s_steps and mode != 0 and t > t_on and pdc < 0.0 and 0.0 < pc < SIGMA_P * pmax:
+            stats[S_SIGMA_TRIED] += 1
+            s0 = tcoef_sigma(
+                t,
+                x,
+                v,
+                mode,
+                q[Q_D] / v0,
+                q,
+                order,
+                ST,
+                SV,
+                SCS,
+                SSN,
+                SPD,
+                SQI,
+                SG,
+                SAC,
+                SNF,
+                A,
+                INV,
+            )
+            tx = atol_x + rtol * abs(x)
+            tv = atol_v + rtol * abs(v)
+            tt = tx / abs(pdc)  # the time error that makes a depth error of tx
+            rho = last_terms_step(ST, SV, order, tt, tv, math.inf)
+            reach = rho >= s0
+            if reach or rho >= SIGMA_MIN * s0:
+                dl = -s0 if reach else -rho
+                tau1 = horner(ST, order, dl)
+                if 0.0 < tau1 <= hmax and t + tau1 < t_end:
+                    t1 = t + tau1
+                    v1 = horner(SV, order, dl)
+                    hs, _, _ = wall(t1, q)
+                    sg = -1.0 if mode < 0 else 1.0
+                    em = eps if mode > 0 else 0.0
+                    sig1 = s0 + dl
+                    x1 = hs + sg * (em if reach else sig1 * sig1 + em)
+                    n_end = horner(SNF, order - 1, dl)
+                    a1, slope1, n1, pc1, pdc1, pddc1 = cstate(t1, x1, v1, mode, v0, q)
+                    # (a peak of N, or a clamped force, inside: the steps in t take it)
+                    if (reach or n_end >= 0.0) and not (slope0 > 0.0 and slope1 <= 0.0):
+                        stats[S_SIGMA] += 1
+                        stats[S_TAYLOR] += 1
+                        stats[S_TAYLOR_CONTACT] += 1
+                        stats[S_ACC] += 1
+                        ie = nep - 1
+                        if n1 > EP[ie, EP_PEAK]:
+                            EP[ie, EP_PEAK] = n1
+                            EP[ie, EP_TPEAK] = t1
+                        t = t1
+                        x = x1
+                        v = v1
+                        a = a1
+                        pc, pdc, pddc = pc1, pdc1, pddc1
+                        slope0 = slope1
+                        dp_run = 0
+                        if reach:  # the exit, exactly at p = 0
+                            stats[S_EV] += 1
+                            EP[ie, EP_TEND] = t
+                            mode = 0
+                            a, slope0, _, pc, pdc, pddc = cstate(t, x, v, mode, v0, q)
+                            stats[S_NFEV] += 1
+                        continue
         # ---- DP where a singularity is closer than the DP step (module docstring)
         use_dp = False
         have_coef = False  # the Taylor coefficients of this step are computed already
@@ -452,14 +613,7 @@ def integrate_taylor(
                         tv,
                     )
                     have_coef = True
-                    ht0 = hmax
-                    for kk in (nu - 1, nu):
-                        cx = abs(X[kk])
-                        if cx > 0.0:
-                            ht0 = min(ht0, (tx / cx) ** (1.0 / kk))
-                        cx = abs(V[kk])
-                        if cx > 0.0:
-                            ht0 = min(ht0, (tv / cx) ** (1.0 / kk))
+                    ht0 = last_terms_step(X, V, nu, tx, tv, hmax)
                     use_dp = ht0 < h
             dp_run = dp_run + 1 if use_dp else 0
         elif mode != 0:
@@ -714,19 +868,7 @@ def integrate_taylor(
                     t, x, v, mode, dv0, q, order, X, V, HW, PP, PW, NF, A, INV, hstop, tx, tv
                 )
             # Jorba & Zou's first rule on the last two terms of x and x'
-            ht = hmax
-            cx = abs(X[nu - 1])
-            if cx > 0.0:
-                ht = min(ht, (tx / cx) ** (1.0 / (nu - 1)))
-            cx = abs(X[nu])
-            if cx > 0.0:
-                ht = min(ht, (tx / cx) ** (1.0 / nu))
-            cx = abs(V[nu - 1])
-            if cx > 0.0:
-                ht = min(ht, (tv / cx) ** (1.0 / (nu - 1)))
-            cx = abs(V[nu])
-            if cx > 0.0:
-                ht = min(ht, (tv / cx) ** (1.0 / nu))
+            ht = last_terms_step(X, V, nu, tx, tv, hmax)
             last = False
             if ht >= (t_end - t) * (1.0 - 1e-12):
                 ht = t_end - t
@@ -895,6 +1037,7 @@ def run_taylor(
     order: int = 12,
     onset_order: int = 24,
     switch: str = "distance",
+    exit_steps: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Run :func:`integrate_taylor` with Taylor steps of ``order`` and onset steps in
     s = sqrt(t - t_onset) of ``onset_order``; returns (episode rows, stats). Raises on
@@ -905,7 +1048,8 @@ def run_taylor(
     docstring) is closer than the DP step; ``"step"``, which knows nothing of the model,
     where the Taylor step that Jorba & Zou's rule gives is shorter than the DP step (checked
     again every ``RETEST``-th step of a run of DP steps). Measured on paper-3.3: within 10 %
-    of each other (``benchmarks/README.md``)."""
+    of each other (``benchmarks/README.md``). ``exit_steps``: reach each contact's exit by
+    steps in sigma = sqrt(p) (module docstring; the Hertz exponent 1.5 only)."""
     if order < 3 or onset_order < 6:
         raise ValueError("order must be >= 3 and onset_order >= 6")
     if switch not in ("distance", "step"):
@@ -926,6 +1070,7 @@ def run_taylor(
         order,
         onset_order,
         switch == "step",
+        exit_steps,
     )
     if status != 0:
         raise RuntimeError(f"hybrid Taylor loop failed with status {status}")

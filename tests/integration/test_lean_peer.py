@@ -95,18 +95,38 @@ def test_lean_dop853_loop_matches_simulate_on_paper_3_3() -> None:
 
 
 @pytest.mark.slow  # (the benchmark's Taylor prototype, its own compile: ~15 s)
-@pytest.mark.parametrize(("switch", "peak_tol"), [("distance", 1e-8), ("step", 2e-8)])
-def test_lean_taylor_loop_matches_simulate_on_paper_3_3(switch: str, peak_tol: float) -> None:
+@pytest.mark.parametrize(
+    ("switch", "exit_steps", "peak_tol"),
+    [("distance", False, 1e-8), ("step", False, 2e-8), ("distance", True, 1e-8)],
+)
+def test_lean_taylor_loop_matches_simulate_on_paper_3_3(
+    switch: str, exit_steps: bool, peak_tol: float
+) -> None:
     """The hybrid Taylor / DP5 loop (an experiment on what a Taylor method buys), with the
-    DP5 steps chosen from the model's singularities or by the generic rule."""
+    DP5 steps chosen from the model's singularities or by the generic rule, and with the
+    contacts' exits reached by steps in sigma = sqrt(p)."""
     import lean_taylor
 
     sc, q, imp = _tight_reference()
     ep, st = lean_taylor.run_taylor(
-        q, 0.5, sc["initial.x"], sc["initial.vx"], 1e-12, 1e-16, 1e-13, 1e-3, switch=switch
+        q,
+        0.5,
+        sc["initial.x"],
+        sc["initial.vx"],
+        1e-12,
+        1e-16,
+        1e-13,
+        1e-3,
+        switch=switch,
+        exit_steps=exit_steps,
     )
     assert len(ep) == len(imp) == 33
-    assert st[lean_taylor.S_TAYLOR] > 0 and st[lean_taylor.S_DP_CONTACT] > 0  # both kinds ran
+    assert st[lean_taylor.S_TAYLOR] > 0
+    if exit_steps:
+        # exit steps were taken (measured: 106 for 33 contacts at this tolerance)
+        assert st[lean_taylor.S_SIGMA] >= 33
+    else:
+        assert st[lean_taylor.S_DP_CONTACT] > 0  # both kinds ran
     walls = np.where(imp["wall"].to_numpy() == "inner", -1.0, 1.0)
     np.testing.assert_array_equal(ep[:, lean_dp5.EP_WALL], walls)
     np.testing.assert_array_equal(ep[:, lean_dp5.EP_INITIAL] == 1.0, imp["initial"].to_numpy())
