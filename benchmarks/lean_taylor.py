@@ -406,11 +406,11 @@ def horner(C, deg, tau):
 
 
 @jit
-def last_terms_step(X, V, nu, tx, tv, hmax):
+def last_terms_step(X, V, k_first, nu, tx, tv, hmax):
     """Jorba & Zou's first rule: min(hmax, (tol / |c_k|)^(1/k)) over c = X, V (tolerances tx,
-    tv) and k = nu - 1, nu."""
+    tv) and k = k_first..nu (the last two terms: k_first = nu - 1)."""
     h = hmax
-    for k in (nu - 1, nu):
+    for k in range(k_first, nu + 1):
         cx = abs(X[k])
         if cx > 0.0:
             h = min(h, (tx / cx) ** (1.0 / k))
@@ -541,7 +541,7 @@ def integrate_taylor(
             tx = atol_x + rtol * abs(x)
             tv = atol_v + rtol * abs(v)
             tt = tx / abs(pdc)  # the time error that makes a depth error of tx
-            rho = last_terms_step(ST, SV, order, tt, tv, math.inf)
+            rho = last_terms_step(ST, SV, order - 1, order, tt, tv, math.inf)
             reach = rho >= s0
             if reach or rho >= SIGMA_MIN * s0:
                 dl = -s0 if reach else -rho
@@ -613,7 +613,7 @@ def integrate_taylor(
                         tv,
                     )
                     have_coef = True
-                    ht0 = last_terms_step(X, V, nu, tx, tv, hmax)
+                    ht0 = last_terms_step(X, V, nu - 1, nu, tx, tv, hmax)
                     use_dp = ht0 < h
             dp_run = dp_run + 1 if use_dp else 0
         elif mode != 0:
@@ -641,13 +641,7 @@ def integrate_taylor(
             sh = math.sqrt(min(hmax, t_end - t))
             # the series interleaves sub-series (even powers, s^(3 + m)): the last two
             # coefficients can both be small by accident; the last six bound the step
-            for k in range(order_s - 5, order_s + 1):
-                cx = abs(X[k])
-                if cx > 0.0:
-                    sh = min(sh, (tx / cx) ** (1.0 / k))
-                cx = abs(V[k])
-                if cx > 0.0:
-                    sh = min(sh, (tv / cx) ** (1.0 / k))
+            sh = last_terms_step(X, V, order_s - 5, order_s, tx, tv, sh)
             # an exit within the step: p(s) < 0 at a sample, located by Illinois
             side_ev = 0
             s_ev = sh
@@ -868,7 +862,7 @@ def integrate_taylor(
                     t, x, v, mode, dv0, q, order, X, V, HW, PP, PW, NF, A, INV, hstop, tx, tv
                 )
             # Jorba & Zou's first rule on the last two terms of x and x'
-            ht = last_terms_step(X, V, nu, tx, tv, hmax)
+            ht = last_terms_step(X, V, nu - 1, nu, tx, tv, hmax)
             last = False
             if ht >= (t_end - t) * (1.0 - 1e-12):
                 ht = t_end - t
