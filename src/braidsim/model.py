@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -225,34 +225,39 @@ def _step_budget(sc: Scenario, duration: float) -> int:
     return max(budget, math.ceil(STEPS_PER_SECOND * duration))
 
 
-def build_model(
-    sc: Scenario,
-    duration: float | None = None,
-    t_start: float = 0.0,
-    keep_zero_harmonics: bool = False,
-) -> Model:
-    """Derive the core's records from a validated scenario.
+class _Derived(NamedTuple):
+    """What :func:`build_model` derives from the scenario alone (not from the run's span)."""
 
-    Parameters
-    ----------
-    sc : Scenario
-        Validated parameters (SI).
-    duration : float, optional
-        Overrides ``simulation.duration`` [s].
-    t_start : float
-        Start time of a continued run [s]: the transfers kept are those in
-        (t_start, t_start + duration).
-    keep_zero_harmonics : bool
-        Keep the track's main harmonic in the record even at zero amplitude (the record
-        then has the same shape whatever the amplitude, as the sensitivities need; a zero
-        row adds exactly 0 to the motion).
-    """
+    record: CarrierX | CarrierXY
+    track: PairModel
+    slot: PairModel
+    y0: np.ndarray
+    max_step: float
+    implicit: bool
+    taylor: int
+
+
+def _derived(sc: Scenario, keep_zero_harmonics: bool) -> _Derived:
+    """The records, pair models, initial state and step settings of ``sc``, kept on the
+    scenario: a scenario is frozen and its values read-only, so they are derived once however
+    often it is run (a run continued in pieces, the calls of a benchmark or of a
+    continuation). The initial state is copied by each model; the records hold arrays that
+    nothing writes."""
+    kept: dict[bool, _Derived] | None = vars(sc).get("_derived")
+    if kept is None:
+        kept = {}
+        object.__setattr__(sc, "_derived", kept)  # (a cache, not a field: the class is frozen)
+    if keep_zero_harmonics not in kept:
+        kept[keep_zero_harmonics] = _derive(sc, keep_zero_harmonics)
+    return kept[keep_zero_harmonics]
+
+
+def _derive(sc: Scenario, keep_zero_harmonics: bool) -> _Derived:
     m = sc["carrier.mass"]
     phi = sc["yarn.angle"]
     t1 = sc["yarn.tension_horizontal"]
     track = pair_model(sc, "track")
     slot = pair_model(sc, "slot")
-    dur = float(duration if duration is not None else sc["simulation.duration"])
     prof_t, prof_w, prof_i = _profile_arrays(sc)
     omega0 = 0.0 if prof_t.size else sc["horn_gear.angular_velocity"]
     allow = bool(sc["contact.allow_tension"])
@@ -300,17 +305,6 @@ def build_model(
         initial_impact_velocity=-1.0 if vinit is None else vinit,
     )
     hmax = sc["simulation.max_step"]
-    options = SolverOptions(
-        rtol=sc["simulation.rtol"],
-        atol_position=sc["simulation.atol_position"],
-        atol_velocity=sc["simulation.atol_velocity"],
-        max_step=default_max_step(sc) if hmax is None else hmax,
-        max_steps=_step_budget(sc, dur),
-        t_end=dur,
-    )
-
-    tr = _transfer_times(sc, t_start, dur)
-
     y0 = np.zeros(state_size(record, energy=True))
     y0[0] = sc["initial.x"]
     y0[1] = sc["initial.vx"]
@@ -320,6 +314,48 @@ def build_model(
         y0[2] = sc["initial.y"]
         omega_start, _ = horn_gear_state(record.horn_gear, 0.0)
         y0[3] = sc["initial.vy"] + sc["carrier.turning_radius"] * omega_start
-    implicit = sc["simulation.resting_contacts"] == "implicit"
-    taylor = TAYLOR_ORDER if sc["simulation.integrator"] == "taylor" else 0
-    return Model(sc, record, options, y0, tr, track, slot, dur, implicit, taylor)
+    return _Derived(
+        record,
+        track,
+        slot,
+        y0,
+        default_max_step(sc) if hmax is None else hmax,
+        sc["simulation.resting_contacts"] == "implicit",
+        TAYLOR_ORDER if sc["simulation.integrator"] == "taylor" else 0,
+    )
+
+
+def build_model(
+    sc: Scenario,
+    duration: float | None = None,
+    t_start: float = 0.0,
+    keep_zero_harmonics: bool = False,
+) -> Model:
+    """Derive the core's records from a validated scenario.
+
+    Parameters
+    ----------
+    sc : Scenario
+        Validated parameters (SI).
+    duration : float, optional
+        Overrides ``simulation.duration`` [s].
+    t_start : float
+        Start time of a continued run [s]: the transfers kept are those in
+        (t_start, t_start + duration).
+    keep_zero_harmonics : bool
+        Keep the track's main harmonic in the record even at zero amplitude (the record
+        then has the same shape whatever the amplitude, as the sensitivities need; a zero
+        row adds exactly 0 to the motion).
+    """
+    d = _derived(sc, keep_zero_harmonics)
+    dur = float(duration if duration is not None else sc["simulation.duration"])
+    options = SolverOptions(
+        rtol=sc["simulation.rtol"],
+        atol_position=sc["simulation.atol_position"],
+        atol_velocity=sc["simulation.atol_velocity"],
+        max_step=d.max_step,
+        max_steps=_step_budget(sc, dur),
+        t_end=dur,
+    )
+    tr = _transfer_times(sc, t_start, dur)
+    return Model(sc, d.record, options, d.y0.copy(), tr, d.track, d.slot, dur, d.implicit, d.taylor)

@@ -36,7 +36,8 @@ def time_value(key: str, value: object, *, allow_zero: bool = False) -> float:
     InputError
         Naming ``key``: not a time, or not finite and > 0 (>= 0 with ``allow_zero``).
     """
-    t = to_si(key, value, "s")
+    # (a float is a time in s already: the parser is for strings and other numbers)
+    t = value if type(value) is float else to_si(key, value, "s")
     if not (math.isfinite(t) and (t >= 0.0 if allow_zero else t > 0.0)):
         raise InputError(
             f"{key}: {t:g} s is out of range; allowed {'>=' if allow_zero else '>'} 0 s"

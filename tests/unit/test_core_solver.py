@@ -221,6 +221,25 @@ def test_an_int_given_for_a_float_field_neither_compiles_again_nor_changes_a_bit
     assert a.episodes.size == b.episodes.size == 1
 
 
+def test_declared_model_walks_a_record_once_and_knows_it_by_identity() -> None:
+    """``declared_model`` keeps the last records by identity: the same record comes back
+    declared without a second walk, an equal but distinct record is walked afresh."""
+    from braidsim.core import driver
+
+    law = PowerLawContact(2e9, 1.5, 0, True)
+    model = ImpactOscillator(1, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, law)
+    first = driver.declared_model(model)
+    assert type(first.mass) is float and type(first.law.damping) is float
+    assert driver.declared_model(model) is first
+    twin = ImpactOscillator(1, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, law)
+    again = driver.declared_model(twin)
+    assert again is not first and again == first
+    for i in range(driver._DECLARED_KEPT + 1):  # older records leave the memo
+        driver.declared_model(model._replace(gap_outer=1e-3 + i * 1e-6))
+    assert id(model) not in driver._DECLARED
+    assert driver.declared_model(model) == first
+
+
 def test_as_declared_makes_ints_floats_only_where_a_float_is_declared() -> None:
     """Python and numpy ints in float fields become floats, nested records included; a bool
     field, an array and a record with nothing to change are left as they are (the same

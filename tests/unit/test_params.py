@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import braidsim
@@ -186,6 +187,38 @@ def test_summary_is_strict_json_and_refuses_a_window_it_has_no_ranges_for() -> N
     for bad in ((0.002, 0.004), (0.01, 0.005), "0.01"):
         with pytest.raises(InputError, match=r"^window: .* allowed one of \(0, 0.02\), "):
             res.summary(window=bad)  # type: ignore[arg-type]
+
+
+def test_a_scenario_derives_its_records_once_and_each_model_its_own_span() -> None:
+    """build_model keeps a scenario's records, pair models and initial state on the frozen
+    scenario: a second model of it shares the records but has its own initial state, span,
+    step budget and transfers; another scenario (an override) derives its own; the kept
+    records do not enter the scenario's equality, pickling or repr."""
+    import copy
+    import pickle
+
+    from braidsim.model import build_model
+
+    sc = load_scenario("paper-3.3")
+    a = build_model(sc, 0.5)
+    b = build_model(sc, 2.0, t_start=0.1)
+    assert b.record is a.record and b.track is a.track
+    assert b.y0 is not a.y0 and list(b.y0) == list(a.y0)
+    a.y0[0] = 123.0  # (a model's initial state is its own)
+    assert build_model(sc, 0.5).y0[0] == sc["initial.x"]
+    assert (a.duration, b.duration) == (0.5, 2.0)
+    assert b.options.t_end == 2.0 and b.options.max_steps >= a.options.max_steps
+    kept = build_model(sc, 0.5, keep_zero_harmonics=True)
+    assert kept.record is not a.record  # (derived apart; with h_a != 0 the same values)
+    assert np.array_equal(kept.record.track.table, a.record.track.table)
+    other = sc.with_overrides({"track.vibration_amplitude": "0.1 mm"})
+    c = build_model(other, 0.5)
+    assert c.record is not a.record
+    assert c.record.track.table[0, 0] == pytest.approx(1e-4)
+    assert a.record.track.table[0, 0] == pytest.approx(1.2e-4)
+    for back in (pickle.loads(pickle.dumps(sc)), copy.deepcopy(sc)):
+        assert back == sc and "_derived" not in vars(back)
+    assert "_derived" not in repr(sc)
 
 
 def test_reprs_are_one_short_line() -> None:

@@ -205,6 +205,27 @@ def as_declared(record: Any) -> Any:
     return record._replace(**changes) if changes else record
 
 
+# the models passed through declared_model lately, by identity; each is held, so that its id
+# is not reused while it is kept
+_DECLARED: dict[int, tuple[Any, Any]] = {}
+_DECLARED_KEPT = 16
+
+
+def declared_model(model: Any) -> Any:
+    """:func:`as_declared` of a model record, kept for the last few records by identity: a
+    model built once and run many times (a scenario's records are derived once,
+    :func:`braidsim.model.build_model`) is walked once. Records are immutable; the arrays in
+    them are not walked."""
+    seen = _DECLARED.get(id(model))
+    if seen is not None and seen[0] is model:
+        return seen[1]
+    declared = as_declared(model)
+    if len(_DECLARED) >= _DECLARED_KEPT:
+        _DECLARED.pop(next(iter(_DECLARED)))  # (the oldest)
+    _DECLARED[id(model)] = (model, declared)
+    return declared
+
+
 _PER_CLASS: dict[tuple[Any, ...], Any] = {}
 
 
@@ -263,7 +284,7 @@ def taylor_capable(model: Any) -> str:
     :func:`~braidsim.core.interfaces.model_series` and its start, and each physics record in
     its fields (found by the role it plays: a contact law, a friction law, an excitation)
     the series of its function."""
-    classes = (type(model), *(type(v) for v in model))
+    classes = (type(model), *map(type, model))
     if classes in _TAYLOR_CAPABLE:
         return ""
     missing = I.first_missing(
@@ -293,7 +314,7 @@ def onset_capable(model: Any) -> bool:
     :func:`~braidsim.core.interfaces.model_onset_series` and its start, and each contact law
     in its fields the law's onset series. Where it cannot, a Taylor run starts each contact
     with a Runge-Kutta step. (A yes is kept per class, as in :func:`taylor_capable`.)"""
-    classes = (type(model), *(type(v) for v in model))
+    classes = (type(model), *map(type, model))
     if classes in _ONSET_CAPABLE:
         return True
     missing = I.first_missing(
@@ -377,7 +398,7 @@ def run(
         sized beforehand, but the event rows are not: a contact resting for hours has a
         peak of its force at every wobble of the solution).
     """
-    model = as_declared(model)
+    model = declared_model(model)
     opts = as_declared(opts)
     _, n_pairs, n_quads = model_sizes(model)
     if n_pairs > L.MAX_PAIRS:
@@ -470,9 +491,13 @@ def run(
     episodes = np.concatenate(closed) if len(closed) > 1 else closed[0]
     # in order of onset (a contact open across a flush was written after later ones), and
     # of pair where two begin at once (at the start: the order an uninterrupted run opens them)
-    by_onset = np.lexsort((episodes["pair"], episodes["t"]))
-    if np.any(by_onset != np.arange(by_onset.size)):
-        episodes = episodes[by_onset]
+    by_onset: Any = slice(None)  # (the rows as they are)
+    t_on = episodes["t"]
+    if t_on.size > 1 and not np.all(t_on[1:] > t_on[:-1]):  # (strictly increasing: in order)
+        order = np.lexsort((episodes["pair"], t_on))
+        if np.any(order != np.arange(order.size)):
+            by_onset = order
+            episodes = episodes[order]
     _close_open(episodes, RS, y, model, n)
     series_rows = None
     if keep:
