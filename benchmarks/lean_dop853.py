@@ -265,9 +265,7 @@ def integrate_dop853(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
         if mode != 0:
             slope1, n1 = L.force_slope(t1, x1, v1, a1, mode, v0, q)
             ie = nep - 1
-            if n1 > EP[ie, L.EP_PEAK]:
-                EP[ie, L.EP_PEAK] = n1
-                EP[ie, L.EP_TPEAK] = t1
+            L.fold_peak(EP, ie, n1, t1)
             if slope0 > 0.0 and slope1 <= 0.0:
                 if not have_dense:
                     dense_coeffs(t, x, v, x1, v1, h_taken, K, F, mode, v0, q)
@@ -287,9 +285,7 @@ def integrate_dop853(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
                     gm, nm = L.force_slope(
                         tt, xt, vt, L.accel(tt, xt, vt, mode, v0, q), mode, v0, q
                     )
-                    if nm > EP[ie, L.EP_PEAK]:
-                        EP[ie, L.EP_PEAK] = nm
-                        EP[ie, L.EP_TPEAK] = tt
+                    L.fold_peak(EP, ie, nm, tt)
                     if gm == 0.0:
                         break
                     if gm > 0.0:

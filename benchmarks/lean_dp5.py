@@ -113,6 +113,14 @@ def normal_force(p, pd, v0, q):
 
 
 @jit
+def fold_peak(EP, ie, nn, t):
+    """Fold the normal force nn at time t into the peak of episode row ie."""
+    if nn > EP[ie, EP_PEAK]:
+        EP[ie, EP_PEAK] = nn
+        EP[ie, EP_TPEAK] = t
+
+
+@jit
 def accel(t, x, v, mode, v0, q):
     """x'' from the equation of motion in contact mode ``mode``."""
     a = -(q[Q_FRIC] * math.atan(v / q[Q_VHAT]) + q[Q_LOAD])
@@ -334,9 +342,7 @@ def integrate_lean(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
         if mode != 0:
             slope1, n1 = force_slope(t1, x1, v1, a1, mode, v0, q)
             ie = nep - 1
-            if n1 > EP[ie, EP_PEAK]:
-                EP[ie, EP_PEAK] = n1
-                EP[ie, EP_TPEAK] = t1
+            fold_peak(EP, ie, n1, t1)
             if slope0 > 0.0 and slope1 <= 0.0:
                 lo = 0.0
                 hi = 1.0
@@ -352,9 +358,7 @@ def integrate_lean(t_end, x, v, q, rtol, atol_x, atol_v, hmax, EP, stats):
                     xt = dense(th, x, x1 - x, x2c, x3c, x4c)
                     vt = dense(th, v, v1 - v, v2c, v3c, v4c)
                     gm, nm = force_slope(tt, xt, vt, accel(tt, xt, vt, mode, v0, q), mode, v0, q)
-                    if nm > EP[ie, EP_PEAK]:
-                        EP[ie, EP_PEAK] = nm
-                        EP[ie, EP_TPEAK] = tt
+                    fold_peak(EP, ie, nm, tt)
                     if gm == 0.0:
                         break
                     if gm > 0.0:

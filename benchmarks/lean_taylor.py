@@ -106,6 +106,7 @@ from lean_dp5 import (
     dense,
     dp_step,
     event_g,
+    fold_peak,
     force_slope,
     illinois_point,
     normal_force,
@@ -563,9 +564,7 @@ def integrate_taylor(
                         stats[S_TAYLOR_CONTACT] += 1
                         stats[S_ACC] += 1
                         ie = nep - 1
-                        if n1 > EP[ie, EP_PEAK]:
-                            EP[ie, EP_PEAK] = n1
-                            EP[ie, EP_TPEAK] = t1
+                        fold_peak(EP, ie, n1, t1)
                         t = t1
                         x = x1
                         v = v1
@@ -684,9 +683,7 @@ def integrate_taylor(
             stats[S_TAYLOR] += 1
             stats[S_TAYLOR_CONTACT] += 1
             ie = nep - 1
-            if n1 > EP[ie, EP_PEAK]:
-                EP[ie, EP_PEAK] = n1
-                EP[ie, EP_TPEAK] = t1
+            fold_peak(EP, ie, n1, t1)
             if slope0 > 0.0 and slope1 <= 0.0:
                 # dN/ds = sum k NS_k s^(k-1) has the sign of dN/dt for s > 0 (slope0 = 0 at
                 # the onset itself: +1 stands in for it)
@@ -705,9 +702,7 @@ def integrate_taylor(
                     sm = illinois_point(lo, hi, glo, ghi, 1e-12 * s_ev)
                     gm = horner(SL, order_s - 2, sm)
                     nm = horner(NF, order_s - 1, sm)
-                    if nm > EP[ie, EP_PEAK]:
-                        EP[ie, EP_PEAK] = nm
-                        EP[ie, EP_TPEAK] = t + sm * sm
+                    fold_peak(EP, ie, nm, t + sm * sm)
                     if gm == 0.0:
                         break
                     if gm > 0.0:
@@ -809,9 +804,7 @@ def integrate_taylor(
             stats[S_DP_CONTACT] += 1
             _, slope1, n1, pc1, pdc1, pddc1 = cstate(t1, x1, v1, mode, v0, q)
             ie = nep - 1
-            if n1 > EP[ie, EP_PEAK]:
-                EP[ie, EP_PEAK] = n1
-                EP[ie, EP_TPEAK] = t1
+            fold_peak(EP, ie, n1, t1)
             if slope0 > 0.0 and slope1 <= 0.0:
                 lo = 0.0
                 hi = 1.0
@@ -827,9 +820,7 @@ def integrate_taylor(
                     xt = dense(th, x, x1 - x, x2c, x3c, x4c)
                     vt = dense(th, v, v1 - v, v2c, v3c, v4c)
                     gm, nm = force_slope(tt, xt, vt, accel(tt, xt, vt, mode, v0, q), mode, v0, q)
-                    if nm > EP[ie, EP_PEAK]:
-                        EP[ie, EP_PEAK] = nm
-                        EP[ie, EP_TPEAK] = tt
+                    fold_peak(EP, ie, nm, tt)
                     if gm == 0.0:
                         break
                     if gm > 0.0:
@@ -940,9 +931,7 @@ def integrate_taylor(
             if mode != 0:
                 stats[S_TAYLOR_CONTACT] += 1
                 ie = nep - 1
-                if n1 > EP[ie, EP_PEAK]:
-                    EP[ie, EP_PEAK] = n1
-                    EP[ie, EP_TPEAK] = t1
+                fold_peak(EP, ie, n1, t1)
                 if slope0 > 0.0 and slope1 <= 0.0:
                     # a peak: Illinois on the polynomial dN/dtau, SL[0..nu-2]
                     for k in range(nu - 1):
@@ -958,9 +947,7 @@ def integrate_taylor(
                         tau = illinois_point(lo, hi, glo, ghi, 1e-12 * h_taken)
                         gm = horner(SL, nu - 2, tau)
                         nm = horner(NF, nu - 1, tau)
-                        if nm > EP[ie, EP_PEAK]:
-                            EP[ie, EP_PEAK] = nm
-                            EP[ie, EP_TPEAK] = t + tau
+                        fold_peak(EP, ie, nm, t + tau)
                         if gm == 0.0:
                             break
                         if gm > 0.0:
