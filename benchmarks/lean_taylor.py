@@ -65,7 +65,8 @@ no root to find. Its limit is the deepest point (p' = 0, where dt/dsigma is infi
 
 Measured with ``bench_core.py --part taylor``: about 2x faster than the lean DP5 loop at
 peak-force accuracy 2.5e-6 and 2.5x at 1.2e-7; the exit steps take 1.07-1.09 and 1.19-1.23
-times less time at those accuracies (benchmarks/README.md, "Exit steps in sqrt(p)").
+times less time at those accuracies, 1.03-1.32 on four neighbouring runs (benchmarks/README.md,
+"Where the Taylor loop's steps go, and exit steps in sqrt(p)").
 """
 
 from __future__ import annotations
