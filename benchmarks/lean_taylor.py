@@ -512,8 +512,9 @@ def integrate_taylor(
     pmax = 0.0  # the deepest p of this contact so far
     nu = order
     while t < t_end:
-        # ---- the exit step in sigma = sqrt(p) (tcoef_sigma): in contact after the deepest
-        # point (p' < 0); taken where its series reaches SIGMA_MIN of the way to the exit
+        # ---- the exit step in sigma = sqrt(p) (tcoef_sigma): tried in contact after the
+        # deepest point (p' < 0) below SIGMA_P of its depth; taken where its series reaches
+        # the exit or covers SIGMA_MIN of sigma, with no peak of N and no clamped force inside
         if mode == 0:
             pmax = 0.0
         elif pc > pmax:
