@@ -11,6 +11,7 @@ physics.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 
 from braidsim.errors import InputError
 
@@ -47,14 +48,18 @@ def limit(name: str) -> float:
     return value
 
 
-def check(name: str, amount: float, what: str) -> None:
+def check(name: str, amount: float, what: str | Callable[[], str]) -> None:
     """Raise an :class:`InputError` when ``amount`` exceeds limit ``name``.
 
-    The message gives the estimate, the limit and the variable that raises it.
+    The message gives the estimate, the limit and the variable that raises it. ``what``
+    names the estimate: a string, or a function that makes it (called only for the
+    message: a run checks its limits on every call).
     """
     cap = limit(name)
     if amount > cap:
         unit = DEFAULTS[name][1]
+        if callable(what):
+            what = what()
         raise InputError(
             f"{what}: {amount:.4g} {unit} exceeds the limit of {cap:.4g} {unit}; "
             f"reduce it, or raise the limit with {env_name(name)}=N"

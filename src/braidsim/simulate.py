@@ -278,8 +278,10 @@ def run_model(
     limits.check(
         "steps",
         model.duration / float(model.options.max_step),
-        f"duration: {model.duration:g} s in steps of at most {float(model.options.max_step):.3g} s "
-        "(simulation.max_step) needs at least",
+        lambda: (
+            f"duration: {model.duration:g} s in steps of at most "
+            f"{float(model.options.max_step):.3g} s (simulation.max_step) needs at least"
+        ),
     )
     nq = quadrature_prefix(model.record, energy) if isinstance(energy, str) else -1
     opts = model.options._replace(record_events=record_events, energy=bool(energy), quadratures=nq)
@@ -497,14 +499,18 @@ def simulate(
         start=start,
         tangents=tangents,
     )
-    series_cols = {}
     empty = np.zeros((len(CARRIER_COLUMNS), 0))  # (one array for the columns of no rows)
-    for i, name in enumerate(CARRIER_COLUMNS):
-        if raw.series is not None:
-            series_cols[name] = raw.series[:, i].copy()
-            continue
-        series_cols[name] = np.concatenate(columns[i]) if columns[i] else empty[i]
-        columns[i] = []
+    if raw.series is None and not any(columns):
+        # no rows (the lean path): each column a row of the empty array
+        series_cols = dict(zip(CARRIER_COLUMNS, empty, strict=True))
+    else:
+        series_cols = {}
+        for i, name in enumerate(CARRIER_COLUMNS):
+            if raw.series is not None:
+                series_cols[name] = raw.series[:, i].copy()
+                continue
+            series_cols[name] = np.concatenate(columns[i]) if columns[i] else empty[i]
+            columns[i] = []
     if not model.two_dof:
         # the x-only carrier does not move tangentially: y and y' stay at their start values
         series_cols["y"][:] = sc["initial.y"]
