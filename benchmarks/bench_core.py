@@ -715,7 +715,12 @@ print(c, len(r.impacts), r.stats["steps"], rss, kernel[0])
 def child(
     cmd: list[str], env: dict[str, str] | None, timeout: float, mem_gb: float | None
 ) -> tuple[str, float, float, float, str]:
-    """Run ``cmd``; returns (stdout, CPU s of the child, peak RSS MB, wall s, failure or "")."""
+    """Run ``cmd``; returns (stdout, CPU s of the child, peak RSS MB, wall s, failure or "").
+
+    The child caches its bytecode as an installed package has it (``bench_startup.py``):
+    without PYTHONDONTWRITEBYTECODE."""
+    env = dict(os.environ if env is None else env)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
 
     def limit() -> None:
         if mem_gb:
