@@ -144,14 +144,16 @@ def _lambert_w0(z: float) -> float:
     Halley's iteration (Corless, Gonnet, Hare, Jeffrey & Knuth 1996, On the Lambert W
     function, Adv. Comput. Math. 5:329-359, doi:10.1007/BF02124750, Eq. 5.9) from the
     series about the branch point, w = -1 + p - p^2/3 + 11 p^3/72 with p = sqrt(2 (e z + 1))
-    (their Eq. 4.22), until the correction is within a few units of the last place: three
-    to five iterations over the whole interval. Written out here rather than taken from
+    (their Eq. 4.22), until the correction is within a few units of the last place or stops
+    shrinking (near the branch point, where the rounding of w e^w bounds it): one to four
+    evaluations of w e^w over the whole interval. Written out here rather than taken from
     ``scipy.special.lambertw`` because every model asks it for its pairs, and importing
     scipy.special cost a run of the command line 0.08-0.1 s of CPU; on this interval the two
     agree to 3e-14 (tests/unit/test_contact.py).
     """
     p = math.sqrt(max(2.0 * (math.e * z + 1.0), 0.0))
     w = -1.0 + p * (1.0 + p * (-1.0 / 3.0 + p * (11.0 / 72.0)))
+    last = math.inf
     for _ in range(30):
         ew = math.exp(w)
         f = w * ew - z
@@ -159,7 +161,13 @@ def _lambert_w0(z: float) -> float:
         if f == 0.0 or w1 == 0.0:
             break
         dw = f / (ew * w1 - (w + 2.0) * f / (2.0 * w1))
+        if abs(dw) >= last:
+            # no more progress: the corrections have reached the rounding of f, which near
+            # the branch point (W0 ill-conditioned, dW/dz = W / (z (1 + W))) stays above the
+            # test below and alternates in sign
+            break
         w -= dw
+        last = abs(dw)
         if abs(dw) <= 1e-15 * (1.0 + abs(w)):
             break
     return w
