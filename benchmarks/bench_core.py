@@ -17,7 +17,10 @@ lean
     errors of all tighter grid points are at most the level is taken. Printed: the achieved
     errors, right-hand-side evaluations, accepted and rejected steps, and the CPU times
     (``time.process_time``, the two calls interleaved A B A B, best of ``--repeats``) and their
-    ratio.
+    ratio. Then, as a check on the calibration's luck (the error is not monotone in rtol),
+    the same comparison over the whole grid: both timed at every rtol (interleaved, best of
+    5 sweeps), a line of log time against log error fitted to each through the points within
+    30x of the level, and the ratio of the two lines at the level (:func:`fitted_time`).
 numbalsoda
     the same against numbalsoda's DOP853 (Hairer's DOP853, Fortran) where it is installed.
     Its ``solve_ivp`` is called from numba-compiled code, with the right-hand side and the
@@ -92,6 +95,8 @@ TIGHT = {
 ATOL_X_PER_RTOL = 1e-13 / 1e-8
 ATOL_V_PER_RTOL = 1e-9 / 1e-8
 RTOL_GRID = tuple(10.0 ** (-6.0 - k / 8.0) for k in range(0, 49))  # 1e-6 ... 1e-12
+FIT_BAND = 30.0  # the grid points whose error is within this factor of a level are fitted
+FIT_REPEATS = 5  # sweeps of the grid for the fitted times (best of)
 HMAX = 1e-3  # braidsim's default maximum step for a 60-Hz track (1 ms cap)
 PARTS = ("lean", "numbalsoda", "scipy", "dop853", "taylor", "batch", "machine", "memory", "startup")
 
@@ -236,12 +241,67 @@ def pick(
     return chosen
 
 
+def grid_times(
+    peer_a: Peer, peer_b: Peer, grid: tuple[float, ...], repeats: int
+) -> tuple[dict[float, float], dict[float, float]]:
+    """Best CPU time [s] of each peer at every rtol of the grid, the two interleaved at each
+    point and the grid swept ``repeats`` times (so that a change of the machine's speed
+    falls on both)."""
+    calls = [(r, peer_a.call(r), peer_b.call(r)) for r in grid]
+    ta = dict.fromkeys(grid, math.inf)
+    tb = dict.fromkeys(grid, math.inf)
+    for _ in range(repeats):
+        for r, fa, fb in calls:
+            c0 = time.process_time()
+            fa()
+            c1 = time.process_time()
+            fb()
+            c2 = time.process_time()
+            ta[r] = min(ta[r], c1 - c0)
+            tb[r] = min(tb[r], c2 - c1)
+    return ta, tb
+
+
+def fitted_time(
+    cal: list[tuple[float, float, dict[str, float]]],
+    times: dict[float, float],
+    level: float,
+    band: float = FIT_BAND,
+) -> tuple[float, int]:
+    """The time [s] at which the grid's points reach ``level``: a least-squares line of
+    log(time) against log(error) through the points whose error lies within a factor
+    ``band`` of the level, read at the level; and the number of points (NaN below 4).
+
+    The calibrated pick (:func:`pick`) guarantees the level at every tighter grid point, so it
+    rides on the luck of the few points near the level: the peak-force error jumps by up to
+    20x between neighbouring rtols (the chain of impacts amplifies each local error). The
+    line through some twenty points is the typical cost of that accuracy."""
+    pts = [
+        (math.log(err), math.log(times[rtol]))
+        for rtol, err, _ in cal
+        if math.isfinite(err) and err > 0.0 and level / band <= err <= level * band
+    ]
+    if len(pts) < 4:
+        return math.nan, len(pts)
+    x, y = np.array(pts).T
+    slope, intercept = np.polyfit(x, y, 1)
+    return math.exp(intercept + slope * math.log(level)), len(pts)
+
+
 def compare(
-    peer_a: Peer, peer_b: Peer, ref: Any, repeats: int, grid_b: tuple[float, ...] = RTOL_GRID
+    peer_a: Peer,
+    peer_b: Peer,
+    ref: Any,
+    repeats: int,
+    grid_b: tuple[float, ...] = RTOL_GRID,
+    fitted: bool = False,
 ) -> None:
-    """Calibrate both, then time them at each level (A = braidsim) and print the ratio."""
+    """Calibrate both, then time them at each level (A = braidsim) and print the ratio; with
+    ``fitted`` (both on ``RTOL_GRID``) also the ratio of their fitted times over the whole
+    grid (:func:`fitted_time`)."""
     cal_a = calibrate(peer_a, ref, RTOL_GRID)
     cal_b = calibrate(peer_b, ref, grid_b)
+    grid_t = grid_times(peer_a, peer_b, RTOL_GRID, FIT_REPEATS) if fitted else None
     for level in LEVELS:
         ca = pick(cal_a, level)
         cb = pick(cal_b, level)
@@ -262,6 +322,14 @@ def compare(
             f"    ratio time {peer_b.name} / time {peer_a.name}: {tb / ta:.2f}  "
             f"(>1: {peer_a.name} faster)"
         )
+        if grid_t is not None:
+            fa, na = fitted_time(cal_a, grid_t[0], level)
+            fb, nb = fitted_time(cal_b, grid_t[1], level)
+            print(
+                f"    fitted over the grid (log time against log error, errors within "
+                f"{FIT_BAND:g}x of the level): {peer_a.name} {fa * 1e3:.3f} ms ({na} points), "
+                f"{peer_b.name} {fb * 1e3:.3f} ms ({nb} points), ratio {fb / fa:.2f}"
+            )
 
 
 def _count(v: float) -> str:
@@ -298,9 +366,9 @@ def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
         f"   reference: braidsim rtol 1e-12 (atol 1e-16 m, 1e-13 m/s), {len(ref)} episodes; "
         f"the lean loop at the same tolerances differs by {chk:.1e} (peak force)"
     )
-    compare(BraidsimPeer(sc), lean, ref, repeats)
+    compare(BraidsimPeer(sc), lean, ref, repeats, fitted=True)
     print("   with Taylor-series steps (simulation.integrator = taylor):")
-    compare(BraidsimPeer(sc, "taylor"), lean, ref, repeats)
+    compare(BraidsimPeer(sc, "taylor"), lean, ref, repeats, fitted=True)
 
 
 def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
