@@ -499,18 +499,14 @@ def simulate(
         start=start,
         tangents=tangents,
     )
+    series_cols = {}
     empty = np.zeros((len(CARRIER_COLUMNS), 0))  # (one array for the columns of no rows)
-    if raw.series is None and not any(columns):
-        # no rows (the lean path): each column a row of the empty array
-        series_cols = dict(zip(CARRIER_COLUMNS, empty, strict=True))
-    else:
-        series_cols = {}
-        for i, name in enumerate(CARRIER_COLUMNS):
-            if raw.series is not None:
-                series_cols[name] = raw.series[:, i].copy()
-                continue
-            series_cols[name] = np.concatenate(columns[i]) if columns[i] else empty[i]
-            columns[i] = []
+    for i, name in enumerate(CARRIER_COLUMNS):
+        if raw.series is not None:
+            series_cols[name] = raw.series[:, i].copy()
+            continue
+        series_cols[name] = np.concatenate(columns[i]) if columns[i] else empty[i]
+        columns[i] = []
     if not model.two_dof:
         # the x-only carrier does not move tangentially: y and y' stay at their start values
         series_cols["y"][:] = sc["initial.y"]
