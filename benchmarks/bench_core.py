@@ -124,17 +124,23 @@ def peak_error(peaks: np.ndarray, walls: np.ndarray, ref: Any) -> float:
     return float(np.max(np.abs(peaks - rp) / np.abs(rp)))
 
 
+def timed_pair(fa: Callable[[], Any], fb: Callable[[], Any]) -> tuple[float, float]:
+    """CPU times [s] of one call of fa, then one of fb."""
+    c0 = time.process_time()
+    fa()
+    c1 = time.process_time()
+    fb()
+    c2 = time.process_time()
+    return c1 - c0, c2 - c1
+
+
 def interleaved(fa: Callable[[], Any], fb: Callable[[], Any], repeats: int) -> tuple[float, float]:
     """Best CPU times [s] of fa and fb, called A B A B ... ``repeats`` times each."""
     ta = tb = math.inf
     for _ in range(repeats):
-        c0 = time.process_time()
-        fa()
-        c1 = time.process_time()
-        fb()
-        c2 = time.process_time()
-        ta = min(ta, c1 - c0)
-        tb = min(tb, c2 - c1)
+        a, b = timed_pair(fa, fb)
+        ta = min(ta, a)
+        tb = min(tb, b)
     return ta, tb
 
 
@@ -252,13 +258,9 @@ def grid_times(
     tb = dict.fromkeys(grid, math.inf)
     for _ in range(repeats):
         for r, fa, fb in calls:
-            c0 = time.process_time()
-            fa()
-            c1 = time.process_time()
-            fb()
-            c2 = time.process_time()
-            ta[r] = min(ta[r], c1 - c0)
-            tb[r] = min(tb[r], c2 - c1)
+            a, b = timed_pair(fa, fb)
+            ta[r] = min(ta[r], a)
+            tb[r] = min(tb[r], b)
     return ta, tb
 
 
