@@ -286,7 +286,7 @@ SCHEMA_LIST: list[ParamSpec] = [
         "simulation.max_step",
         "s",
         None,
-        "largest step [s]; default 1/16 of the shortest excitation period",
+        "largest step [s]; default 1/8 of the shortest excitation period, at most 1 ms",
     ),
     _positive("simulation.sample_interval", "s", 1e-5, "spacing of the sampled time series [s]"),
     ParamSpec(
