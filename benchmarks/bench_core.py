@@ -30,6 +30,7 @@ numbalsoda
     force; after each event the event time is refined by one Newton step with a 2nd-order
     Taylor update of the state (so that the switch is not 1e-8 s off) and the integration
     restarts from there. One absolute tolerance serves x and x' (the library takes a scalar).
+    braidsim is compared twice: with its default integrator and with Taylor-series steps.
 dop853
     the lean DP5 loop against the same loop with the DOP853 pair (``lean_dop853.py``): what a
     higher-order pair buys in steps, evaluations and time at equal accuracy.
@@ -675,6 +676,8 @@ def part_numbalsoda(sc: Scenario, args: argparse.Namespace) -> None:
         "Newton step; one scalar atol; 'steps' not reported by the library"
     )
     compare(BraidsimPeer(sc), peer, res.impacts, repeats)
+    print("   with Taylor-series steps (simulation.integrator = taylor):")
+    compare(BraidsimPeer(sc, "taylor"), peer, res.impacts, repeats)
 
 
 def part_batch(sc: Scenario, args: argparse.Namespace) -> None:
