@@ -367,6 +367,7 @@ def integrate(
     stiff_run = int(r.stiff_run)
     nonstiff_run = int(r.nonstiff_run)
     err_old = r.err_old
+    lerr_old = math.log(err_old)  # (the controller works on logarithms: one log, one exp)
     # (the implicit step's own state stays in the restart record and is read there: seven
     # more values live across the loop made every step of a run without it 5-8 % slower)
     # error exponent of the first step of a contact: the force grows as s^n after onset, so
@@ -377,6 +378,7 @@ def integrate(
     force_rk = False  # a Taylor step was refused after the fact: a Runge-Kutta step next
     h_rk = h
     err_old_rk = err_old
+    lerr_old_rk = lerr_old
 
     # the rows of the stages the loop hands to calls, and the step's dense output, made once:
     # a view or a record of arrays made in the loop costs numba's reference counting (an
@@ -503,6 +505,7 @@ def integrate(
                         # guess, which the Taylor steps would then have to beat
                         h_rk = min(h, ONSET_RK_FRACTION * ho)
                         err_old_rk = err_old
+                        lerr_old_rk = lerr_old
                         h = ho
                         hits_stop = h >= (t_stop - t) * (1.0 - 1e-9)
                         if hits_stop:
@@ -540,6 +543,7 @@ def integrate(
                     # Taylor steps
                     h_rk = h
                     err_old_rk = err_old
+                    lerr_old_rk = lerr_old
                     h = ht
                     hits_stop = False
                     if h >= (t_stop - t) * (1.0 - 1e-9):
@@ -637,7 +641,7 @@ def integrate(
             if onset_q > 0.0:
                 fac = max(0.02, 0.9 * err ** (-1.0 / onset_q))
             else:
-                fac = max(0.2, 0.9 * err ** (-0.2))
+                fac = max(0.2, 0.9 * math.exp(-0.2 * math.log(err)))
             if IMP is not None:
                 if took_implicit:
                     fac = max(0.2, radau_safety(newton_iters) * err ** (-0.25))
@@ -695,10 +699,14 @@ def integrate(
         # 0.2 - 0.75 beta and beta = 0.04, safety 0.9, growth at most 5 (DOPRI5: 10). Unlike
         # DOPRI5 the step may grow right after a rejection: forbidding it saved 0.8 % of the
         # evaluations on paper-3.3 (benchmarks/README.md), not worth new bits.
+        # On logarithms, fac = 0.9 err^-0.17 err_old^0.04 takes one log and one exp instead
+        # of two pow calls (the lean loop's form).
+        lerr = -math.inf
         if err == 0.0:
             fac = 5.0
         else:
-            fac = 0.9 * err ** (-0.17) * err_old**0.04
+            lerr = math.log(err)
+            fac = 0.9 * math.exp(-0.17 * lerr + 0.04 * lerr_old)
             fac = min(5.0, max(0.2, fac))
         if IMP is not None:
             if took_implicit and err > 0.0:
@@ -706,6 +714,8 @@ def integrate(
                 # part, which would need the last step to be carried across a restart)
                 fac = min(10.0, max(0.2, radau_safety(newton_iters) * err ** (-0.25)))
         err_old = max(err, 1e-4)
+        # (the log of the same double as math.log(err_old) after a restart: the same bits)
+        lerr_old = lerr if err >= 1e-4 else math.log(err_old)
         onset_q = 0.0
         onset_pair = -1
         h_next = min(h * fac, hmax)
@@ -713,6 +723,7 @@ def integrate(
             if took_taylor:
                 h_next = h_rk
                 err_old = err_old_rk
+                lerr_old = lerr_old_rk
         if IMP is None:
             if not took_taylor:
                 dense_coeffs(y, y1, h, K, RC, n)
