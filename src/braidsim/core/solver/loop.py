@@ -99,6 +99,11 @@ from braidsim.core.solver.taylor import (
 ONSET_RK_FRACTION = 0.25  # the Runge-Kutta step after an onset step, as its fraction
 EPISODE_RESERVE = 4  # impact-table rows one step can open at most
 EVENT_ROWS = 16  # series rows one step writes at most besides its samples
+# the controller's memory of the last error is at least 1e-4 (DOPRI5's floor); its log, as
+# libm gives it at run time after a restart (math.log(1e-4)), so that a step with a smaller
+# error (every Taylor step, whose error is 0) takes no log for it
+ERR_FLOOR = 1e-4
+LOG_ERR_FLOOR = math.log(ERR_FLOOR)
 # A contact rests when its fast mode holds the explicit step: h |lambda| (estimated from the
 # last two stages) above REST_HLAMBDA for REST_AFTER accepted steps in a row. An impact's
 # steps resolve its bounce at h |lambda| ~ 0.1; a resting contact's sit at 1-1.6 whatever
@@ -713,9 +718,8 @@ def integrate(
                 # the estimate is of order 3 (RADAU5's controller, without its predictive
                 # part, which would need the last step to be carried across a restart)
                 fac = min(10.0, max(0.2, radau_safety(newton_iters) * err ** (-0.25)))
-        err_old = max(err, 1e-4)
-        # (the log of the same double as math.log(err_old) after a restart: the same bits)
-        lerr_old = lerr if err >= 1e-4 else math.log(err_old)
+        err_old = max(err, ERR_FLOOR)
+        lerr_old = lerr if err >= ERR_FLOOR else LOG_ERR_FLOOR
         onset_q = 0.0
         onset_pair = -1
         h_next = min(h * fac, hmax)
