@@ -83,14 +83,45 @@ def test_cli_start_loads_no_heavy_module(argv: list[str]) -> None:
 def test_cli_run_loads_no_output_module() -> None:
     """``braidsim run SCENARIO --json`` loads no plotting, storage or dask module, no other
     verb's module, and no pint: the units of the built-in scenarios are read without it (see
-    the next test)."""
+    the next test); nor the ``scipy.linalg`` package (numba's search for a BLAS finds the
+    extension it wants loaded alone) or pydantic (which typer 0.29 imports)."""
     mods = _modules_after(
         "from braidsim.cli import main\nmain()", "run", "paper-3.3", "--duration", "0.01", "--json"
     )
-    assert _loaded(mods, (*HEAVY, "scipy.integrate", "pint", "pandas")) == []
+    shunned = (*HEAVY, "scipy.integrate", "scipy.linalg", "pint", "pandas", "pydantic")
+    assert _loaded(mods, shunned) == []
+    assert "scipy.linalg.cython_blas" in mods
     assert "braidsim.cli.run" in mods
     others = {f"braidsim.cli.{m}" for m in VERBS.values()} - {"braidsim.cli.run"}
     assert sorted(others & mods) == []
+
+
+def test_cython_blas_loaded_alone_serves_numba_and_scipy() -> None:
+    """After the command line loads ``scipy.linalg.cython_blas`` on its own, numba's BLAS and
+    LAPACK calls compile and give the right numbers, and ``scipy.linalg`` imports and works
+    (its package then runs as usual, and the submodule is the one loaded)."""
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from braidsim.cli import _load_cython_blas_alone\n"
+        "_load_cython_blas_alone()\n"
+        "blas = sys.modules['scipy.linalg.cython_blas']\n"
+        "assert 'scipy.linalg' not in sys.modules\n"
+        "assert 'dgemm' in blas.__pyx_capi__\n"
+        "from numba import njit\n"
+        "@njit(cache=False)\n"
+        "def f(a, b):\n"
+        "    return np.dot(a, a), np.linalg.solve(a, b)\n"
+        "a = np.array([[2.0, 1.0], [1.0, 3.0]])\n"
+        "p, x = f(a, np.array([1.0, 2.0]))\n"
+        "assert np.array_equal(p, a @ a) and np.allclose(a @ x, [1.0, 2.0], rtol=0, atol=1e-15)\n"
+        "import scipy.linalg\n"
+        "import scipy.linalg.cython_blas as again\n"
+        "assert again is blas\n"
+        "w = np.sort(scipy.linalg.eigvalsh(a))\n"
+        "assert np.allclose(w, [(5 - 5**0.5) / 2, (5 + 5**0.5) / 2], rtol=0, atol=1e-14)\n"
+    )
+    _modules_after(code)
 
 
 def test_verb_table_matches_registrations() -> None:
