@@ -14,10 +14,12 @@ child process that runs what the ``braidsim`` script runs (``python -c "from bra
 main; main()"``); the warm runs are interleaved with a *floor* child that does what any program
 using numba's cache must do and nothing else: import numpy and numba and make the first call of
 one cached ``@njit`` function (numba then loads its typing and lowering registries, about a
-third of a second). ``warm / floor`` is printed beside the absolute figures, which drift with
-the load of the machine. Then one warm run is taken apart: CPU time of its phases (measured in
-the child with ``time.process_time``) and the import time of each top-level package (the self
-times of its modules under ``python -X importtime``, wall-clock time as Python reports it).
+third of a second), with numba's search for a BLAS spared the ``scipy.linalg`` package as the
+command line spares it (:func:`braidsim.startup.load_cython_blas_alone`). ``warm / floor`` is
+printed beside the absolute figures, which drift with the load of the machine. Then one warm
+run is taken apart: CPU time of its phases (measured in the child with ``time.process_time``)
+and the import time of each top-level package (the self times of its modules under
+``python -X importtime``, wall-clock time as Python reports it).
 
 By default the cold run points ``NUMBA_CACHE_DIR`` at a new empty directory, so the cache
 next to the installed package (``braidsim/core/**/__pycache__/*.nbi, *.nbc``) is neither
@@ -52,6 +54,8 @@ FLOOR = textwrap.dedent(
     """
     import sys
     sys.path.insert(0, sys.argv[1])
+    from braidsim.startup import load_cython_blas_alone
+    load_cython_blas_alone()  # as the command line does: numba's BLAS probe without scipy.linalg
     import numpy, numba
     import startup_floor_mod
     startup_floor_mod.f(1.0)

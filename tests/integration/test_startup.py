@@ -103,8 +103,8 @@ def test_cython_blas_loaded_alone_serves_numba_and_scipy() -> None:
     code = (
         "import sys\n"
         "import numpy as np\n"
-        "from braidsim.cli import _load_cython_blas_alone\n"
-        "_load_cython_blas_alone()\n"
+        "from braidsim.startup import load_cython_blas_alone\n"
+        "load_cython_blas_alone()\n"
         "blas = sys.modules['scipy.linalg.cython_blas']\n"
         "assert 'scipy.linalg' not in sys.modules\n"
         "assert 'dgemm' in blas.__pyx_capi__\n"

@@ -10,10 +10,7 @@ from __future__ import annotations
 
 import gc
 import importlib
-import importlib.machinery
-import importlib.util
 import sys
-from pathlib import Path
 
 from braidsim.cli.common import app
 
@@ -46,41 +43,6 @@ def _register(verb: str | None = None) -> None:
         importlib.import_module(f"braidsim.cli.{name}")
 
 
-def _load_cython_blas_alone() -> None:
-    """Load SciPy's ``scipy.linalg.cython_blas`` extension under its name without running the
-    ``scipy.linalg`` package.
-
-    numba probes for a BLAS when it loads its first function from the cache
-    (``numba.np.arraymath`` imports ``scipy.linalg.cython_blas``), and importing that
-    submodule runs the whole ``scipy.linalg`` package first, for a package a run never uses:
-    a warm ``braidsim run paper-3.3 --json`` took 1.13 s of CPU with this and 1.42 s without
-    (medians of 12 alternated runs, numba 0.68, SciPy 1.17). Found in
-    ``sys.modules``, the extension is imported as it is, and numba's BLAS (``np.dot``) and
-    LAPACK (which imports ``scipy.linalg`` itself) work as before; a verb that needs
-    ``scipy.linalg`` imports it as usual, the package then lacking only the attribute
-    ``cython_blas`` (the submodule itself stays importable). Nothing is done where SciPy's
-    files are laid out otherwise, or where the extension is loaded already.
-    """
-    name = "scipy.linalg.cython_blas"
-    if name in sys.modules or "scipy.linalg" in sys.modules:
-        return
-    try:
-        scipy_spec = importlib.util.find_spec("scipy")
-        if scipy_spec is None or scipy_spec.origin is None:
-            return
-        folder = Path(scipy_spec.origin).parent / "linalg"
-        suffixes = tuple(importlib.machinery.EXTENSION_SUFFIXES)
-        path = next(p for p in sorted(folder.glob("cython_blas.*")) if p.name.endswith(suffixes))
-        spec = importlib.util.spec_from_file_location(name, path)
-        if spec is None or spec.loader is None:
-            return
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-    except Exception:  # (StopIteration included: no such file) the ordinary import then
-        return
-    sys.modules[name] = module
-
-
 def _verb(argv: list[str]) -> str | None:
     """The verb of a command line: its first word that is not an option (the root options,
     ``--version`` and ``--help``, take no value)."""
@@ -90,7 +52,7 @@ def _verb(argv: list[str]) -> str | None:
 def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``braidsim`` command (``argv``: the arguments after the command's
     name; by default those of the process)."""
-    from braidsim import units
+    from braidsim import startup, units
     from braidsim.cli.common import run_app
 
     own_process = argv is None
@@ -105,10 +67,10 @@ def main(argv: list[str] | None = None) -> None:
         #   cache peaks ~4 % higher in memory and takes no longer).
         units.PINT_WITH_DASK = False
         gc.set_threshold(50_000, 20, 20)
-        # - numba's search for a BLAS need not import scipy.linalg (_load_cython_blas_alone;
-        #   not for help or the version, which load no numba and no scipy)
+        # - numba's search for a BLAS need not import scipy.linalg (see braidsim.startup; not
+        #   for help or the version, which load no numba and no scipy)
         if verb in VERBS and "--help" not in args and "--version" not in args:
-            _load_cython_blas_alone()
+            startup.load_cython_blas_alone()
     _register(verb)
     code = run_app(argv)
     if own_process:
