@@ -13,9 +13,10 @@ Every figure is the CPU time (user + system, from ``getrusage(RUSAGE_CHILDREN)``
 child process that runs what the ``braidsim`` script runs (``python -c "from braidsim.cli import
 main; main()"``); the warm runs are interleaved with a *floor* child that does what any program
 using numba's cache must do and nothing else: import numpy and numba and make the first call of
-one cached ``@njit`` function (numba then loads its typing and lowering registries, about a
-third of a second), with numba's search for a BLAS spared the ``scipy.linalg`` package as the
-command line spares it (:func:`braidsim.startup.load_cython_blas_alone`). ``warm / floor`` is
+one cached ``@njit`` function, spared what the command line spares: the ``scipy.linalg``
+package in numba's search for a BLAS (:func:`braidsim.startup.load_cython_blas_alone`) and
+numba's registries at a cache load
+(:func:`braidsim.startup.load_cached_functions_without_refresh`). ``warm / floor`` is
 printed beside the absolute figures, which drift with the load of the machine. Then one warm
 run is taken apart: CPU time of its phases (measured in the child with ``time.process_time``)
 and the import time of each top-level package (the self times of its modules under
@@ -54,9 +55,10 @@ FLOOR = textwrap.dedent(
     """
     import sys
     sys.path.insert(0, sys.argv[1])
-    from braidsim.startup import load_cython_blas_alone
-    load_cython_blas_alone()  # as the command line does: numba's BLAS probe without scipy.linalg
+    from braidsim import startup
+    startup.load_cython_blas_alone()  # as the command line does: numba's BLAS probe alone
     import numpy, numba
+    startup.load_cached_functions_without_refresh()  # as the command line does
     import startup_floor_mod
     startup_floor_mod.f(1.0)
     """
@@ -98,7 +100,8 @@ PHASES = textwrap.dedent(
     t0 = pt(); import numpy; mark("import numpy", t0)
     t0 = pt(); import numba; mark("import numba", t0)
     t0 = pt()
-    import braidsim, braidsim.cli, braidsim.cli.run
+    import braidsim, braidsim.cli, braidsim.cli.run, braidsim.startup
+    braidsim.startup.LIGHT_CACHE_LOADS = True  # as braidsim.cli.main sets it
     mark("import braidsim.cli and the run verb", t0)
     t0 = pt()
     import braidsim.params, braidsim.result, braidsim.simulate, braidsim.units

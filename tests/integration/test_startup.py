@@ -12,6 +12,7 @@ import math
 import struct
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -122,6 +123,98 @@ def test_cython_blas_loaded_alone_serves_numba_and_scipy() -> None:
         "assert np.allclose(w, [(5 - 5**0.5) / 2, (5 + 5**0.5) / 2], rtol=0, atol=1e-14)\n"
     )
     _modules_after(code)
+
+
+_CACHED_MODULE = """
+import numpy as np
+from numba import njit
+
+@njit(cache=True)
+def ramp(n, x):  # allocates: needs numba's runtime
+    return np.arange(n) * x + np.zeros(n)
+
+@njit(cache=True)
+def checked(x):
+    if x < 0.0:
+        raise ValueError("x must be >= 0")
+    return np.sqrt(x)
+"""
+
+
+def test_cache_loads_without_refresh(tmp_path: Path) -> None:
+    """With :func:`braidsim.startup.load_cached_functions_without_refresh`, functions come
+    from numba's cache (no compile) without numba's registries, allocate, return arrays and
+    raise their exceptions as compiled; a function not in the cache still compiles (numba's
+    compiler loads the registries itself), and so does one that uses a registry the loads
+    skipped (numpy's polynomials)."""
+    folder = str(tmp_path)
+    (tmp_path / "cached_mod.py").write_text(_CACHED_MODULE)
+    env_code = f"import os, sys\nos.environ['NUMBA_CACHE_DIR'] = {folder + '/cache'!r}\n"
+    env_code += f"sys.path.insert(0, {folder!r})\n"
+    warm = "import cached_mod\ncached_mod.ramp(4, 0.5)\ncached_mod.checked(4.0)\n"
+    _modules_after(env_code + warm)  # fills the cache
+    code = env_code + (
+        "import numpy as np\n"
+        "from braidsim.startup import load_cached_functions_without_refresh\n"
+        "load_cached_functions_without_refresh()\n"
+        "load_cached_functions_without_refresh()\n"
+        "import numba.core.caching as caching\n"
+        "assert caching.Cache.load_overload.braidsim_light\n"
+        "import cached_mod\n"
+        "r = cached_mod.ramp(5, 0.25)\n"
+        "assert np.array_equal(r, [0.0, 0.25, 0.5, 0.75, 1.0])\n"
+        "assert cached_mod.ramp.stats.cache_hits and not cached_mod.ramp.stats.cache_misses\n"
+        "assert 'numba.np.polynomial.polynomial_functions' not in sys.modules\n"
+        "assert cached_mod.checked(9.0) == 3.0\n"
+        "try:\n"
+        "    cached_mod.checked(-1.0)\n"
+        "except ValueError as exc:\n"
+        "    assert str(exc) == 'x must be >= 0'\n"
+        "else:\n"
+        "    raise AssertionError('no exception')\n"
+        "from numba import njit\n"
+        "@njit(cache=False)\n"
+        "def roots(c):\n"
+        "    return np.roots(c), np.polynomial.polynomial.polyval(2.0, c)\n"
+        "z, v = roots(np.array([1.0, -3.0, 2.0]))\n"
+        "assert np.allclose(np.sort(z.real), [1.0, 2.0], rtol=0, atol=1e-12) and v == 3.0\n"
+    )
+    _modules_after(code)
+
+
+def test_cli_run_loads_cached_functions_without_refresh(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The command line, a process of its own, loads the core's cached functions without
+    numba's registries, and prints what the same command prints in a process that loads
+    them (this one: ``main`` given its arguments tunes nothing)."""
+    from braidsim.cli import main
+
+    argv = ["run", "paper-3.3", "--duration", "0.05", "--json"]
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 0
+    here = json.loads(capsys.readouterr().out)
+    code = (
+        "import atexit, numba.core.caching as caching\n"
+        "atexit.register(lambda: sys.stderr.write('\\nLIGHT %s' % "
+        "getattr(caching.Cache.load_overload, 'braidsim_light', False)))\n"
+        "from braidsim.cli import main\nmain()\n"
+    )
+    prelude = f"import sys\nsys.argv = ['braidsim', *{argv!r}]\n"
+    proc = subprocess.run(
+        [sys.executable, "-c", prelude + code],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr.rsplit("LIGHT ", 1)[-1].strip() == "True"
+    there = json.loads(proc.stdout)
+    for report in (here, there):
+        report.pop("created")
+    assert there == here
 
 
 def test_verb_table_matches_registrations() -> None:

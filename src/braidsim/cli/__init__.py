@@ -71,6 +71,9 @@ def main(argv: list[str] | None = None) -> None:
         #   for help or the version, which load no numba and no scipy)
         if verb in VERBS and "--help" not in args and "--version" not in args:
             startup.load_cython_blas_alone()
+        # - a function loaded from numba's cache need not wait for numba's registries, which
+        #   only a compile uses (see braidsim.startup; applied when the core is imported)
+        startup.LIGHT_CACHE_LOADS = True
     _register(verb)
     code = run_app(argv)
     if own_process:

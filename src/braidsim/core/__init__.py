@@ -25,6 +25,7 @@ import warnings
 
 from numba.core.errors import NumbaIRAssumptionWarning
 
+from braidsim import startup
 from braidsim.core import layout
 from braidsim.core.driver import RawRun, SeriesOverflow, run, state_size
 from braidsim.core.interfaces import (
@@ -53,6 +54,11 @@ from braidsim.core.solver.pairs import contact_quantities, gaps_along
 # (the solver's tests compare it with closed forms and with the first kernel's bits).
 # Compilation happens at the first call, after this.
 warnings.filterwarnings("ignore", category=NumbaIRAssumptionWarning)
+
+# A process that runs braidsim alone (the command line) loads cached functions without
+# numba's registries (braidsim.startup); nothing above calls a compiled function.
+if startup.LIGHT_CACHE_LOADS:
+    startup.load_cached_functions_without_refresh()
 
 __all__ = [
     "CARRIER_COLUMNS",
