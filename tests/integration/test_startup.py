@@ -33,16 +33,17 @@ def _modules_after(code: str, *argv: str) -> set[str]:
         "atexit.register(_report)\n"
         f"sys.argv = ['braidsim', *{list(argv)!r}]\n"
     )
+    line = _python(prelude + code).stderr.rsplit("MODULES ", 1)[-1]
+    return set(json.loads(line))
+
+
+def _python(code: str) -> subprocess.CompletedProcess[str]:
+    """Run ``code`` in a fresh interpreter; fail with its error output if it fails."""
     proc = subprocess.run(
-        [sys.executable, "-c", prelude + code],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=600, check=False
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    line = proc.stderr.rsplit("MODULES ", 1)[-1]
-    return set(json.loads(line))
+    return proc
 
 
 def _loaded(modules: set[str], names: tuple[str, ...]) -> list[str]:
@@ -202,14 +203,7 @@ def test_cli_run_loads_cached_functions_without_refresh(
         "from braidsim.cli import main\nmain()\n"
     )
     prelude = f"import sys\nsys.argv = ['braidsim', *{argv!r}]\n"
-    proc = subprocess.run(
-        [sys.executable, "-c", prelude + code],
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    proc = _python(prelude + code)
     assert proc.stderr.rsplit("LIGHT ", 1)[-1].strip() == "True"
     there = json.loads(proc.stdout)
     for report in (here, there):
