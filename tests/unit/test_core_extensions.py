@@ -246,6 +246,29 @@ def test_an_inlined_implementation_is_typed_for_its_callers_and_never_compiled_a
         twice(Broken(1.0), 2.0)
 
 
+def test_class_constants_from_the_interpreter_equal_the_compiled_ones() -> None:
+    """The driver reads a model's sizes and dissipation slots by running their plain Python
+    (``plain``): for every model class they equal what the compiled implementations give,
+    and every class registered for one is registered for the other."""
+    from braidsim.core.interfaces import dissipation_index, model_size
+
+    law = KelvinVoigtContact.for_restitution(5e7, 0.5, 1.2, allow_tension=True)
+    models = [
+        build_model(load_scenario("paper-3.3")).record,
+        build_model(load_scenario("paper-3.3").with_overrides({"simulation.dof": "xy"})).record,
+        ImpactOscillator(1.2, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, law),
+    ]
+    classes = {type(m) for m in models}
+    assert set(model_size.generic.impls) == classes
+    assert set(dissipation_index.generic.impls) == classes
+    for model in models:
+        size = model_size.plain(model)
+        assert size == tuple(model_size.py(model))
+        assert all(isinstance(v, int) for v in size)
+        for pair in range(size[1]):
+            assert dissipation_index.plain(model, pair) == dissipation_index.py(model, pair)
+
+
 def test_a_helper_called_from_python_says_so() -> None:
     """A helper is compiled without the wrapper that would let Python call it: a call from
     Python raises a TypeError that names it, and the same helper works from compiled code."""

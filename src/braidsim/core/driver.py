@@ -230,12 +230,13 @@ _PER_CLASS: dict[tuple[Any, ...], Any] = {}
 
 
 def _per_class(fn: Any, model: Any, *args: int) -> Any:
-    """``fn.py(model, *args)`` of a generic function whose value is a constant of the record
-    class, kept per class and arguments: a call of the compiled function from Python costs
-    ~5 us (numba types the whole record), and a run asked up to ten times."""
+    """``fn.plain(model, *args)`` of a generic function whose value is a constant of the
+    record class, kept per class and arguments. Run by the interpreter, not compiled (see
+    ``GenericFunction.plain``): the compiled call had to be loaded from numba's cache first,
+    and cost ~5 us a call after that (numba types the whole record)."""
     key = (fn, type(model), args)
     if key not in _PER_CLASS:
-        _PER_CLASS[key] = fn.py(model, *args)
+        _PER_CLASS[key] = fn.plain(model, *args)
     return _PER_CLASS[key]
 
 

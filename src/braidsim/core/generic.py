@@ -293,6 +293,16 @@ class GenericFunction:
         ``inline=False`` is a helper that only compiled code can call)."""
         return self.impls[type(args[0])](*args)
 
+    def plain(self, *args: Any) -> Any:
+        """Call from Python, run by the interpreter: the implementation of the first
+        argument's class as written, not compiled. For generic functions whose value is a
+        constant of the record class (:func:`~braidsim.core.interfaces.model_size`,
+        :func:`~braidsim.core.interfaces.dissipation_index`), asked once per class before a
+        run: the compiled call would load the function from numba's cache first, a tenth of
+        a second of a warm command line (``bench_startup.py``) for a tuple of constants."""
+        impl = self.impls[type(args[0])]
+        return getattr(impl, "py_func", impl)(*args)
+
 
 def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> Any:
     """Declare a generic function of the compiled core (see the module docstring).
@@ -306,12 +316,13 @@ def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> A
     model as a :class:`RecordRef` (:func:`by_ref`) instead.
 
     Returns the stub itself (compiled code resolves calls to it by name), carrying
-    ``register``, ``implementation`` and ``py`` of its :class:`GenericFunction`."""
+    ``register``, ``implementation``, ``py`` and ``plain`` of its :class:`GenericFunction`."""
     if stub is None:
         return lambda s: generic(s, inline=inline)
     g = GenericFunction(stub, inline)
     stub.register = g.register  # type: ignore[attr-defined]
     stub.implementation = g.implementation  # type: ignore[attr-defined]
     stub.py = g.py  # type: ignore[attr-defined]
+    stub.plain = g.plain  # type: ignore[attr-defined]
     stub.generic = g  # type: ignore[attr-defined]
     return stub

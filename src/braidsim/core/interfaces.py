@@ -167,7 +167,8 @@ def wall_accel_bound(ex):
 @generic
 def model_size(model):
     """(n_coords, n_pairs, n_quads): coordinates, contact pairs (<= 2), energy quadratures;
-    constants of the record class (the driver keeps them per class).
+    constants of the record class (the driver asks the interpreter for them, once per class:
+    write them in plain Python).
 
     The quadratures are ordered so that a run can integrate a prefix of them: first the
     energy each pair's contact law dissipates, in pair order (:func:`dissipation_index`),
@@ -236,7 +237,8 @@ def apply_transfer(model, t, y):
 @generic
 def dissipation_index(model, pair):
     """Index in the state vector of the energy dissipated by pair ``pair``'s contact law; a
-    constant of the record class (the driver keeps it per class). With the quadratures
+    constant of the record class (the driver asks the interpreter for it, once per class and
+    pair: write it in plain Python). With the quadratures
     ordered as :func:`model_size` says, it is 2 n_coords + pair."""
     raise NotImplementedError
 
