@@ -230,7 +230,10 @@ class GenericFunction:
         self.name = stub.__name__
         self.__doc__ = stub.__doc__
         self.params = list(inspect.signature(stub).parameters)
+        # the implementation per record class: the Python function of an inlined one (its
+        # compiled function, for calls from Python, in _compiled), the helper of a called one
         self.impls: dict[type, Any] = {}
+        self._compiled: dict[type, Any] = {}
         # The typing function must have the stub's own parameters (numba matches them by
         # name), so it is written out for this signature. An inlined implementation is
         # handed to numba as the overload itself (its parameters are named as the stub's);
@@ -258,7 +261,6 @@ class GenericFunction:
         else:
             overload(stub, inline="never")(namespace["typer"])
         self.inline = inline
-        self._py: Any = None
 
     def register(self, cls: type) -> Callable[[F], F]:
         """Decorator: ``fn`` implements this generic function for records of class ``cls``."""
@@ -273,10 +275,15 @@ class GenericFunction:
                     f"{fn.__name__} implements {self.name}: its parameters must be named "
                     f"({', '.join(self.params)}), not ({', '.join(names)})"
                 )
-            self.impls[cls] = (inline_helper if self.inline else helper)(fn)
-            # handing numba the Python function itself saves a level of inlining: the
-            # wrapper's IR copied and typed at every call site was ~5 s of a 40-s cold compile
-            self._overloads[cls] = fn if self.inline else self.impls[cls]
+            if self.inline:
+                # handing numba the Python function itself saves a level of inlining: the
+                # wrapper's IR copied and typed at every call site was ~5 s of a 40-s cold
+                # compile. Its own compiled function serves calls from Python only, and is
+                # made at the first (a dispatcher costs ~0.2 ms of every start otherwise).
+                self.impls[cls] = fn
+                self._overloads[cls] = fn
+            else:
+                self.impls[cls] = self._overloads[cls] = helper(fn)
             return fn
 
         return deco
@@ -285,13 +292,18 @@ class GenericFunction:
         """The compiled implementation registered for ``cls``: callable from Python for an
         inlined generic function; for one declared ``inline=False`` a helper that only
         compiled code can call (:class:`CompiledOnly`)."""
-        return self.impls[cls]
+        impl = self.impls[cls]
+        if self.inline:
+            impl = self._compiled.get(cls)
+            if impl is None:
+                impl = self._compiled[cls] = inline_helper(self.impls[cls])
+        return impl
 
     def py(self, *args: Any) -> Any:
         """Call from Python (tests, the SciPy reference backend): the implementation of the
         first argument's class, compiled (inlined generic functions only: one declared
         ``inline=False`` is a helper that only compiled code can call)."""
-        return self.impls[type(args[0])](*args)
+        return self.implementation(type(args[0]))(*args)
 
     def plain(self, *args: Any) -> Any:
         """Call from Python, run by the interpreter: the implementation of the first
@@ -301,7 +313,7 @@ class GenericFunction:
         run: the compiled call would load the function from numba's cache first, a tenth of
         a second of a warm command line (``bench_startup.py``) for a tuple of constants."""
         impl = self.impls[type(args[0])]
-        return getattr(impl, "py_func", impl)(*args)
+        return getattr(impl, "py_func", impl)(*args)  # (a helper's Python function)
 
 
 def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> Any:
