@@ -65,9 +65,9 @@ def load_cached_functions_without_refresh() -> None:
     linear algebra, datetimes, jitclasses, third-party extensions), which only a *compile*
     needs, and starts its reference-counting runtime, which the loaded machine code calls.
     Here a cache load starts the runtime only; the first compile in the process, if any,
-    still refreshes the contexts itself (numba's compiler does so before every compile). A
-    warm ``braidsim run paper-3.3 --json`` spends 0.16-0.19 s less CPU in its run (0.28-0.37
-    against 0.48-0.54 s, five alternated pairs, numba 0.68), with the same output.
+    still refreshes the contexts itself (numba's compiler does so before every compile). In a
+    warm ``braidsim run paper-3.3 --json`` the command line's ``main()`` took 0.28-0.37 s of
+    CPU instead of 0.48-0.54 s (five alternated pairs, numba 0.68), with the same output.
 
     This relies on numba's ``Cache._load_overload`` and ``_guard_against_spurious_io_errors``
     and on ``numba.core.runtime.nrt.rtsys`` as numba 0.68 defines them; with a numba that
