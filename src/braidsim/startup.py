@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import importlib.machinery
 import importlib.util
+import inspect
 import sys
 from pathlib import Path
 from typing import Any
@@ -82,6 +83,8 @@ def load_cached_functions_without_refresh() -> None:
         return
     if getattr(cache.load_overload, "braidsim_light", False):
         return
+    if list(inspect.signature(cache.load_overload).parameters) != ["self", "sig", "target_context"]:
+        return  # a numba whose cache loads differ from what this replaces
 
     def load_overload(self: Any, sig: Any, target_context: Any) -> Any:
         nrt.rtsys.initialize(target_context)  # what the loaded code needs of the refresh
