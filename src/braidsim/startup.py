@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import importlib.machinery
 import importlib.util
-import inspect
 import sys
 from pathlib import Path
 from typing import Any
@@ -74,6 +73,8 @@ def load_cached_functions_without_refresh() -> None:
     and on ``numba.core.runtime.nrt.rtsys`` as numba 0.68 defines them; with a numba that
     lacks them nothing is changed. Calling it twice changes nothing more.
     """
+    import inspect
+
     from numba.core import caching
     from numba.core.runtime import nrt
 
