@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
+from numba.core import config as numba_config
 
 from braidsim import limits
 from braidsim.core import CARRIER_COLUMNS, RawRun, SeriesOverflow, state_size
@@ -273,6 +274,13 @@ def run_model(
     ``BRAIDSIM_MAX_MEMORY`` as they come (the sample grid is sized beforehand, the event rows
     are not); False for a callable that streams them away.
     """
+    if getattr(numba_config, "DISABLE_JIT", False):
+        # the solver passes its records by reference (a compiled intrinsic) and resolves its
+        # generic functions at compile time: it has no pure-Python form
+        raise InputError(
+            "NUMBA_DISABLE_JIT: 1 is not supported (braidsim's solver runs compiled only); "
+            "allowed: unset or 0"
+        )
     # the step never exceeds max_step: a run takes at least duration / max_step steps
     # (1e9 steps are 20 minutes to hours of CPU)
     limits.check(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import struct
 import subprocess
 import sys
@@ -209,6 +210,23 @@ def test_cli_run_loads_cached_functions_without_refresh(
     for report in (here, there):
         report.pop("created")
     assert there == here
+
+
+def test_jit_disabled_is_refused_in_one_line() -> None:
+    """With numba's compiler switched off (``NUMBA_DISABLE_JIT=1``) a run says in one line
+    that the solver needs it, and exits with 2."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "braidsim", "run", "paper-3.3", "--duration", "1 ms"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+        env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+    )
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "NUMBA_DISABLE_JIT" in lines[0] and "allowed" in lines[0]
+    assert "Traceback" not in proc.stderr
 
 
 def test_verb_table_matches_registrations() -> None:
