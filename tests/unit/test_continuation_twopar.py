@@ -179,3 +179,34 @@ def test_a_grazing_curve_is_not_ended_by_another_familys_grazing_out_of_range(mo
     assert np.allclose(curve.p1, 0.5)
     assert curve.p2[-1] > 0.85
     assert all(0.0 <= b <= 1.0 for b in curve.p2)
+
+
+def test_a_corrector_started_on_the_curve_keeps_its_start() -> None:
+    """The augmented corrector returns a start whose residuals already meet the tolerances
+    (0 iterations) instead of stepping into the test function's noise: with noise larger
+    than gtol, the steps from such a start were refused as divergence (the fold curve of
+    ``examples/continuation_operating_map.py --small`` was lost that way). A start off the
+    curve is still corrected."""
+    from braidsim.continuation.twopar import Augmented
+
+    target = np.array([0.3, -0.2, 0.5])
+    noise: list[float] = []
+
+    def equations(V: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+        # one shooting residual r = V0 - target0 and the test function g = V1 - target1,
+        # plus the next of the scripted noise values (0 once they run out)
+        g = V[1] - target[1] + (noise.pop(0) if noise else 0.0)
+        return np.array([V[0] - target[0], g]), np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), []
+
+    aug = Augmented.__new__(Augmented)
+    aug.equations = equations  # type: ignore[method-assign]
+    normal = np.array([0.0, 0.0, 1.0])  # the pseudo-arclength row holds V2
+    on = target + np.array([1e-10, 0.0, 0.0])
+    noise[:] = [5e-7, 1.5e-5, -1.2e-5, 1.4e-5, -1.1e-5] * 2
+    V, g, its, _, _ = aug.correct(on, normal, 1e-8, 1e-6)
+    assert its == 0 and np.array_equal(V, on) and g == 5e-7
+    noise.clear()
+    off = target + np.array([0.01, 0.02, 0.0])
+    V, g, its, _, _ = aug.correct(off, normal, 1e-8, 1e-6)
+    assert its >= 1 and abs(g) < 1e-12
+    assert np.allclose(V, target, rtol=0, atol=1e-12)

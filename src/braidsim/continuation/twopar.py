@@ -402,6 +402,12 @@ class Augmented:
         V = Vp.copy()
         F, DF, Js = self.equations(V)
         f0 = float(np.max(np.abs(F)))
+        if float(np.max(np.abs(F[:-1]))) < tol and abs(float(F[-1])) < gtol:
+            # a start already on the curve to the noise of its equations (the special point
+            # a branch located) is kept: a step from it only wanders in the test function's
+            # noise, which can exceed gtol, and the divergence test below, scaled by this
+            # start's tiny residual, then refuses a point that was there
+            return V, float(F[-1]), 0, DF, Js
         for it in range(1, max_iter + 1):
             A = np.vstack([DF, normal])
             b = -np.concatenate([F, [float(normal @ (V - Vp))]])
