@@ -154,7 +154,7 @@ def test_cache_loads_without_refresh(tmp_path: Path) -> None:
     env_code = f"import os, sys\nos.environ['NUMBA_CACHE_DIR'] = {folder + '/cache'!r}\n"
     env_code += f"sys.path.insert(0, {folder!r})\n"
     warm = "import cached_mod\ncached_mod.ramp(4, 0.5)\ncached_mod.checked(4.0)\n"
-    _modules_after(env_code + warm)  # fills the cache
+    _python(env_code + warm)  # fills the cache
     code = env_code + (
         "import numpy as np\n"
         "from braidsim.startup import load_cached_functions_without_refresh\n"
@@ -181,7 +181,7 @@ def test_cache_loads_without_refresh(tmp_path: Path) -> None:
         "z, v = roots(np.array([1.0, -3.0, 2.0]))\n"
         "assert np.allclose(np.sort(z.real), [1.0, 2.0], rtol=0, atol=1e-12) and v == 3.0\n"
     )
-    _modules_after(code)
+    _python(code)
 
 
 def test_cli_run_loads_cached_functions_without_refresh(
