@@ -401,8 +401,10 @@ class Augmented:
         iterations, Jacobian of (r, g), segment Jacobians)."""
         V = Vp.copy()
         F, DF, Js = self.equations(V)
-        f0 = float(np.max(np.abs(F)))
-        if float(np.max(np.abs(F[:-1]))) < tol and abs(float(F[-1])) < gtol:
+        r0 = float(np.max(np.abs(F[:-1])))
+        g0 = abs(float(F[-1]))
+        f0 = max(r0, g0)
+        if r0 < tol and g0 < gtol:
             # a start already on the curve to the noise of its equations (the special point
             # a branch located) is kept: a step from it only wanders in the test function's
             # noise, which can exceed gtol, and the divergence test below, scaled by this
