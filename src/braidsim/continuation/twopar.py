@@ -340,6 +340,7 @@ class Augmented:
         self.system = system
         self.kind = kind
         self.key1, self.key2 = key1, key2
+        self.scales = scales
         self.method = method
         self.sh = Shooter(
             system,
@@ -481,6 +482,44 @@ def _moved(system: Any, o: Orbit) -> Orbit:
     return replace(o, phase=float(th % full), cuts=cuts, z=tuple(z))
 
 
+def _land_on_edge(
+    aug: Augmented,
+    Vn: np.ndarray,
+    beyond: Orbit,
+    i: int,
+    edge: float,
+    tol: float,
+    gtol: float,
+) -> tuple[Orbit, float] | None:
+    """The curve's point on a range's edge: Newton's method on the augmented system from the
+    point ``Vn`` beyond it (orbit ``beyond``), with unknown ``i`` (a parameter, scaled) held
+    at ``edge``. Returns (orbit, test function) or None.
+
+    With the central-difference map the test function's noise (about 1e-5 on the carrier's
+    doubling curve) can exceed ``gtol``, so that Newton's method wanders instead of
+    converging; as where the curve's own corrector stalls (:func:`_trace_smooth`), the
+    exact map then takes over. (Without it the small example's doubling curve lost its point
+    on the 6 pi rad/s edge.)"""
+    e = np.zeros(Vn.size)
+    e[i] = 1.0
+    Ve = Vn.copy()
+    Ve[i] = edge
+    try:
+        Ve, g, _, _, Js = aug.correct(Ve, e, tol, gtol)
+        return aug.orbit(Ve, Js), g
+    except _FAILURES:
+        if aug.method != "fd" or not exact_available():
+            return None
+    try:
+        exact = Augmented(aug.system, beyond, aug.kind, aug.key1, aug.key2, aug.scales, "exact")
+        Ve = exact.pack(beyond)
+        Ve[i] = edge
+        Ve, g, _, _, Js = exact.correct(Ve, e, tol, 1e-9)
+        return exact.orbit(Ve, Js), g
+    except _FAILURES:
+        return None
+
+
 def _trace_smooth(
     system: Any,
     sp: SpecialPoint,
@@ -582,14 +621,9 @@ def _trace_smooth(
             i, edge = (-1, hi2 if b > hi2 else lo2) if out2 else (-2, hi1 if a > hi1 else lo1)
             e = np.zeros(V.size)
             e[i] = 1.0
-            Ve = Vn.copy()
-            Ve[i] = edge / scales[i + 2]
-            try:
-                Ve, g, _, _, Js = aug.correct(Ve, e, tol, gtol)
-                oe = aug.orbit(Ve, Js)
-                curve.add(oe.values[key1], oe.values[key2], g, on_point, oe)
-            except _FAILURES:
-                pass
+            oe = _land_on_edge(aug, Vn, on, i, edge / scales[i + 2], tol, gtol)
+            if oe is not None:
+                curve.add(oe[0].values[key1], oe[0].values[key2], oe[1], on_point, oe[0])
             name = key2 if out2 else key1
             curve.stop = f"left the range of {name} at {edge:.6g}"
             break
