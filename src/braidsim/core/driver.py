@@ -11,6 +11,7 @@ The run is integrated once; its bits do not depend on the buffer sizes.
 from __future__ import annotations
 
 import functools
+import math
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -203,6 +204,24 @@ def as_declared(record: Any) -> Any:
             changes = {}
         changes[record._fields[i]] = new
     return record._replace(**changes) if changes else record
+
+
+# solver options passed through declared_options lately, by value and the types of their
+# fields (the types too: an int and a float of equal value are equal keys, but compile apart)
+_DECLARED_OPTIONS: dict[tuple[Any, ...], Any] = {}
+
+
+def declared_options(opts: Any) -> Any:
+    """:func:`as_declared` of a solver options record, kept by value: a record of a few
+    scalars, made anew for each run (its end time), whose walk cost more than its look-up."""
+    key = (opts, tuple(map(type, opts)))
+    out = _DECLARED_OPTIONS.get(key)
+    if out is None:
+        out = as_declared(opts)
+        if len(_DECLARED_OPTIONS) >= _DECLARED_KEPT:
+            _DECLARED_OPTIONS.pop(next(iter(_DECLARED_OPTIONS)))  # (the oldest)
+        _DECLARED_OPTIONS[key] = out
+    return out
 
 
 # the models passed through declared_model lately, by identity; each is held, so that its id
@@ -400,7 +419,7 @@ def run(
         peak of its force at every wobble of the solution).
     """
     model = declared_model(model)
-    opts = as_declared(opts)
+    opts = declared_options(opts)
     _, n_pairs, n_quads = model_sizes(model)
     if n_pairs > L.MAX_PAIRS:
         # the solver keeps per-pair state in arrays of MAX_PAIRS, unchecked in compiled code
@@ -408,12 +427,13 @@ def run(
             f"{type(model).__name__} has {n_pairs} contact pairs; the solver allows at most "
             f"{L.MAX_PAIRS}"
         )
-    prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
-    if opts.quadratures not in (-1, n_quads, *prefixes):
-        # the models write their quadratures in these blocks only
-        raise ValueError(
-            f"quadratures: {opts.quadratures}; allowed -1, {prefixes[0]} or {prefixes[1]}"
-        )
+    if opts.quadratures not in (-1, n_quads):
+        prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
+        if opts.quadratures not in prefixes:
+            # the models write their quadratures in these blocks only
+            raise ValueError(
+                f"quadratures: {opts.quadratures}; allowed -1, {prefixes[0]} or {prefixes[1]}"
+            )
     n = state_size(model, opts.energy, opts.quadratures)
     y = np.array(y0, dtype=float)
     if y.shape != (n,):
@@ -425,7 +445,12 @@ def run(
         np.zeros(0) if transfer_times is None else np.ascontiguousarray(transfer_times, dtype=float)
     )
     WIN = np.zeros((0, 2)) if windows is None else np.ascontiguousarray(windows, dtype=float)
-    RS = L.new_restart() if restart is None else np.array(restart, dtype=L.RESTART_DTYPE).reshape(1)
+    if restart is None:
+        RS = L.new_restart()
+    elif isinstance(restart, np.ndarray) and restart.dtype is L.RESTART_DTYPE:
+        RS = L.copy_records(restart.reshape(1))  # (the caller's record is not changed)
+    else:
+        RS = np.array(restart, dtype=L.RESTART_DTYPE).reshape(1)
     RANGES = L.new_ranges(WIN.shape[0])
     XSQ = np.zeros(WIN.shape[0]) if xsq else None
     STATS = L.new_stats()
@@ -483,7 +508,7 @@ def run(
                     sink(chunk)
                 r["rows"] = 0
         if final:
-            closed.append(EP[: int(r["episodes"])].copy())
+            closed.append(L.copy_records(EP[: int(r["episodes"])]))
             if SENS is not None:
                 sens_closed.append(SENS.ESENS[: int(r["episodes"])].copy())
             break
@@ -582,6 +607,16 @@ def _flush_episodes(
     r["episodes"] = len(held)
 
 
+def _last_open(episodes: np.ndarray, pair: int) -> int:
+    """Index of the last row of ``pair`` with no end time (NaN), -1 if none."""
+    pairs = episodes["pair"]
+    ends = episodes["t_end"]
+    for i in range(episodes.shape[0] - 1, -1, -1):
+        if pairs[i] == pair and math.isnan(ends[i]):
+            return i
+    return -1
+
+
 def _close_open(episodes: np.ndarray, RS: np.ndarray, y: np.ndarray, model: Any, n: int) -> None:
     """Close, in the output table, the contacts still open at the end of the run."""
     r = RS[0]
@@ -593,11 +628,10 @@ def _close_open(episodes: np.ndarray, RS: np.ndarray, y: np.ndarray, model: Any,
         if modes[pair] == 0:
             continue
         # the open episode of this pair is the last row of the table for the pair that has
-        # no end time yet
-        idx = np.nonzero((episodes["pair"] == pair) & np.isnan(episodes["t_end"]))[0]
-        if idx.size == 0:
+        # no end time yet (searched from the end: it is one of the last rows)
+        i = _last_open(episodes, pair)
+        if i < 0:
             continue
-        i = idx[-1]
         k = dissipation_slot(model, pair)
         energy = float(y[k]) if k < n else float("nan")
         episodes["t_end"][i] = t

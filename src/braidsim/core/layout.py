@@ -365,6 +365,12 @@ def _from_bytes(template: bytes, dtype: np.dtype) -> np.ndarray:
     return np.frombuffer(bytearray(template), dtype=dtype)
 
 
+def copy_records(a: np.ndarray) -> np.ndarray:
+    """A writable copy of a structured array, by its bytes: numpy copies a structured array
+    field by field, 11-19 us for one to a few records of these dtypes, against 1.5 us."""
+    return np.frombuffer(bytearray(a.tobytes()), dtype=a.dtype).reshape(a.shape)
+
+
 def new_restart() -> np.ndarray:
     """A restart record for a new run (one-element structured array)."""
     return _from_bytes(_NEW_RESTART, RESTART_DTYPE)
