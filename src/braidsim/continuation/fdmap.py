@@ -74,8 +74,9 @@ def advance(
 ) -> Segment:
     """Integrate a prepared system (:class:`~braidsim.continuation.system.Prepared`) from t0
     to t1, its contacts and latched speeds given. Raises :class:`SimulationError`."""
-    opts = prep.options._replace(t_end=float(t1), record_events=sample_times is not None)
-    opts = opts._replace(energy=False)
+    opts = prep.options._replace(
+        t_end=float(t1), record_events=sample_times is not None, energy=False
+    )
     rs = L.new_restart()
     r = rs[0]
     r["started"] = L.CONTINUED

@@ -486,6 +486,10 @@ class Shooter:
     evaluations: int = 0
     key2: str | None = None
     pscale2: float = 1.0
+    # the state scales of each cut (fixed for the shooter: its base values and cuts)
+    _scales: dict[int, np.ndarray] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @property
     def free(self) -> list[tuple[str, float]]:
@@ -514,11 +518,17 @@ class Shooter:
 
     def scale(self, j: int, values: Mapping[str, float]) -> np.ndarray:
         """State scales of cut j: (L, L Omega[, L, L Omega], L Omega per latched speed), at
-        the shooter's base values (fixed, so that the scaling does not move with lambda)."""
-        Ls, Vs = self.system.scales(self.values)
-        n = 2 * self.system.prepare(self.values).n_coords
-        base = [Ls if i % 2 == 0 else Vs for i in range(n)]
-        return np.array(base + [Vs] * self.cuts[j].size_extra)
+        the shooter's base values (fixed, so that the scaling does not move with lambda;
+        kept per cut, read-only)."""
+        S = self._scales.get(j)
+        if S is None:
+            Ls, Vs = self.system.scales(self.values)
+            n = 2 * self.system.prepare(self.values).n_coords
+            base = [Ls if i % 2 == 0 else Vs for i in range(n)]
+            S = np.array(base + [Vs] * self.cuts[j].size_extra)
+            S.setflags(write=False)
+            self._scales[j] = S
+        return S
 
     def sizes(self) -> list[int]:
         """Entries of the state at each cut."""

@@ -128,6 +128,23 @@ def check_continuable(key: str) -> None:
         )
 
 
+# how many parameter points a system remembers (the model at each, and its scales): a
+# finite-difference Jacobian in both parameters of a two-parameter curve visits a few
+# dozen points per corrector iteration, and a branch returns to its last points
+CACHE_POINTS = 256
+
+
+def _values_key(values: Mapping[str, float]) -> tuple[tuple[str, float], ...]:
+    return tuple(sorted((k, float(v)) for k, v in values.items()))
+
+
+def _remember(cache: dict[Any, Any], key: Any, value: Any) -> None:
+    """Store ``value``, dropping the oldest entry past :data:`CACHE_POINTS`."""
+    if len(cache) >= CACHE_POINTS:
+        del cache[next(iter(cache))]
+    cache[key] = value
+
+
 @dataclass(frozen=True)
 class ScenarioSystem:
     """The carrier of a scenario as a time-periodic system (module docstring).
@@ -149,6 +166,7 @@ class ScenarioSystem:
     rtol: float = DEFAULT_RTOL
     resting_speed: float | None = None
     _cache: dict[Any, Prepared] = field(default_factory=dict, repr=False, compare=False)
+    _scales: dict[Any, tuple[float, float]] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def name(self) -> str:
@@ -175,7 +193,7 @@ class ScenarioSystem:
 
     def prepare(self, values: Mapping[str, float]) -> Prepared:
         """The model record and options at ``values``; checks the time-periodicity."""
-        ck = tuple(sorted((k, float(v)) for k, v in values.items()))
+        ck = _values_key(values)
         if ck in self._cache:
             return self._cache[ck]
         from braidsim.model import build_model
@@ -224,17 +242,20 @@ class ScenarioSystem:
             float(sc["transfer.first"]),
             model.implicit_rest,
         )
-        if len(self._cache) > 64:
-            self._cache.clear()
-        self._cache[ck] = prep
+        _remember(self._cache, ck, prep)
         return prep
 
     def scales(self, values: Mapping[str, float]) -> tuple[float, float]:
         """(length [m], speed [m/s]) that make the state dimensionless: L = the larger of
         h_a and eps_g / 1000, and L omega_h."""
+        ck = _values_key(values)
+        if ck in self._scales:
+            return self._scales[ck]
         sc = self.scenario_at(values)
         L = max(float(sc["track.vibration_amplitude"]), 1e-3 * float(sc["track.clearance"]))
-        return L, L * float(sc["track.vibration_frequency"])
+        out = (L, L * float(sc["track.vibration_frequency"]))
+        _remember(self._scales, ck, out)
+        return out
 
     def initial_state(self, values: Mapping[str, float]) -> tuple[np.ndarray, float]:
         """The scenario's own initial state (x, vx[, y, vy]) and start time 0."""
