@@ -263,6 +263,51 @@ def test_as_declared_makes_ints_floats_only_where_a_float_is_declared() -> None:
     assert list(fields) == list(L.STATS_DTYPE.names or ())
 
 
+def test_declared_options_are_kept_by_value_and_field_types() -> None:
+    """Options equal in value but with an int where a float is declared come back declared
+    (floats), not as the float twin kept before them; a bool given as 1 stays 1."""
+    from braidsim.core import driver
+
+    opts = _free_flight_into_wall()._replace(t_end=1.0)
+    assert driver.declared_options(opts) is opts
+    as_int = opts._replace(t_end=1)
+    out = driver.declared_options(as_int)
+    assert out == opts and type(out.t_end) is float
+    one = opts._replace(record_events=1)
+    assert driver.declared_options(one).record_events == 1
+    assert type(driver.declared_options(one).record_events) is int
+    assert driver.declared_options(as_int) is out  # (kept)
+
+
+def test_records_copied_by_their_bytes_are_writable_copies() -> None:
+    """``copy_records`` gives the same bytes in a new, writable array; the original is left
+    as it was when the copy is written."""
+    ep = np.zeros(3, dtype=L.EPISODE_DTYPE)
+    ep["t"] = [0.1, 0.2, math.nan]
+    ep["pair"] = [0, 1, 0]
+    cp = L.copy_records(ep[:2])
+    assert cp.dtype == L.EPISODE_DTYPE and cp.shape == (2,)
+    assert cp.tobytes() == ep[:2].tobytes()
+    cp["t"][0] = 5.0
+    assert ep["t"][0] == 0.1
+    rs = L.copy_records(L.new_restart())
+    rs[0]["t"] = 2.0
+    assert L.new_restart()[0]["t"] != 2.0
+
+
+def test_the_open_episode_is_the_last_of_its_pair_without_an_end() -> None:
+    from braidsim.core.driver import _last_open
+
+    ep = np.zeros(5, dtype=L.EPISODE_DTYPE)
+    ep["pair"] = [0, 1, 0, 1, 0]
+    ep["t_end"] = [1.0, math.nan, math.nan, 2.0, 3.0]
+    assert _last_open(ep, 0) == 2
+    assert _last_open(ep, 1) == 1
+    ep["t_end"][1] = 0.5
+    assert _last_open(ep, 1) == -1
+    assert _last_open(ep[:0], 0) == -1
+
+
 @pytest.mark.parametrize("name", ["hunt_crossley", "flores", "lankarani_nikravesh", "gonthier"])
 def test_restitution_of_a_free_impact_is_the_laws_exact_value(name: str) -> None:
     """With D(c_r) from the law, one free impact rebounds at the exact restitution of
