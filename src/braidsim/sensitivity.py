@@ -23,6 +23,7 @@ latched speeds at t0 to those at t1): the monodromy of a periodic orbit's strobo
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -46,6 +47,10 @@ SERIES_QUANTITIES: tuple[str, ...] = L.SERIES_SENS_FIELDS
 """What the derivatives of each series row are of, in order."""
 STATE_NAMES = ("x", "vx", "y", "vy")
 GAP_SAMPLES = 400  # samples of a flow map's run for its smallest gaps
+# the series buffer of a flow map's run: its samples and room for its event rows (more are
+# flushed in chunks; the driver's default, 32,768 rows, zeroed 11 MB of series tangents for
+# a run that writes about 430 rows)
+FLOW_MAP_ROWS = GAP_SAMPLES + 1 + 128
 
 # keys that are settings of the solver or of the run, not parameters of the model
 _NOT_PARAMETERS = ("simulation.",)
@@ -363,9 +368,18 @@ class FlowMap:
     keys: tuple[str, ...]
     jac_p: np.ndarray  # (n, len(keys))
     dv0_dp: np.ndarray  # (2, len(keys))
-    impacts: pd.DataFrame
+    episodes: np.ndarray  # the run's impact table (EPISODE_DTYPE rows)
     impact_sens: np.ndarray  # (n_impacts, n + 2 + len(keys), 5)
     min_gaps: np.ndarray  # (2, 2)
+
+    @functools.cached_property
+    def impacts(self) -> pd.DataFrame:
+        """The impacts in [t0, t1] (the columns of ``Result.impacts``), made when first read:
+        continuation reads only the Jacobians of its many maps (a table took ~0.8 ms a
+        map)."""
+        from braidsim.result import impacts_frame  # pandas: only once a table is read
+
+        return impacts_frame(self.episodes)
 
     def contact_pairs(self) -> list[int]:
         """The pairs in contact at t0 (their latched speeds are part of the map's state)."""
@@ -490,6 +504,7 @@ def flow_map(
         xsq=False,
         restart=restart,
         tangents=tangents,
+        row_chunk=FLOW_MAP_ROWS,
     )
     if raw.status == L.ST_GRAZING:
         raise sensitivity_error(raw.t)
@@ -696,8 +711,6 @@ def _flow_map_of_run(
     """The :class:`FlowMap` of a run that carried the tangents of (state, latched speeds,
     keys) from t0 (state ``y0``, contact modes ``modes_t``, latched speeds ``v0a``) to t1;
     the latched speed of a contact closed at t1 has no derivative."""
-    from braidsim.result import impacts_frame  # pandas: only once a map is made
-
     sens = raw.sensitivity
     assert sens is not None
     rs = raw.restart[0]
@@ -724,7 +737,7 @@ def _flow_map_of_run(
         keys=tuple(keys),
         jac_p=S[n + 2 :].T.copy(),
         dv0_dp=D[n + 2 :].T.copy(),
-        impacts=impacts_frame(raw.episodes),
+        episodes=raw.episodes,
         impact_sens=sens.impacts,
         min_gaps=min_gaps,
     )
