@@ -282,6 +282,18 @@ def state_size(model: Any, energy: bool, quadratures: int = -1) -> int:
     return 2 * n_coords + (n_quads if quadratures < 0 else min(quadratures, n_quads))
 
 
+_PREFIXES: dict[type, tuple[int, int]] = {}
+
+
+def _quadrature_prefixes(model: Any) -> tuple[int, int]:
+    """(dissipation, friction) :func:`quadrature_prefix` of the model, kept per class."""
+    out = _PREFIXES.get(type(model))
+    if out is None:
+        out = (quadrature_prefix(model, "dissipation"), quadrature_prefix(model, "friction"))
+        _PREFIXES[type(model)] = out
+    return out
+
+
 def quadrature_prefix(model: Any, which: str) -> int:
     """The number of leading quadratures that hold ``which``: ``"dissipation"`` (the energy
     each contact pair dissipates) or ``"friction"`` (those and the friction work along each
@@ -428,7 +440,7 @@ def run(
             f"{L.MAX_PAIRS}"
         )
     if opts.quadratures not in (-1, n_quads):
-        prefixes = [quadrature_prefix(model, which) for which in ("dissipation", "friction")]
+        prefixes = _quadrature_prefixes(model)
         if opts.quadratures not in prefixes:
             # the models write their quadratures in these blocks only
             raise ValueError(
@@ -542,6 +554,78 @@ def run(
     return RawRun(status, series_rows, episodes, RANGES, XSQ, STATS, y, RS, written, sens)
 
 
+# numba types of tangent records, by numba's fingerprint of a value (its class and field
+# names, the dtypes and layouts of its arrays: what numba's own dispatcher keys its types by)
+_RECORD_TYPES: dict[bytes, Any] = {}
+
+
+def _typed_records(records: Any) -> Any:
+    """The tangent records as a numba typed list (the solver reads direction d's record
+    from it). The list's item type is taken from :data:`_RECORD_TYPES` where the first
+    record's fingerprint is known: numba's ``typeof`` of the carrier's record walks its
+    fields in Python, 0.28 ms, which a typed list started empty pays at its first append
+    in every run."""
+    from numba import typed, typeof
+
+    first = records[0] if len(records) else None
+    try:
+        from numba._dispatcher import compute_fingerprint  # (numba's, not public)
+
+        key = compute_fingerprint(first)
+    except Exception:  # a value numba cannot fingerprint, or another numba: typed afresh
+        key = None
+    item = _RECORD_TYPES.get(key) if key is not None else None
+    if item is None:
+        if first is None:
+            return typed.List()
+        item = typeof(first)
+        if key is not None:
+            _RECORD_TYPES[key] = item
+    out = typed.List.empty_list(item)
+    for rec in records:
+        out.append(rec)
+    return out
+
+
+# numba types of the sensitivity work records, by the fingerprints of their fields
+_SENS_TYPES: dict[tuple[Any, ...], Any] = {}
+
+
+def _typeof_sensitivity_work(val: Any, c: Any) -> Any:
+    """numba's type of a :class:`~braidsim.core.layout.SensitivityWork`, kept by the
+    fingerprints of its fields. Its typed list has no fingerprint, so numba's dispatcher
+    types the whole record in Python at every call of the solver (its arrays each made a
+    new numba type and hashed, about 0.5 ms a run)."""
+    from numba._dispatcher import compute_fingerprint
+    from numba.core import types
+    from numba.core.typing.typeof import typeof
+
+    key = tuple(
+        ("list", f._numba_type_) if hasattr(f, "_numba_type_") else compute_fingerprint(f)
+        for f in val
+    )
+    ty = _SENS_TYPES.get(key)
+    if ty is None:
+        # (as numba's own typeof of a tuple makes it)
+        ty = types.BaseTuple.from_types([typeof(f, c.purpose) for f in val], type(val))
+        _SENS_TYPES[key] = ty
+    return ty
+
+
+def _register_sensitivity_typeof() -> None:
+    """Install :func:`_typeof_sensitivity_work` as numba's ``typeof`` of the record, where
+    this numba has the fingerprint it keys on (else numba's own typing stays)."""
+    try:
+        from numba._dispatcher import compute_fingerprint  # noqa: F401  (numba's, not public)
+        from numba.extending import typeof_impl
+    except ImportError:
+        return
+    typeof_impl.register(L.SensitivityWork)(_typeof_sensitivity_work)
+
+
+_register_sensitivity_typeof()
+
+
 def _sensitivity_work(
     tangents: Tangents,
     EP: np.ndarray,
@@ -553,8 +637,6 @@ def _sensitivity_work(
 ) -> L.SensitivityWork:
     """The arrays the solver fills with the tangents, sized like the impact table and the
     series buffer."""
-    from numba import typed
-
     S = np.array(tangents.S0, dtype=float, ndmin=2)
     k = S.shape[0]
     if k == 0:
@@ -567,9 +649,7 @@ def _sensitivity_work(
         raise ValueError(f"tangents: {len(tangents.records)} records for {k} directions")
     if tangents.series and sink is not None:
         raise ValueError("series sensitivities need the series kept in memory (series=True)")
-    records = typed.List()
-    for rec in tangents.records:
-        records.append(rec)
+    records = _typed_records(tangents.records)
     RSENS = None
     if tangents.series and rows is not None and keep:
         RSENS = np.zeros((rows.shape[0], k, 8))
