@@ -534,3 +534,25 @@ def test_event_location_converges_superlinearly_to_the_closed_form_root(
     tol = 1e-15
     assert root - tol <= theta <= root + 2 * tol
     assert rec.calls[0] <= 12
+
+
+def test_sensitivity_work_is_typed_as_numba_types_it() -> None:
+    """The fingerprint-keyed types of the tangent records and of the sensitivity work record
+    are the types numba's own typeof gives (else the solver would be compiled again)."""
+    from numba.core.typing import typeof as numba_typeof
+
+    from braidsim.core import driver
+    from braidsim.core.driver import Tangents
+
+    model = build_model(load_scenario("paper-3.3"), 0.01)
+    rec = model.record
+    recs = [rec, rec._replace(mass=2.0)]
+    typed_list = driver._typed_records(recs)
+    assert typed_list._numba_type_.item_type == numba_typeof.typeof(rec)
+    assert len(typed_list) == 2 and typed_list[1].mass == 2.0
+    ep = np.empty(8, dtype=L.EPISODE_DTYPE)
+    tangents = Tangents(recs, np.eye(2), np.zeros((2, 2)), np.zeros((2, 0)), np.ones(2))
+    work = driver._sensitivity_work(tangents, ep, None, np.zeros(0), False, None, model.options)
+    ctx = numba_typeof._TypeofContext(numba_typeof.Purpose.argument)
+    for _ in range(2):  # (made, then kept)
+        assert driver._typeof_sensitivity_work(work, ctx) == numba_typeof._typeof_tuple(work, ctx)
