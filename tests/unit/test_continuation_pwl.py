@@ -57,6 +57,18 @@ def test_exact_record_map_matches_finite_differences() -> None:
     np.testing.assert_allclose(ex.y1, fd.y1, rtol=0, atol=1e-9)
     np.testing.assert_allclose(ex.jac_y, fd.jac_y, rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(ex.jac_p, fd.jac_p, rtol=1e-5, atol=1e-7)
+    # the impact's derivatives (onset, speed, peak force, depth, exit) along the state and
+    # the keys, made when read (no contact is open at the section: the latched speeds'
+    # columns are NaN here, zeros in the exact map)
+    n = ref.z_section.size
+    cols = [*range(n), *range(n + 2, n + 2 + len(keys))]
+    assert fd.impact_sens.shape == ex.impact_sens.shape
+    assert np.all(np.isnan(fd.impact_sens[:, n : n + 2]))
+    a, b = ex.impact_sens[:, cols], fd.impact_sens[:, cols]
+    scale = np.max(np.abs(a), axis=(0, 1))  # (per quantity)
+    # (to 1e-7 of each quantity's largest derivative; the exit's in the law's damping is
+    # 2e-4 relative, a derivative 2e4 times below its column's largest)
+    assert np.all(np.abs(b - a) <= 1e-7 * scale)
 
 
 @pytest.mark.parametrize(("method", "rel"), [("fd", 1e-5), ("exact", 1e-8)])

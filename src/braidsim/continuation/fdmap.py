@@ -19,9 +19,10 @@ carrier of a scenario).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -130,9 +131,29 @@ class FlowMap:
     jac_p: np.ndarray
     dv0_dp: np.ndarray
     episodes: np.ndarray
-    impact_sens: np.ndarray
     min_gaps: np.ndarray
     modes0: tuple[int, int] = (0, 0)
+    # per direction: the impact tables of its runs at +d and -d and d (None: no direction)
+    episode_pairs: tuple[tuple[np.ndarray, np.ndarray, float] | None, ...] = field(
+        default=(), repr=False, compare=False
+    )
+
+    @functools.cached_property
+    def impact_sens(self) -> np.ndarray:
+        """(n_impacts, directions, 5): central differences of each impact's
+        (:data:`~braidsim.sensitivity.IMPACT_QUANTITIES`) along each direction (NaN where
+        the two runs' impact tables differ in length), made when first read: continuation
+        reads only the Jacobians of its maps."""
+        q_base = _episode_quantities(self.episodes)
+        cols = []
+        for pair in self.episode_pairs:
+            dq = None
+            if pair is not None:
+                qp, qm = _episode_quantities(pair[0]), _episode_quantities(pair[1])
+                if qp.shape == qm.shape == q_base.shape:
+                    dq = (qp - qm) / (2 * pair[2])
+            cols.append(np.full(q_base.shape, math.nan) if dq is None else dq)
+        return np.stack(cols, axis=1) if cols else np.zeros((q_base.shape[0], 0, 5))
 
     @property
     def impacts(self) -> Any:
@@ -202,18 +223,16 @@ def fd_flow_map(
     scale_y = np.array([Ls if i % 2 == 0 else Vs for i in range(n)])
     if n == 4:  # (x, vx, y, vy)
         scale_y = np.array([Ls, Vs, Ls, Vs])
-    q_base = _episode_quantities(base.episodes)
 
-    def runs(make: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def runs(make: Any) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, float]]:
         (a, b), d = make
         sp, sm = a(), b()
         dy = (sp.y1 - sm.y1) / (2 * d)
         dv = np.where(np.isfinite(sp.v0s1 - sm.v0s1), (sp.v0s1 - sm.v0s1) / (2 * d), 0.0)
-        qp, qm = _episode_quantities(sp.episodes), _episode_quantities(sm.episodes)
-        dq = (qp - qm) / (2 * d) if qp.shape == qm.shape == q_base.shape else None
-        return dy, dv, dq if dq is not None else np.full(q_base.shape, math.nan)
+        return dy, dv, (sp.episodes, sm.episodes, d)
 
-    cols_y, cols_v, cols_q = [], [], []
+    cols_y, cols_v = [], []
+    cols_q: list[tuple[np.ndarray, np.ndarray, float] | None] = []
     for i in range(n):
         d = rel * scale_y[i]
         e = np.zeros(n)
@@ -234,7 +253,7 @@ def fd_flow_map(
     dv0_dv0 = np.zeros((2, 2))
     for j in range(2):
         if modes[j] == 0 or not math.isfinite(v0[j]):
-            cols_q.append(np.full(q_base.shape, math.nan))
+            cols_q.append(None)
             continue
         d = rel * abs(v0[j])
         e = np.zeros(2)
@@ -266,7 +285,6 @@ def fd_flow_map(
         jac_p[:, j] = dy
         dv0_dp[:, j] = dv
         cols_q.append(dq)
-    sens = np.stack(cols_q, axis=1) if cols_q else np.zeros((q_base.shape[0], 0, 5))
     return FlowMap(
         y1=base.y1,
         modes1=base.modes1,
@@ -278,7 +296,7 @@ def fd_flow_map(
         jac_p=jac_p,
         dv0_dp=dv0_dp,
         episodes=base.episodes,
-        impact_sens=sens,
         min_gaps=min_gaps(prep, base.series, n),
         modes0=modes,
+        episode_pairs=tuple(cols_q),
     )
