@@ -166,7 +166,9 @@ class ScenarioSystem:
     rtol: float = DEFAULT_RTOL
     resting_speed: float | None = None
     _cache: dict[Any, Prepared] = field(default_factory=dict, repr=False, compare=False)
-    _scales: dict[Any, tuple[float, float]] = field(default_factory=dict, repr=False, compare=False)
+    _scales: dict[Any, tuple[float, float]] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
 
     @property
     def name(self) -> str:

@@ -600,15 +600,20 @@ def _typeof_sensitivity_work(val: Any, c: Any) -> Any:
     from numba.core import types
     from numba.core.typing.typeof import typeof
 
-    key = tuple(
-        ("list", f._numba_type_) if hasattr(f, "_numba_type_") else compute_fingerprint(f)
-        for f in val
-    )
-    ty = _SENS_TYPES.get(key)
+    key: tuple[Any, ...] | None
+    try:
+        key = tuple(
+            ("list", f._numba_type_) if hasattr(f, "_numba_type_") else compute_fingerprint(f)
+            for f in val
+        )
+    except Exception:  # a field numba cannot fingerprint: typed as numba would, not kept
+        key = None
+    ty = _SENS_TYPES.get(key) if key is not None else None
     if ty is None:
         # (as numba's own typeof of a tuple makes it)
         ty = types.BaseTuple.from_types([typeof(f, c.purpose) for f in val], type(val))
-        _SENS_TYPES[key] = ty
+        if key is not None:
+            _SENS_TYPES[key] = ty
     return ty
 
 
