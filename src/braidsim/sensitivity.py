@@ -47,10 +47,6 @@ SERIES_QUANTITIES: tuple[str, ...] = L.SERIES_SENS_FIELDS
 """What the derivatives of each series row are of, in order."""
 STATE_NAMES = ("x", "vx", "y", "vy")
 GAP_SAMPLES = 400  # samples of a flow map's run for its smallest gaps
-# the series buffer of a flow map's run: its samples and room for its event rows (more are
-# flushed in chunks; the driver's default, 32,768 rows, zeroed 11 MB of series tangents for
-# a run that writes about 430 rows)
-FLOW_MAP_ROWS = GAP_SAMPLES + 1 + 128
 
 # keys that are settings of the solver or of the run, not parameters of the model
 _NOT_PARAMETERS = ("simulation.",)
@@ -504,7 +500,6 @@ def flow_map(
         xsq=False,
         restart=restart,
         tangents=tangents,
-        row_chunk=FLOW_MAP_ROWS,
     )
     if raw.status == L.ST_GRAZING:
         raise sensitivity_error(raw.t)

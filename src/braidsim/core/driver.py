@@ -30,6 +30,7 @@ SeriesSink = Callable[[np.ndarray], None]
 
 DEFAULT_ROW_CHUNK = 32768  # rows of the series buffer (about 7 MB for the carrier)
 DEFAULT_EPISODE_CHUNK = 256
+SAMPLED_EVENT_ROWS = 1024  # buffer rows for the events of a run with sample times
 
 
 class SeriesOverflow(Exception):
@@ -470,7 +471,13 @@ def run(
     sink: SeriesSink | None = series if callable(series) else None
     ncol = len(series_columns(model))
     reserve = max_samples_per_step(ST, opts.max_step) + EVENT_ROWS
-    rows = np.empty((max(row_chunk, 1) + reserve, ncol)) if (keep or sink) else None
+    capacity = max(row_chunk, 1)
+    if ST.shape[0]:
+        # room for the samples and the event rows a run has besides them (more are flushed
+        # in chunks), not the whole chunk: a short run with sensitivities zeroed its series
+        # tangents over all of it (11 MB for the 430 rows of a flow map)
+        capacity = min(capacity, ST.shape[0] + SAMPLED_EVENT_ROWS)
+    rows = np.empty((capacity + reserve, ncol)) if (keep or sink) else None
     EP = np.empty(max(episode_chunk, 2 * EPISODE_RESERVE), dtype=L.EPISODE_DTYPE)
     chunks: list[np.ndarray] = []
     closed: list[np.ndarray] = []
