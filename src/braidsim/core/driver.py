@@ -219,10 +219,15 @@ def declared_options(opts: Any) -> Any:
     out = _DECLARED_OPTIONS.get(key)
     if out is None:
         out = as_declared(opts)
-        if len(_DECLARED_OPTIONS) >= _DECLARED_KEPT:
-            _DECLARED_OPTIONS.pop(next(iter(_DECLARED_OPTIONS)))  # (the oldest)
-        _DECLARED_OPTIONS[key] = out
+        _keep_newest(_DECLARED_OPTIONS, key, out)
     return out
+
+
+def _keep_newest(memo: dict[Any, Any], key: Any, value: Any) -> None:
+    """Store ``value`` in ``memo``, dropping its oldest entry past :data:`_DECLARED_KEPT`."""
+    if len(memo) >= _DECLARED_KEPT:
+        memo.pop(next(iter(memo)))
+    memo[key] = value
 
 
 # the models passed through declared_model lately, by identity; each is held, so that its id
@@ -240,9 +245,7 @@ def declared_model(model: Any) -> Any:
     if seen is not None and seen[0] is model:
         return seen[1]
     declared = as_declared(model)
-    if len(_DECLARED) >= _DECLARED_KEPT:
-        _DECLARED.pop(next(iter(_DECLARED)))  # (the oldest)
-    _DECLARED[id(model)] = (model, declared)
+    _keep_newest(_DECLARED, id(model), (model, declared))
     return declared
 
 
