@@ -564,9 +564,22 @@ def run(
     return RawRun(status, series_rows, episodes, RANGES, XSQ, STATS, y, RS, written, sens)
 
 
-# numba types of tangent records, by numba's fingerprint of a value (its class and field
-# names, the dtypes and layouts of its arrays: what numba's own dispatcher keys its types by)
-_RECORD_TYPES: dict[bytes, Any] = {}
+def _fingerprint(value: Any) -> Any:
+    """numba's fingerprint of a value, what its dispatcher keys argument types by (a
+    record's class and field names, the dtypes and layouts of its arrays); a typed list's
+    own numba type, which it carries; None where numba gives none (or has no fingerprint)."""
+    if hasattr(value, "_numba_type_"):
+        return ("typed", value._numba_type_)
+    try:
+        from numba._dispatcher import compute_fingerprint  # (numba's, not public)
+
+        return compute_fingerprint(value)
+    except Exception:  # a value numba cannot fingerprint, or another numba
+        return None
+
+
+# numba types of tangent records, by fingerprint
+_RECORD_TYPES: dict[Any, Any] = {}
 
 
 def _typed_records(records: Any) -> Any:
@@ -578,16 +591,11 @@ def _typed_records(records: Any) -> Any:
     from numba import typed, typeof
 
     first = records[0] if len(records) else None
-    try:
-        from numba._dispatcher import compute_fingerprint  # (numba's, not public)
-
-        key = compute_fingerprint(first)
-    except Exception:  # a value numba cannot fingerprint, or another numba: typed afresh
-        key = None
+    if first is None:
+        return typed.List()
+    key = _fingerprint(first)
     item = _RECORD_TYPES.get(key) if key is not None else None
     if item is None:
-        if first is None:
-            return typed.List()
         item = typeof(first)
         if key is not None:
             _RECORD_TYPES[key] = item
@@ -606,18 +614,12 @@ def _typeof_sensitivity_work(val: Any, c: Any) -> Any:
     fingerprints of its fields. Its typed list has no fingerprint, so numba's dispatcher
     types the whole record in Python at every call of the solver (its arrays each made a
     new numba type and hashed, about 0.5 ms a run)."""
-    from numba._dispatcher import compute_fingerprint
     from numba.core import types
     from numba.core.typing.typeof import typeof
 
-    key: tuple[Any, ...] | None
-    try:
-        key = tuple(
-            ("list", f._numba_type_) if hasattr(f, "_numba_type_") else compute_fingerprint(f)
-            for f in val
-        )
-    except Exception:  # a field numba cannot fingerprint: typed as numba would, not kept
-        key = None
+    key: tuple[Any, ...] | None = tuple(_fingerprint(f) for f in val)
+    if key is not None and any(k is None for k in key):
+        key = None  # a field numba cannot fingerprint: typed as numba would, not kept
     ty = _SENS_TYPES.get(key) if key is not None else None
     if ty is None:
         # (as numba's own typeof of a tuple makes it)
@@ -628,13 +630,9 @@ def _typeof_sensitivity_work(val: Any, c: Any) -> Any:
 
 
 def _register_sensitivity_typeof() -> None:
-    """Install :func:`_typeof_sensitivity_work` as numba's ``typeof`` of the record, where
-    this numba has the fingerprint it keys on (else numba's own typing stays)."""
-    try:
-        from numba._dispatcher import compute_fingerprint  # noqa: F401  (numba's, not public)
-        from numba.extending import typeof_impl
-    except ImportError:
-        return
+    """Install :func:`_typeof_sensitivity_work` as numba's ``typeof`` of the record."""
+    from numba.extending import typeof_impl
+
     typeof_impl.register(L.SensitivityWork)(_typeof_sensitivity_work)
 
 
