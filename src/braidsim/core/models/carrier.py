@@ -258,46 +258,82 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
         out[12] = 0.0  # transfers change the energy at an instant (apply_transfer)
 
 
+# The x-only carrier has the track pair alone (its pair index is always 0): its functions of
+# a pair hold no slot code, which numba would otherwise type and lower in every caller
+# (the x-only cold compile is about a tenth shorter without it).
+
+
+@inline_helper
+def _track_gaps(model, t, y):
+    """(gap to the inner wall, gap to the outer wall, their closing rate) of the track pair."""
+    h, hd, _ = wall_motion(model.track, t)
+    u = y[0] - h
+    return u, model.track_clearance - u, y[1] - hd
+
+
 @pair_gaps.register(CarrierX)
+def _gaps_x(model, pair, t, y):
+    return _track_gaps(model, t, y)
+
+
 @pair_gaps.register(CarrierXY)
-def _gaps(model, pair, t, y):
+def _gaps_xy(model, pair, t, y):
     if pair == 0:
-        h, hd, _ = wall_motion(model.track, t)
-        u = y[0] - h
-        return u, model.track_clearance - u, y[1] - hd
+        return _track_gaps(model, t, y)
     s, sd, _ = wall_motion(model.horn_gear, t)
     u = y[2] - s
     return u, model.slot_clearance - u, y[3] - sd
 
 
+@inline_helper
+def _track_gap_accel(model, t, f):
+    _, _, hdd = wall_motion(model.track, t)
+    return f[1] - hdd
+
+
 @pair_gap_accel.register(CarrierX)
+def _gap_accel_x(model, pair, t, f):
+    return _track_gap_accel(model, t, f)
+
+
 @pair_gap_accel.register(CarrierXY)
-def _gap_accel(model, pair, t, f):
+def _gap_accel_xy(model, pair, t, f):
     if pair == 0:
-        _, _, hdd = wall_motion(model.track, t)
-        return f[1] - hdd
+        return _track_gap_accel(model, t, f)
     return f[3] - model.horn_gear.turning_radius * horn_gear_accel(model.horn_gear, t)
 
 
 @pair_law.register(CarrierX)
+def _law_x(model, pair, p, p_dot, v0):
+    return contact_forces(model.track_law, p, p_dot, v0)
+
+
 @pair_law.register(CarrierXY)
-def _law(model, pair, p, p_dot, v0):
+def _law_xy(model, pair, p, p_dot, v0):
     if pair == 0:
         return contact_forces(model.track_law, p, p_dot, v0)
     return contact_forces(model.slot_law, p, p_dot, v0)
 
 
 @pair_law_rates.register(CarrierX)
+def _law_rates_x(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
+    return contact_force_rates(model.track_law, p, p_dot, p_ddot, v0, f_k, f_c)
+
+
 @pair_law_rates.register(CarrierXY)
-def _law_rates(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
+def _law_rates_xy(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
     if pair == 0:
         return contact_force_rates(model.track_law, p, p_dot, p_ddot, v0, f_k, f_c)
     return contact_force_rates(model.slot_law, p, p_dot, p_ddot, v0, f_k, f_c)
 
 
 @pair_onset_step.register(CarrierX)
+def _onset_x(model, pair, v):
+    return contact_onset_step(model.track_law, model.mass, v)
+
+
 @pair_onset_step.register(CarrierXY)
-def _onset(model, pair, v):
+def _onset_xy(model, pair, v):
     if pair == 0:
         return contact_onset_step(model.track_law, model.mass, v)
     return contact_onset_step(model.slot_law, model.mass, v)
@@ -700,21 +736,34 @@ def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
         out[3] = (-ms * dns - dfy + dm.load_y) / m - ay * dm.mass / m
 
 
+@inline_helper
+def _track_gaps_jvp(model, dmodel, t, s):
+    dh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
+    du = s[0] - dh
+    return du, dmodel.track_clearance - du, s[1] - dhd
+
+
 @pair_gaps_jvp.register(CarrierX)
+def _gaps_jvp_x(model, dmodel, pair, t, y, s):
+    return _track_gaps_jvp(model, dmodel, t, s)
+
+
 @pair_gaps_jvp.register(CarrierXY)
-def _gaps_jvp(model, dmodel, pair, t, y, s):
+def _gaps_jvp_xy(model, dmodel, pair, t, y, s):
     if pair == 0:
-        dh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
-        du = s[0] - dh
-        return du, dmodel.track_clearance - du, s[1] - dhd
+        return _track_gaps_jvp(model, dmodel, t, s)
     dsp, dsd, _ = wall_motion_jvp(model.horn_gear, dmodel.horn_gear, t)
     du = s[2] - dsp
     return du, dmodel.slot_clearance - du, s[3] - dsd
 
 
 @pair_law_jvp.register(CarrierX)
+def _law_jvp_x(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
+    return contact_forces_jvp(model.track_law, dmodel.track_law, p, dp, p_dot, dp_dot, v0, dv0)
+
+
 @pair_law_jvp.register(CarrierXY)
-def _law_jvp(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
+def _law_jvp_xy(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
     if pair == 0:
         return contact_forces_jvp(model.track_law, dmodel.track_law, p, dp, p_dot, dp_dot, v0, dv0)
     return contact_forces_jvp(model.slot_law, dmodel.slot_law, p, dp, p_dot, dp_dot, v0, dv0)
