@@ -138,13 +138,13 @@ def _onset_step(model, pair, v0):
     return pair_onset_step(model, pair, v0)
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _energy(y, idx, n):
     """The dissipated-energy quadrature at ``idx`` (NaN when the run does not integrate it)."""
     return y[idx] if idx < n else math.nan
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep, SENS):
     """Open row ``nep`` of the impact table for a contact of ``pair`` starting at t (approach
     speed ``vel``, latched ``v0``) and fold its first values in; returns the new row count."""
@@ -159,7 +159,7 @@ def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep, SENS):
     return nep
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
 def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
     """The contact policy at the start and right after a transfer, for the first ``npair``
     pairs.
@@ -202,7 +202,7 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
 
 
 # nogil: the loop touches no Python object, so runs of a batch overlap on threads
-@njit(cache=True, error_model="numpy", nogil=True)
+@njit(cache=True, error_model="numpy", nogil=True, no_cfunc_wrapper=True)
 def integrate(
     record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
 ):
