@@ -31,18 +31,9 @@ class TrackHarmonics(NamedTuple):
     table: np.ndarray  # (n, 3)
 
 
-@wall_motion.register(TrackHarmonics)
-def _track_motion(ex, t):
-    tab = ex.table
-    if tab.shape[0] == 1:
-        # one harmonic (the usual track) in straight-line code: where the solver asks for
-        # the wall's position and its acceleration at one instant in two calls, the compiler
-        # then shares their cosine
-        a = tab[0, 0]
-        w = tab[0, 1]
-        arg = w * t + tab[0, 2]
-        c = math.cos(arg)
-        return a * c, -a * w * math.sin(arg), -a * w * w * c
+@helper
+def _harmonic_sum(tab, t):
+    """(h, h', h'') of sum a cos(w t + phi) over the rows (a, w, phi) of ``tab``."""
     h = 0.0
     hd = 0.0
     hdd = 0.0
@@ -55,6 +46,22 @@ def _track_motion(ex, t):
         hd -= a * w * math.sin(arg)
         hdd -= a * w * w * c
     return h, hd, hdd
+
+
+@wall_motion.register(TrackHarmonics)
+def _track_motion(ex, t):
+    tab = ex.table
+    if tab.shape[0] == 1:
+        # one harmonic (the usual track) in straight-line code: where the solver asks for
+        # the wall's position and its acceleration at one instant in two calls, the compiler
+        # then shares their cosine
+        a = tab[0, 0]
+        w = tab[0, 1]
+        arg = w * t + tab[0, 2]
+        c = math.cos(arg)
+        return a * c, -a * w * math.sin(arg), -a * w * w * c
+    # several (or none): a call, so that the ten places the solver inlines this hold no loop
+    return _harmonic_sum(tab, t)
 
 
 @wall_motion_jvp.register(TrackHarmonics)

@@ -92,13 +92,16 @@ def update_ranges(model, n_pairs, t, y, modes, v0s, WIN, RANGES):
 @inline_helper
 def fold_info(t, pair, mode, info, WIN, RANGES):
     """:func:`update_ranges` for one pair from its summary at time t."""
+    # (one fold for both cases: each inlined copy of the fold is typed and lowered again)
     if mode == 0:
-        fold_values(t, pair, 0.0, 0.0, 0.0, 0.0, WIN, RANGES)
+        d = fk = fc = nn = 0.0
     else:
         s = float(mode)
-        fold_values(
-            t, pair, s * info[I_P], s * info[I_FK], s * info[I_FC], s * info[I_N], WIN, RANGES
-        )
+        d = s * info[I_P]
+        fk = s * info[I_FK]
+        fc = s * info[I_FC]
+        nn = s * info[I_N]
+    fold_values(t, pair, d, fk, fc, nn, WIN, RANGES)
 
 
 # the quantities whose extremes are tracked inside a contact: 0 the depth p, 1 F_c (max),
