@@ -395,15 +395,14 @@ def _signed_forces(law, mode, g_in, g_out, rate, v0):
     return s * p, s * fk, s * fc, s * nn
 
 
-@series_row.register(CarrierX)
-@series_row.register(CarrierXY)
-def _row(model, t, y, modes, v0s, n_state, kind, row):
-    n_coords, _, _ = model_size(model)
+@inline_helper
+def _row_track(model, t, y, modes, v0s, row):
+    """The series columns of x and the track pair (and the wall's position); returns the
+    track's signed normal force."""
     row[0] = t
     row[1] = y[0]
     row[2] = y[1]
     h, hd, _ = wall_motion(model.track, t)
-    om, s = horn_gear_state(model.horn_gear, t)
     u = y[0] - h
     d, fk, fc, nn = _signed_forces(
         model.track_law, modes[0], u, model.track_clearance - u, y[1] - hd, v0s[0]
@@ -413,42 +412,56 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
     row[7] = fc
     row[8] = nn
     row[13] = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
-    if n_coords == 2:
-        row[3] = y[2]
-        row[4] = y[3]
-        us = y[2] - s
-        ds, fks, fcs, nns = _signed_forces(
-            model.slot_law,
-            modes[1],
-            us,
-            model.slot_clearance - us,
-            y[3] - model.horn_gear.turning_radius * om,
-            v0s[1],
-        )
-        row[9] = ds
-        row[10] = fks
-        row[11] = fcs
-        row[12] = nns
-        row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
-        for i in range(8):
-            row[15 + i] = y[4 + i] if 4 + i < n_state else math.nan
-        row[26] = y[12] if 12 < n_state else math.nan
-    else:
-        for i in (3, 4, 9, 10, 11, 12, 14):
-            row[i] = 0.0
-        # state order: track_dissipated, friction_work_x, load_work_x, track_work,
-        # transfer_work
-        energy = n_state > 4  # all the quadratures
-        row[15] = y[2] if n_state > 2 else math.nan
-        row[16] = 0.0 if n_state > 2 else math.nan
-        row[17] = y[3] if n_state > 3 else math.nan
-        row[18] = 0.0 if n_state > 3 else math.nan
-        row[19] = y[4] if energy else math.nan
-        row[20] = y[5] if energy else math.nan
-        row[21] = 0.0 if energy else math.nan
-        row[22] = 0.0 if energy else math.nan
-        row[26] = y[6] if energy else math.nan
     row[23] = h
+    return nn
+
+
+@series_row.register(CarrierX)
+def _row_x(model, t, y, modes, v0s, n_state, kind, row):
+    _row_track(model, t, y, modes, v0s, row)
+    om, s = horn_gear_state(model.horn_gear, t)
+    for i in (3, 4, 9, 10, 11, 12, 14):
+        row[i] = 0.0
+    # state order: track_dissipated, friction_work_x, load_work_x, track_work,
+    # transfer_work
+    energy = n_state > 4  # all the quadratures
+    row[15] = y[2] if n_state > 2 else math.nan
+    row[16] = 0.0 if n_state > 2 else math.nan
+    row[17] = y[3] if n_state > 3 else math.nan
+    row[18] = 0.0 if n_state > 3 else math.nan
+    row[19] = y[4] if energy else math.nan
+    row[20] = y[5] if energy else math.nan
+    row[21] = 0.0 if energy else math.nan
+    row[22] = 0.0 if energy else math.nan
+    row[26] = y[6] if energy else math.nan
+    row[24] = s
+    row[25] = om
+    row[27] = kind
+
+
+@series_row.register(CarrierXY)
+def _row_xy(model, t, y, modes, v0s, n_state, kind, row):
+    nn = _row_track(model, t, y, modes, v0s, row)
+    om, s = horn_gear_state(model.horn_gear, t)
+    row[3] = y[2]
+    row[4] = y[3]
+    us = y[2] - s
+    ds, fks, fcs, nns = _signed_forces(
+        model.slot_law,
+        modes[1],
+        us,
+        model.slot_clearance - us,
+        y[3] - model.horn_gear.turning_radius * om,
+        v0s[1],
+    )
+    row[9] = ds
+    row[10] = fks
+    row[11] = fcs
+    row[12] = nns
+    row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
+    for i in range(8):
+        row[15 + i] = y[4 + i] if 4 + i < n_state else math.nan
+    row[26] = y[12] if 12 < n_state else math.nan
     row[24] = s
     row[25] = om
     row[27] = kind
