@@ -138,13 +138,23 @@ def _onset_step(model, pair, v0):
     return pair_onset_step(model, pair, v0)
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+# Calls of integrate that keep numba's reference counting (unlike the helpers of
+# braidsim.core.generic: _open and _start_contacts reach the tangents' records), compiled to
+# be called from compiled code only, without the Python and C-callback wrappers of a function
+# callable from Python (numba's type stubs do not list these switches)
+_OPTIONS = {"cache": True, "error_model": "numpy", "no_cfunc_wrapper": True}
+_solver_call = njit(no_cpython_wrapper=True, **_OPTIONS)  # type: ignore[call-overload]
+# integrate itself: called from Python, never through a C callback
+_entry_point = njit(nogil=True, **_OPTIONS)  # type: ignore[call-overload]
+
+
+@_solver_call
 def _energy(y, idx, n):
     """The dissipated-energy quadrature at ``idx`` (NaN when the run does not integrate it)."""
     return y[idx] if idx < n else math.nan
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@_solver_call
 def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep, SENS):
     """Open row ``nep`` of the impact table for a contact of ``pair`` starting at t (approach
     speed ``vel``, latched ``v0``) and fold its first values in; returns the new row count."""
@@ -159,7 +169,7 @@ def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep, SENS):
     return nep
 
 
-@njit(cache=True, error_model="numpy", no_cpython_wrapper=True, no_cfunc_wrapper=True)
+@_solver_call
 def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
     """The contact policy at the start and right after a transfer, for the first ``npair``
     pairs.
@@ -202,7 +212,7 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
 
 
 # nogil: the loop touches no Python object, so runs of a batch overlap on threads
-@njit(cache=True, error_model="numpy", nogil=True, no_cfunc_wrapper=True)
+@_entry_point
 def integrate(
     record, opts, y, RS, ST, TR, WIN, rows, row_reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
 ):
