@@ -258,85 +258,81 @@ def _derivs_xy(model, t, y, modes, v0s, n_state, out):
         out[12] = 0.0  # transfers change the energy at an instant (apply_transfer)
 
 
-# The x-only carrier has the track pair alone (its pair index is always 0): its functions of
-# a pair hold no slot code, which numba would otherwise type and lower in every caller
-# (the x-only cold compile is about a tenth shorter without it).
+def _for_each_carrier(generic_fn: Any) -> Any:
+    """Decorator of ``make(n_coords)``, which returns an implementation of ``generic_fn``
+    for the carrier with ``n_coords`` coordinates: registers ``make(1)`` for
+    :class:`CarrierX` and ``make(2)`` for :class:`CarrierXY`.
+
+    Written once for both carriers, each implementation holds its number of coordinates as
+    a constant of its code: numba drops the other carrier's branches (``if n_coords == 2``,
+    ``if n_coords == 1 or pair == 0``) before it types the function, so the x-only
+    carrier's compiled code holds no slot terms, which numba would otherwise type and lower
+    in every caller (about a tenth of the x-only carrier's cold compile)."""
+
+    def deco(make: Any) -> Any:
+        generic_fn.register(CarrierX)(make(1))
+        generic_fn.register(CarrierXY)(make(2))
+        return make
+
+    return deco
 
 
-@inline_helper
-def _track_gaps(model, t, y):
-    """(gap to the inner wall, gap to the outer wall, their closing rate) of the track pair."""
-    h, hd, _ = wall_motion(model.track, t)
-    u = y[0] - h
-    return u, model.track_clearance - u, y[1] - hd
+# The functions of a pair: the x-only carrier has the track pair alone (``pair`` is 0).
 
 
-@pair_gaps.register(CarrierX)
-def _gaps_x(model, pair, t, y):
-    return _track_gaps(model, t, y)
+@_for_each_carrier(pair_gaps)
+def _gaps_for(n_coords):
+    def _gaps(model, pair, t, y):
+        if n_coords == 1 or pair == 0:
+            h, hd, _ = wall_motion(model.track, t)
+            u = y[0] - h
+            return u, model.track_clearance - u, y[1] - hd
+        s, sd, _ = wall_motion(model.horn_gear, t)
+        u = y[2] - s
+        return u, model.slot_clearance - u, y[3] - sd
+
+    return _gaps
 
 
-@pair_gaps.register(CarrierXY)
-def _gaps_xy(model, pair, t, y):
-    if pair == 0:
-        return _track_gaps(model, t, y)
-    s, sd, _ = wall_motion(model.horn_gear, t)
-    u = y[2] - s
-    return u, model.slot_clearance - u, y[3] - sd
+@_for_each_carrier(pair_gap_accel)
+def _gap_accel_for(n_coords):
+    def _gap_accel(model, pair, t, f):
+        if n_coords == 1 or pair == 0:
+            _, _, hdd = wall_motion(model.track, t)
+            return f[1] - hdd
+        return f[3] - model.horn_gear.turning_radius * horn_gear_accel(model.horn_gear, t)
+
+    return _gap_accel
 
 
-@inline_helper
-def _track_gap_accel(model, t, f):
-    _, _, hdd = wall_motion(model.track, t)
-    return f[1] - hdd
+@_for_each_carrier(pair_law)
+def _law_for(n_coords):
+    def _law(model, pair, p, p_dot, v0):
+        if n_coords == 1 or pair == 0:
+            return contact_forces(model.track_law, p, p_dot, v0)
+        return contact_forces(model.slot_law, p, p_dot, v0)
+
+    return _law
 
 
-@pair_gap_accel.register(CarrierX)
-def _gap_accel_x(model, pair, t, f):
-    return _track_gap_accel(model, t, f)
+@_for_each_carrier(pair_law_rates)
+def _law_rates_for(n_coords):
+    def _law_rates(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
+        if n_coords == 1 or pair == 0:
+            return contact_force_rates(model.track_law, p, p_dot, p_ddot, v0, f_k, f_c)
+        return contact_force_rates(model.slot_law, p, p_dot, p_ddot, v0, f_k, f_c)
+
+    return _law_rates
 
 
-@pair_gap_accel.register(CarrierXY)
-def _gap_accel_xy(model, pair, t, f):
-    if pair == 0:
-        return _track_gap_accel(model, t, f)
-    return f[3] - model.horn_gear.turning_radius * horn_gear_accel(model.horn_gear, t)
+@_for_each_carrier(pair_onset_step)
+def _onset_for(n_coords):
+    def _onset(model, pair, v):
+        if n_coords == 1 or pair == 0:
+            return contact_onset_step(model.track_law, model.mass, v)
+        return contact_onset_step(model.slot_law, model.mass, v)
 
-
-@pair_law.register(CarrierX)
-def _law_x(model, pair, p, p_dot, v0):
-    return contact_forces(model.track_law, p, p_dot, v0)
-
-
-@pair_law.register(CarrierXY)
-def _law_xy(model, pair, p, p_dot, v0):
-    if pair == 0:
-        return contact_forces(model.track_law, p, p_dot, v0)
-    return contact_forces(model.slot_law, p, p_dot, v0)
-
-
-@pair_law_rates.register(CarrierX)
-def _law_rates_x(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
-    return contact_force_rates(model.track_law, p, p_dot, p_ddot, v0, f_k, f_c)
-
-
-@pair_law_rates.register(CarrierXY)
-def _law_rates_xy(model, pair, p, p_dot, p_ddot, v0, f_k, f_c):
-    if pair == 0:
-        return contact_force_rates(model.track_law, p, p_dot, p_ddot, v0, f_k, f_c)
-    return contact_force_rates(model.slot_law, p, p_dot, p_ddot, v0, f_k, f_c)
-
-
-@pair_onset_step.register(CarrierX)
-def _onset_x(model, pair, v):
-    return contact_onset_step(model.track_law, model.mass, v)
-
-
-@pair_onset_step.register(CarrierXY)
-def _onset_xy(model, pair, v):
-    if pair == 0:
-        return contact_onset_step(model.track_law, model.mass, v)
-    return contact_onset_step(model.slot_law, model.mass, v)
+    return _onset
 
 
 @free_accel_bound.register(CarrierX)
@@ -395,76 +391,64 @@ def _signed_forces(law, mode, g_in, g_out, rate, v0):
     return s * p, s * fk, s * fc, s * nn
 
 
-@inline_helper
-def _row_track(model, t, y, modes, v0s, row):
-    """The series columns of x and the track pair (and the wall's position); returns the
-    track's signed normal force."""
-    row[0] = t
-    row[1] = y[0]
-    row[2] = y[1]
-    h, hd, _ = wall_motion(model.track, t)
-    u = y[0] - h
-    d, fk, fc, nn = _signed_forces(
-        model.track_law, modes[0], u, model.track_clearance - u, y[1] - hd, v0s[0]
-    )
-    row[5] = d
-    row[6] = fk
-    row[7] = fc
-    row[8] = nn
-    row[13] = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
-    row[23] = h
-    return nn
+@_for_each_carrier(series_row)
+def _row_for(n_coords):
+    def _row(model, t, y, modes, v0s, n_state, kind, row):
+        row[0] = t
+        row[1] = y[0]
+        row[2] = y[1]
+        h, hd, _ = wall_motion(model.track, t)
+        om, s = horn_gear_state(model.horn_gear, t)
+        u = y[0] - h
+        d, fk, fc, nn = _signed_forces(
+            model.track_law, modes[0], u, model.track_clearance - u, y[1] - hd, v0s[0]
+        )
+        row[5] = d
+        row[6] = fk
+        row[7] = fc
+        row[8] = nn
+        row[13] = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
+        if n_coords == 2:
+            row[3] = y[2]
+            row[4] = y[3]
+            us = y[2] - s
+            ds, fks, fcs, nns = _signed_forces(
+                model.slot_law,
+                modes[1],
+                us,
+                model.slot_clearance - us,
+                y[3] - model.horn_gear.turning_radius * om,
+                v0s[1],
+            )
+            row[9] = ds
+            row[10] = fks
+            row[11] = fcs
+            row[12] = nns
+            row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
+            for i in range(8):
+                row[15 + i] = y[4 + i] if 4 + i < n_state else math.nan
+            row[26] = y[12] if 12 < n_state else math.nan
+        else:
+            for i in (3, 4, 9, 10, 11, 12, 14):
+                row[i] = 0.0
+            # state order: track_dissipated, friction_work_x, load_work_x, track_work,
+            # transfer_work
+            energy = n_state > 4  # all the quadratures
+            row[15] = y[2] if n_state > 2 else math.nan
+            row[16] = 0.0 if n_state > 2 else math.nan
+            row[17] = y[3] if n_state > 3 else math.nan
+            row[18] = 0.0 if n_state > 3 else math.nan
+            row[19] = y[4] if energy else math.nan
+            row[20] = y[5] if energy else math.nan
+            row[21] = 0.0 if energy else math.nan
+            row[22] = 0.0 if energy else math.nan
+            row[26] = y[6] if energy else math.nan
+        row[23] = h
+        row[24] = s
+        row[25] = om
+        row[27] = kind
 
-
-@series_row.register(CarrierX)
-def _row_x(model, t, y, modes, v0s, n_state, kind, row):
-    _row_track(model, t, y, modes, v0s, row)
-    om, s = horn_gear_state(model.horn_gear, t)
-    for i in (3, 4, 9, 10, 11, 12, 14):
-        row[i] = 0.0
-    # state order: track_dissipated, friction_work_x, load_work_x, track_work,
-    # transfer_work
-    energy = n_state > 4  # all the quadratures
-    row[15] = y[2] if n_state > 2 else math.nan
-    row[16] = 0.0 if n_state > 2 else math.nan
-    row[17] = y[3] if n_state > 3 else math.nan
-    row[18] = 0.0 if n_state > 3 else math.nan
-    row[19] = y[4] if energy else math.nan
-    row[20] = y[5] if energy else math.nan
-    row[21] = 0.0 if energy else math.nan
-    row[22] = 0.0 if energy else math.nan
-    row[26] = y[6] if energy else math.nan
-    row[24] = s
-    row[25] = om
-    row[27] = kind
-
-
-@series_row.register(CarrierXY)
-def _row_xy(model, t, y, modes, v0s, n_state, kind, row):
-    nn = _row_track(model, t, y, modes, v0s, row)
-    om, s = horn_gear_state(model.horn_gear, t)
-    row[3] = y[2]
-    row[4] = y[3]
-    us = y[2] - s
-    ds, fks, fcs, nns = _signed_forces(
-        model.slot_law,
-        modes[1],
-        us,
-        model.slot_clearance - us,
-        y[3] - model.horn_gear.turning_radius * om,
-        v0s[1],
-    )
-    row[9] = ds
-    row[10] = fks
-    row[11] = fcs
-    row[12] = nns
-    row[14] = friction_force(model.friction, y[3], abs(nn), model.mu_y)
-    for i in range(8):
-        row[15 + i] = y[4 + i] if 4 + i < n_state else math.nan
-    row[26] = y[12] if 12 < n_state else math.nan
-    row[24] = s
-    row[25] = om
-    row[27] = kind
+    return _row
 
 
 # ---- Taylor series -------------------------------------------------------------------------
@@ -487,38 +471,41 @@ def _constant_speed(hg):
     return hg.harmonics.shape[0] == 0 and hg.profile_times.shape[0] < 2
 
 
-@model_series_start.register(CarrierX)
-@model_series_start.register(CarrierXY)
-def _series_start(model, t, modes, order, W):
-    # the walls to order + 1, for their speeds to order; a wall the equations do not read
-    # in these modes is left out (the track's when the track pair is free, the slot's in
-    # the x-only model at a constant horn-gear speed, whose omega series is omega0 alone)
-    n_coords, _, _ = model_size(model)
-    hz = math.inf
-    if modes[0] != 0:
-        hz = wall_series(model.track, t, order + 1, W[R_H])
+@_for_each_carrier(model_series_start)
+def _series_start_for(n_coords):
+    def _series_start(model, t, modes, order, W):
+        # the walls to order + 1, for their speeds to order; a wall the equations do not read
+        # in these modes is left out (the track's when the track pair is free, the slot's in
+        # the x-only model at a constant horn-gear speed, whose omega series is omega0 alone)
+        hz = math.inf
+        if modes[0] != 0:
+            hz = wall_series(model.track, t, order + 1, W[R_H])
+            for j in range(order + 1):
+                W[R_HD, j] = (j + 1) * W[R_H, j + 1]
+        hg = model.horn_gear
+        W[R_NX, 0] = model.normal_x  # (a constant: the friction reads coefficient 0 only)
+        if n_coords == 1 and _constant_speed(hg):
+            W[R_OM, 0] = hg.omega0
+            W[R_LOAD, 0] = model.mass_radius * hg.omega0 * hg.omega0 + model.load_x
+            for j in range(1, order + 1):
+                W[R_OM, j] = 0.0
+                W[R_LOAD, j] = 0.0
+            return hz
+        hz_slot = wall_series(hg, t, order + 1, W[R_SL])
+        rc = hg.turning_radius
+        irc = 1.0 / rc if rc != 0.0 else 0.0
         for j in range(order + 1):
-            W[R_HD, j] = (j + 1) * W[R_H, j + 1]
-    hg = model.horn_gear
-    W[R_NX, 0] = model.normal_x  # (a constant: the friction reads coefficient 0 only)
-    if n_coords == 1 and _constant_speed(hg):
-        W[R_OM, 0] = hg.omega0
-        W[R_LOAD, 0] = model.mass_radius * hg.omega0 * hg.omega0 + model.load_x
-        for j in range(1, order + 1):
-            W[R_OM, j] = 0.0
-            W[R_LOAD, j] = 0.0
-        return hz
-    hz_slot = wall_series(hg, t, order + 1, W[R_SL])
-    rc = hg.turning_radius
-    irc = 1.0 / rc if rc != 0.0 else 0.0
-    for j in range(order + 1):
-        W[R_SD, j] = (j + 1) * W[R_SL, j + 1]
-        # omega = s' / r_c (without a turning radius the centrifugal load m r_c omega^2 is 0)
-        W[R_OM, j] = W[R_SD, j] * irc
-    for j in range(order + 1):
-        # T1 cos(phi) + m r_c omega^2
-        W[R_LOAD, j] = model.mass_radius * jet_sq(W[R_OM], j) + (model.load_x if j == 0 else 0.0)
-    return min(hz, hz_slot)
+            W[R_SD, j] = (j + 1) * W[R_SL, j + 1]
+            # omega = s' / r_c (without a turning radius the centrifugal load m r_c omega^2 is 0)
+            W[R_OM, j] = W[R_SD, j] * irc
+        for j in range(order + 1):
+            # T1 cos(phi) + m r_c omega^2
+            W[R_LOAD, j] = model.mass_radius * jet_sq(W[R_OM], j) + (
+                model.load_x if j == 0 else 0.0
+            )
+        return min(hz, hz_slot)
+
+    return _series_start
 
 
 @inline_helper
@@ -538,100 +525,109 @@ def _pair_series(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
     return fc, nn
 
 
-@inline_helper
-def _motion_series(model, k, j, fac, mt, ms, n_state, C, W):
-    """From the pairs' force rows at coefficient k (W[R_NT], W[R_FCT], ...): the friction,
-    the speeds' C[1, j] (and C[3, j]) and the quadratures' C[q, j], each coefficient k of
-    its derivative times ``fac``: j = k + 1, fac = 1 / (k + 1) in time (:func:`_series`),
-    j = k + 2, fac = 2 / (k + 2) in s from an onset (:func:`_onset_series`)."""
-    n_coords, _, _ = model_size(model)
-    fx = friction_force_series(
-        model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
-    )
-    W[R_FX, k] = fx
-    C[1, j] = (-mt * W[R_NT, k] - fx - W[R_LOAD, k]) * (fac / model.mass)
-    if n_coords == 2:
-        # the pad's friction under |N_t| = N_t (a Taylor step keeps N_t >= 0)
-        fy = friction_force_series(
-            model.friction, k, C[3], W[R_NT], model.mu_y, W[R_FR_Y : R_FR_Y + SERIES_ROWS]
+def _motion_series_for(n_coords):
+    """:func:`_motion_series` of the carrier with ``n_coords`` coordinates (see
+    :func:`_for_each_carrier`)."""
+
+    @inline_helper
+    def _motion_series(model, k, j, fac, mt, ms, n_state, C, W):
+        """From the pairs' force rows at coefficient k (W[R_NT], W[R_FCT], ...): the friction,
+        the speeds' C[1, j] (and C[3, j]) and the quadratures' C[q, j], each coefficient k of
+        its derivative times ``fac``: j = k + 1, fac = 1 / (k + 1) in time (:func:`_series`),
+        j = k + 2, fac = 2 / (k + 2) in s from an onset (:func:`_onset_series`)."""
+        fx = friction_force_series(
+            model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
         )
-        W[R_FY, k] = fy
-        load_y = model.load_y if k == 0 else 0.0
-        C[3, j] = (-ms * W[R_NS, k] - fy + load_y) * (fac / model.mass)
-    # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...); a pair's
-    # terms are 0 while it is free (and its rows are not written then)
-    q = 2 * n_coords
-    if n_state > q:
-        C[q, j] = jet_mul(W[R_FCT], W[R_PDT], k) * fac if mt != 0 else 0.0
+        W[R_FX, k] = fx
+        C[1, j] = (-mt * W[R_NT, k] - fx - W[R_LOAD, k]) * (fac / model.mass)
         if n_coords == 2:
-            C[q + 1, j] = jet_mul(W[R_FCS], W[R_PDS], k) * fac if ms != 0 else 0.0
-    q += n_coords
-    if n_state > q:  # the friction works
-        C[q, j] = jet_mul(W[R_FX], C[1], k) * fac
-        if n_coords == 2:
-            C[q + 1, j] = jet_mul(W[R_FY], C[3], k) * fac
-    q += n_coords
-    if n_state > q:  # all the quadratures
-        # (a constant load in the x-only model at a constant speed: one product)
-        if n_coords == 1 and _constant_speed(model.horn_gear):
-            C[q, j] = -W[R_LOAD, 0] * C[1, k] * fac
-        else:
-            C[q, j] = -jet_mul(W[R_LOAD], C[1], k) * fac
-        C[q + 1, j] = -mt * jet_mul(W[R_NT], W[R_HD], k) * fac if mt != 0 else 0.0
-        if n_coords == 2:
-            C[q + 2, j] = (model.load_y * C[3, k]) * fac
-            C[q + 3, j] = -ms * jet_mul(W[R_NS], W[R_SD], k) * fac if ms != 0 else 0.0
-            C[q + 4, j] = 0.0
-        else:
-            C[q + 2, j] = 0.0
+            # the pad's friction under |N_t| = N_t (a Taylor step keeps N_t >= 0)
+            fy = friction_force_series(
+                model.friction, k, C[3], W[R_NT], model.mu_y, W[R_FR_Y : R_FR_Y + SERIES_ROWS]
+            )
+            W[R_FY, k] = fy
+            load_y = model.load_y if k == 0 else 0.0
+            C[3, j] = (-ms * W[R_NS, k] - fy + load_y) * (fac / model.mass)
+        # the energy quadratures (as in derivatives: (N - F_k) p' = F_c p', f v, ...); a pair's
+        # terms are 0 while it is free (and its rows are not written then)
+        q = 2 * n_coords
+        if n_state > q:
+            C[q, j] = jet_mul(W[R_FCT], W[R_PDT], k) * fac if mt != 0 else 0.0
+            if n_coords == 2:
+                C[q + 1, j] = jet_mul(W[R_FCS], W[R_PDS], k) * fac if ms != 0 else 0.0
+        q += n_coords
+        if n_state > q:  # the friction works
+            C[q, j] = jet_mul(W[R_FX], C[1], k) * fac
+            if n_coords == 2:
+                C[q + 1, j] = jet_mul(W[R_FY], C[3], k) * fac
+        q += n_coords
+        if n_state > q:  # all the quadratures
+            # (a constant load in the x-only model at a constant speed: one product)
+            if n_coords == 1 and _constant_speed(model.horn_gear):
+                C[q, j] = -W[R_LOAD, 0] * C[1, k] * fac
+            else:
+                C[q, j] = -jet_mul(W[R_LOAD], C[1], k) * fac
+            C[q + 1, j] = -mt * jet_mul(W[R_NT], W[R_HD], k) * fac if mt != 0 else 0.0
+            if n_coords == 2:
+                C[q + 2, j] = (model.load_y * C[3, k]) * fac
+                C[q + 3, j] = -ms * jet_mul(W[R_NS], W[R_SD], k) * fac if ms != 0 else 0.0
+                C[q + 4, j] = 0.0
+            else:
+                C[q + 2, j] = 0.0
+
+    return _motion_series
 
 
-@model_series.register(CarrierX)
-@model_series.register(CarrierXY)
-def _series(model, k, modes, v0s, n_state, C, W):
-    # the equations of motion of the module docstring, coefficient by coefficient: the
-    # coordinates' coefficient k + 1 from the speeds' k, the pairs' forces, then the rest
-    n_coords, _, _ = model_size(model)
-    ik1 = 1.0 / (k + 1.0)
-    C[0, k + 1] = C[1, k] * ik1
-    mt = modes[0]
-    ms = modes[1] if n_coords == 2 else 0
-    fct, nt = _pair_series(
-        model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
-    )
-    W[R_FCT, k] = fct
-    W[R_NT, k] = nt
-    if n_coords == 2:
-        C[2, k + 1] = C[3, k] * ik1
-        fcs, ns = _pair_series(
-            model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+@_for_each_carrier(model_series)
+def _series_for(n_coords):
+    _motion_series = _motion_series_for(n_coords)
+
+    def _series(model, k, modes, v0s, n_state, C, W):
+        # the equations of motion of the module docstring, coefficient by coefficient: the
+        # coordinates' coefficient k + 1 from the speeds' k, the pairs' forces, then the rest
+        ik1 = 1.0 / (k + 1.0)
+        C[0, k + 1] = C[1, k] * ik1
+        mt = modes[0]
+        ms = modes[1] if n_coords == 2 else 0
+        fct, nt = _pair_series(
+            model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
         )
-        W[R_FCS, k] = fcs
-        W[R_NS, k] = ns
-    _motion_series(model, k, k + 1, ik1, mt, ms, n_state, C, W)
+        W[R_FCT, k] = fct
+        W[R_NT, k] = nt
+        if n_coords == 2:
+            C[2, k + 1] = C[3, k] * ik1
+            fcs, ns = _pair_series(
+                model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+            )
+            W[R_FCS, k] = fcs
+            W[R_NS, k] = ns
+        _motion_series(model, k, k + 1, ik1, mt, ms, n_state, C, W)
+
+    return _series
 
 
 # ---- the onset series in s = sqrt(t - t_onset) --------------------------------------------
 
 
-@model_onset_start.register(CarrierX)
-@model_onset_start.register(CarrierXY)
-def _onset_start(model, t, pair, modes, order, W):
-    # one pair touching while the other is free (the force of a pair already in contact
-    # would need its rate p' = dp/dt in s, which its law's series does not take); the series
-    # of time alone to order / 2 in tau, then spread to s: coefficient j of h(t + tau) is
-    # that of s^(2 j) in h(t + s^2), the odd ones are 0
-    n_coords, _, _ = model_size(model)
-    if n_coords == 2 and modes[1 - pair] != 0:
-        return 0.0
-    law = model.track_law if pair == 0 else model.slot_law
-    if contact_onset_power(law) == 0:
-        return 0.0
-    half = order // 2
-    hz = model_series_start(model, t, modes, half, W)
-    for r in (R_H, R_HD, R_SL, R_SD, R_OM, R_LOAD):
-        jet_in_sqrt(W[r], half, order)
-    return hz
+@_for_each_carrier(model_onset_start)
+def _onset_start_for(n_coords):
+    def _onset_start(model, t, pair, modes, order, W):
+        # one pair touching while the other is free (the force of a pair already in contact
+        # would need its rate p' = dp/dt in s, which its law's series does not take); the series
+        # of time alone to order / 2 in tau, then spread to s: coefficient j of h(t + tau) is
+        # that of s^(2 j) in h(t + s^2), the odd ones are 0
+        if n_coords == 2 and modes[1 - pair] != 0:
+            return 0.0
+        law = model.track_law if n_coords == 1 or pair == 0 else model.slot_law
+        if contact_onset_power(law) == 0:
+            return 0.0
+        half = order // 2
+        hz = model_series_start(model, t, modes, half, W)
+        for r in (R_H, R_HD, R_SL, R_SD, R_OM, R_LOAD):
+            jet_in_sqrt(W[r], half, order)
+        return hz
+
+    return _onset_start
 
 
 @inline_helper
@@ -651,31 +647,34 @@ def _pair_onset(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
     return contact_force_onset_series(law, k, W[r_p, 2:], v0, W[r_law : r_law + SERIES_ROWS])
 
 
-@model_onset_series.register(CarrierX)
-@model_onset_series.register(CarrierXY)
-def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
-    # the equations of _series along t + s^2 (dy/ds = 2 s dy/dt), coefficient by
-    # coefficient: the coordinates first (coefficient k + 2 is 2 x'_k / (k + 2)), then the
-    # penetration p = s^2 q to k + 2, i.e. q to k, then the forces and the rest; the other
-    # pair is free (_onset_start)
-    n_coords, _, _ = model_size(model)
-    c2 = 2.0 / (k + 2.0)
-    mt = modes[0]
-    ms = modes[1] if n_coords == 2 else 0
-    C[0, k + 2] = C[1, k] * c2
-    fct, nt = _pair_onset(
-        model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
-    )
-    W[R_FCT, k] = fct
-    W[R_NT, k] = nt
-    if n_coords == 2:
-        C[2, k + 2] = C[3, k] * c2
-        fcs, ns = _pair_onset(
-            model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+@_for_each_carrier(model_onset_series)
+def _onset_series_for(n_coords):
+    _motion_series = _motion_series_for(n_coords)
+
+    def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
+        # the equations of _series along t + s^2 (dy/ds = 2 s dy/dt), coefficient by
+        # coefficient: the coordinates first (coefficient k + 2 is 2 x'_k / (k + 2)), then the
+        # penetration p = s^2 q to k + 2, i.e. q to k, then the forces and the rest; the other
+        # pair is free (_onset_start)
+        c2 = 2.0 / (k + 2.0)
+        mt = modes[0]
+        ms = modes[1] if n_coords == 2 else 0
+        C[0, k + 2] = C[1, k] * c2
+        fct, nt = _pair_onset(
+            model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
         )
-        W[R_FCS, k] = fcs
-        W[R_NS, k] = ns
-    _motion_series(model, k, k + 2, c2, mt, ms, n_state, C, W)
+        W[R_FCT, k] = fct
+        W[R_NT, k] = nt
+        if n_coords == 2:
+            C[2, k + 2] = C[3, k] * c2
+            fcs, ns = _pair_onset(
+                model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+            )
+            W[R_FCS, k] = fcs
+            W[R_NS, k] = ns
+        _motion_series(model, k, k + 2, c2, mt, ms, n_state, C, W)
+
+    return _onset_series
 
 
 # ---- tangents (forward sensitivities) ------------------------------------------------------
@@ -715,91 +714,93 @@ def _slot_contact_jvp(model, dm, t, y, s, mode, v0, dv0, om, dom, sp, dsp):
     return dn
 
 
-@derivatives_jvp.register(CarrierX)
-@derivatives_jvp.register(CarrierXY)
-def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
-    # tangent of m x'' = -s_t N_t - f_x - T1 cos(phi) - m r_c omega^2 (and of the y equation)
-    n_coords, _, _ = model_size(model)
-    om, sp = horn_gear_state(model.horn_gear, t)
-    dom, dsp = horn_gear_state_jvp(model.horn_gear, dm.horn_gear, t)
-    m = model.mass
-    mt = modes[0]
-    _, _, nt = _track_contact(model, t, y, mt, v0s[0])
-    dnt = _track_contact_jvp(model, dm, t, y, s, mt, v0s[0], dv0s[0])
-    fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
-    dfx = friction_force_jvp(
-        model.friction, dm.friction, y[1], s[1], model.normal_x, dm.normal_x, model.mu_x, dm.mu_x
-    )
-    load_x = model.load_x + model.mass_radius * om * om
-    dload_x = dm.load_x + dm.mass_radius * om * om + 2.0 * model.mass_radius * om * dom
-    ax = (-mt * nt - fx - load_x) / m
-    out[0] = s[1]
-    out[1] = (-mt * dnt - dfx - dload_x) / m - ax * dm.mass / m
-    if n_coords == 2:
-        ms = modes[1]
-        _, _, ns = _slot_contact(model, t, y, ms, v0s[1], om, sp)
-        dns = _slot_contact_jvp(model, dm, t, y, s, ms, v0s[1], dv0s[1], om, dom, sp, dsp)
-        sgn = 1.0 if nt >= 0.0 else -1.0
-        fy = friction_force(model.friction, y[3], abs(nt), model.mu_y)
-        dfy = friction_force_jvp(
-            model.friction, dm.friction, y[3], s[3], abs(nt), sgn * dnt, model.mu_y, dm.mu_y
+@_for_each_carrier(derivatives_jvp)
+def _derivs_jvp_for(n_coords):
+    def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
+        # tangent of m x'' = -s_t N_t - f_x - T1 cos(phi) - m r_c omega^2 (and of the y equation)
+        om, sp = horn_gear_state(model.horn_gear, t)
+        dom, dsp = horn_gear_state_jvp(model.horn_gear, dm.horn_gear, t)
+        m = model.mass
+        mt = modes[0]
+        _, _, nt = _track_contact(model, t, y, mt, v0s[0])
+        dnt = _track_contact_jvp(model, dm, t, y, s, mt, v0s[0], dv0s[0])
+        fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
+        dfx = friction_force_jvp(
+            model.friction,
+            dm.friction,
+            y[1],
+            s[1],
+            model.normal_x,
+            dm.normal_x,
+            model.mu_x,
+            dm.mu_x,
         )
-        ay = (-ms * ns - fy + model.load_y) / m
-        out[2] = s[3]
-        out[3] = (-ms * dns - dfy + dm.load_y) / m - ay * dm.mass / m
+        load_x = model.load_x + model.mass_radius * om * om
+        dload_x = dm.load_x + dm.mass_radius * om * om + 2.0 * model.mass_radius * om * dom
+        ax = (-mt * nt - fx - load_x) / m
+        out[0] = s[1]
+        out[1] = (-mt * dnt - dfx - dload_x) / m - ax * dm.mass / m
+        if n_coords == 2:
+            ms = modes[1]
+            _, _, ns = _slot_contact(model, t, y, ms, v0s[1], om, sp)
+            dns = _slot_contact_jvp(model, dm, t, y, s, ms, v0s[1], dv0s[1], om, dom, sp, dsp)
+            sgn = 1.0 if nt >= 0.0 else -1.0
+            fy = friction_force(model.friction, y[3], abs(nt), model.mu_y)
+            dfy = friction_force_jvp(
+                model.friction, dm.friction, y[3], s[3], abs(nt), sgn * dnt, model.mu_y, dm.mu_y
+            )
+            ay = (-ms * ns - fy + model.load_y) / m
+            out[2] = s[3]
+            out[3] = (-ms * dns - dfy + dm.load_y) / m - ay * dm.mass / m
+
+    return _derivs_jvp
 
 
-@inline_helper
-def _track_gaps_jvp(model, dmodel, t, s):
-    dh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
-    du = s[0] - dh
-    return du, dmodel.track_clearance - du, s[1] - dhd
+@_for_each_carrier(pair_gaps_jvp)
+def _gaps_jvp_for(n_coords):
+    def _gaps_jvp(model, dmodel, pair, t, y, s):
+        if n_coords == 1 or pair == 0:
+            dh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
+            du = s[0] - dh
+            return du, dmodel.track_clearance - du, s[1] - dhd
+        dsp, dsd, _ = wall_motion_jvp(model.horn_gear, dmodel.horn_gear, t)
+        du = s[2] - dsp
+        return du, dmodel.slot_clearance - du, s[3] - dsd
+
+    return _gaps_jvp
 
 
-@pair_gaps_jvp.register(CarrierX)
-def _gaps_jvp_x(model, dmodel, pair, t, y, s):
-    return _track_gaps_jvp(model, dmodel, t, s)
+@_for_each_carrier(pair_law_jvp)
+def _law_jvp_for(n_coords):
+    def _law_jvp(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
+        if n_coords == 1 or pair == 0:
+            return contact_forces_jvp(
+                model.track_law, dmodel.track_law, p, dp, p_dot, dp_dot, v0, dv0
+            )
+        return contact_forces_jvp(model.slot_law, dmodel.slot_law, p, dp, p_dot, dp_dot, v0, dv0)
+
+    return _law_jvp
 
 
-@pair_gaps_jvp.register(CarrierXY)
-def _gaps_jvp_xy(model, dmodel, pair, t, y, s):
-    if pair == 0:
-        return _track_gaps_jvp(model, dmodel, t, s)
-    dsp, dsd, _ = wall_motion_jvp(model.horn_gear, dmodel.horn_gear, t)
-    du = s[2] - dsp
-    return du, dmodel.slot_clearance - du, s[3] - dsd
+@_for_each_carrier(apply_transfer_jvp)
+def _transfer_jvp_for(n_coords):
+    def _transfer_jvp(model, dmodel, t, y, s, dt, out):
+        # x -> h + eps - clamp(x - h, 0, eps),  x' -> 2 h' - x' + v_tr, at the time t + dt
+        hh, hd, hdd = wall_motion(model.track, t)
+        dhh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
+        dhh += hd * dt
+        dhd += hdd * dt
+        xr = y[0] - hh
+        eps = model.track_clearance
+        dxr = s[0] - dhh
+        if xr < 0.0:
+            dxr = 0.0
+        elif xr > eps:
+            dxr = dmodel.track_clearance
+        out[0] = dhh + dmodel.track_clearance - dxr
+        out[1] = 2.0 * dhd - s[1] + dmodel.transfer_speed
+        if n_coords == 2:
+            out[2] = s[2]
+            out[3] = s[3]
 
-
-@pair_law_jvp.register(CarrierX)
-def _law_jvp_x(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
-    return contact_forces_jvp(model.track_law, dmodel.track_law, p, dp, p_dot, dp_dot, v0, dv0)
-
-
-@pair_law_jvp.register(CarrierXY)
-def _law_jvp_xy(model, dmodel, pair, p, dp, p_dot, dp_dot, v0, dv0):
-    if pair == 0:
-        return contact_forces_jvp(model.track_law, dmodel.track_law, p, dp, p_dot, dp_dot, v0, dv0)
-    return contact_forces_jvp(model.slot_law, dmodel.slot_law, p, dp, p_dot, dp_dot, v0, dv0)
-
-
-@apply_transfer_jvp.register(CarrierX)
-@apply_transfer_jvp.register(CarrierXY)
-def _transfer_jvp(model, dmodel, t, y, s, dt, out):
-    # x -> h + eps - clamp(x - h, 0, eps),  x' -> 2 h' - x' + v_tr, at the time t + dt
-    hh, hd, hdd = wall_motion(model.track, t)
-    dhh, dhd, _ = wall_motion_jvp(model.track, dmodel.track, t)
-    dhh += hd * dt
-    dhd += hdd * dt
-    xr = y[0] - hh
-    eps = model.track_clearance
-    dxr = s[0] - dhh
-    if xr < 0.0:
-        dxr = 0.0
-    elif xr > eps:
-        dxr = dmodel.track_clearance
-    out[0] = dhh + dmodel.track_clearance - dxr
-    out[1] = 2.0 * dhd - s[1] + dmodel.transfer_speed
-    n_coords, _, _ = model_size(model)
-    if n_coords == 2:
-        out[2] = s[2]
-        out[3] = s[3]
+    return _transfer_jvp
