@@ -284,14 +284,18 @@ def integrate(
     stiff_below = STIFF_STEP_FRACTION * hmax
     st = STATS[0]
     r = RS[0]
+    # (the work arrays by np.empty alone, filled where they must start filled: each other
+    # constructor is one more function numba compiles)
     y1 = np.empty(n)
     yt = np.empty(n)
     ys = np.empty(n)
     yd = np.empty(n)
     ye = np.empty(n)
-    INF0 = np.zeros((2, NI))  # pair summaries at the start of the step (the end of the last)
-    INF1 = np.zeros((2, NI))  # ... at its end
-    IX = np.zeros(NI)
+    INF0 = np.empty((2, NI))  # pair summaries at the start of the step (the end of the last)
+    INF1 = np.empty((2, NI))  # ... at its end
+    IX = np.empty(NI)
+    for i in range(NI):
+        INF0[0, i] = INF0[1, i] = INF1[0, i] = INF1[1, i] = IX[i] = 0.0
     K = np.empty((7, n))
     Ke = np.empty((7, n))
     jac_fresh = False  # the implicit step's Jacobian belongs to the current (t, y)
@@ -313,9 +317,9 @@ def integrate(
         prev_peak_t = np.zeros(2)
         if not arrays_fit(SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]):
             return ST_BAD_ARRAYS
-    modes = np.zeros(2, dtype=np.int64)
-    v0s = np.ones(2)
-    open_ep = -np.ones(2, dtype=np.int64)
+    modes = np.empty(2, dtype=np.int64)  # (all three set from the restart record below)
+    v0s = np.empty(2)
+    open_ep = np.empty(2, dtype=np.int64)
     modes[0] = int(r.mode_0)
     modes[1] = int(r.mode_1)
     v0s[0] = r.v0_0
