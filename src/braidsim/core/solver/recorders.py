@@ -152,8 +152,8 @@ def refine_extreme(model, kind, pair, mode, v0, t0, h, g0, g1, RC, n_dof2, n, ys
         pair_info(model, pair, t0 + mid * h, ys, yd, mode, v0, info)
         gm = extreme_slope(kind, info)
         if gm == 0.0:
-            dense_eval(mid, RC, ys, n)  # (the quadratures too, for the caller)
-            return mid
+            lo = hi = mid  # (the root itself: the summary there is made again below)
+            break
         if gm > 0.0:
             lo = mid
             glo = gm
@@ -167,7 +167,7 @@ def refine_extreme(model, kind, pair, mode, v0, t0, h, g0, g1, RC, n_dof2, n, ys
                 glo *= 0.5
             side = -1
     theta = 0.5 * (lo + hi)
-    dense_eval(theta, RC, ys, n)
+    dense_eval(theta, RC, ys, n)  # (the quadratures too, for the caller)
     dense_deriv(theta, h, RC, yd, n_dof2)
     pair_info(model, pair, t0 + theta * h, ys, yd, mode, v0, info)
     return theta
@@ -195,6 +195,24 @@ def episode_update(EP, ie, kind, val, t):
         if val > e.peak_force:
             e.peak_force = val
             e.t_peak_force = t
+
+
+@inline_helper
+def episode_fold(EP, ie, p, fc, nn, t):
+    """:func:`episode_update` of the depth (kind 0), the damping force (1) and the normal
+    force (3) at one instant, in that order (one inlined copy instead of three of the
+    choice of kind)."""
+    e = EP[ie]
+    if p > e.max_depth:
+        e.max_depth = p
+        e.t_max_depth = t
+    if fc > e.max_damping_force:
+        e.max_damping_force = fc
+    if fc < e.min_damping_force:
+        e.min_damping_force = fc
+    if nn > e.peak_force:
+        e.peak_force = nn
+        e.t_peak_force = t
 
 
 @helper
@@ -236,9 +254,7 @@ def episode_start_values(model, EP, ie, t, y, pair, mode, v0):
     """Fold the depth and forces at the first instant of an episode into its extremes (a
     contact present at the start may have its largest force right there)."""
     p, _, _, fc, nn = pair_forces(model, pair, t, y, mode, v0)
-    episode_update(EP, ie, 0, p, t)
-    episode_update(EP, ie, 1, fc, t)
-    episode_update(EP, ie, 3, nn, t)
+    episode_fold(EP, ie, p, fc, nn, t)
 
 
 @helper
@@ -319,9 +335,7 @@ def scan_step(
         a0 = INF0[pair]
         a1 = INF1[pair]
         if ie >= 0:
-            episode_update(EP, ie, 0, a1[I_P], t1)
-            episode_update(EP, ie, 1, a1[I_FC], t1)
-            episode_update(EP, ie, 3, a1[I_N], t1)
+            episode_fold(EP, ie, a1[I_P], a1[I_FC], a1[I_N], t1)
         for kind in range(4):
             g0 = extreme_slope(kind, a0)
             g1 = extreme_slope(kind, a1)
