@@ -184,6 +184,61 @@ def test_cache_loads_without_refresh(tmp_path: Path) -> None:
     _python(code)
 
 
+_HELPER_MODULE = """
+import numpy as np
+from numba import njit
+from braidsim.core.generic import helper
+
+@helper
+def scaled_sum(a, s):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += s * a[i]
+    return acc
+
+@njit(cache=True)
+def first(a):
+    return scaled_sum(a, 2.0)
+
+@njit(cache=True)
+def second(a):
+    return scaled_sum(a, 2.0) + 1.0
+"""
+
+
+def test_helpers_are_link_only_and_load_from_cache(tmp_path: Path) -> None:
+    """A helper (:func:`braidsim.core.generic.helper`) is compiled to IR that its callers
+    link, with no machine code of its own, and refuses calls from Python; numba's cache
+    keeps that IR, from which a caller compiled in a later process links it (the helper is
+    loaded from the cache, not compiled again) and computes the same."""
+    folder = str(tmp_path)
+    (tmp_path / "helper_mod.py").write_text(_HELPER_MODULE)
+    env_code = f"import os, sys\nos.environ['NUMBA_CACHE_DIR'] = {folder + '/cache'!r}\n"
+    env_code += f"sys.path.insert(0, {folder!r})\n"
+    _python(
+        env_code + "import numpy as np\n"
+        "import helper_mod as m\n"
+        "assert m.first(np.arange(4.0)) == 12.0\n"
+        "(cres,) = m.scaled_sum.overloads.values()\n"
+        "assert type(cres.library).__name__ == '_LinkOnlyLibrary'\n"
+        "assert m.scaled_sum.stats.cache_misses and not m.scaled_sum.stats.cache_hits\n"
+        "try:\n"
+        "    m.scaled_sum(np.arange(4.0), 2.0)\n"
+        "except TypeError as exc:\n"
+        "    assert 'compiled code only' in str(exc)\n"
+        "else:\n"
+        "    raise AssertionError('a helper called from Python')\n"
+    )
+    _python(
+        env_code + "import numpy as np\n"
+        "import helper_mod as m\n"
+        "assert m.second(np.arange(4.0)) == 13.0\n"
+        "assert m.scaled_sum.stats.cache_hits and not m.scaled_sum.stats.cache_misses\n"
+        "(cres,) = m.scaled_sum.overloads.values()\n"
+        "assert type(cres.library).__name__ == '_LinkOnlyLibrary'\n"
+    )
+
+
 def test_cli_run_loads_cached_functions_without_refresh(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

@@ -23,9 +23,13 @@ import inspect
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
+from llvmlite import binding as llvm_binding
 from numba import njit, types
-from numba.core import cgutils
+from numba.core import cgutils, compiler
 from numba.core import config as numba_config
+from numba.core.caching import CompileResultCacheImpl, FunctionCache
+from numba.core.codegen import JITCodeLibrary
+from numba.core.dispatcher import _FunctionCompiler  # type: ignore[attr-defined]
 from numba.core.imputils import impl_ret_borrowed, lower_getattr_generic
 from numba.core.registry import CPUDispatcher
 from numba.core.typing.templates import (
@@ -40,6 +44,126 @@ from numba.extending import intrinsic, models, overload, register_model
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+class _LinkOnlyLibrary(JITCodeLibrary):
+    """The code library of a helper: optimised LLVM IR that numba links into each caller's
+    library, which makes the machine code; never machine code of its own.
+
+    numba turns every function it compiles into machine code, in memory and in its cache,
+    so that Python can call it. A helper is never called from Python: its callers link its
+    IR and compile it with their own code (``integrate`` holds all of them). Skipping the
+    helpers' own machine code took the cold compile of ``simulate("paper-3.3",
+    series=False)`` from 11.2 to 10.5 s of CPU (three alternated pairs, 0.66-0.73 s less
+    in each; the same results to the bit). The cache keeps the IR (``LINK_ONLY`` below), which a later compile links
+    without making machine code either.
+    """
+
+    def _finalize_final_module(self) -> None:
+        # numba's version adds the module to its execution engine and makes its machine code
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+
+    def get_pointer_to_function(self, name: str) -> int:
+        return 0  # (no code: CompiledOnly refuses calls from Python)
+
+    @property
+    def codegen(self) -> Any:
+        # numba sets each compiled function's environment pointer in the execution
+        # engine's copy of its module, which a link-only library has not (a helper creates
+        # no Python object and reads no environment)
+        return _EnvlessCodegen(self._codegen)
+
+    def serialize_using_object_code(self) -> Any:
+        # what numba's cache stores for a compiled function: here the IR for linking
+        self._ensure_finalized()
+        return (self.name, LINK_ONLY, self._get_module_for_linking().as_bitcode())
+
+    @classmethod
+    def from_cache(cls, codegen: Any, state: Any) -> _LinkOnlyLibrary:
+        name, _, bitcode = state
+        self = cls(codegen, name)
+        self._final_module = llvm_binding.parse_bitcode(bitcode)
+        self._finalize_final_module()
+        return self
+
+
+class _EnvlessCodegen:
+    """numba's codegen, whose ``set_env`` does nothing (see _LinkOnlyLibrary.codegen)."""
+
+    def __init__(self, codegen: Any) -> None:
+        self._codegen = codegen
+
+    def set_env(self, env_name: str, env: Any) -> None:
+        pass
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._codegen, name)
+
+
+LINK_ONLY = "braidsim-link-only"  # the kind of a helper's library in numba's cache
+
+
+class _LinkOnlyCompiler(_FunctionCompiler):
+    """numba's compiler of a dispatcher's function, handing the pipeline a
+    :class:`_LinkOnlyLibrary` (numba's own ``_compile_core`` with that one argument more)."""
+
+    def _compile_core(self, args: Any, return_type: Any) -> Any:
+        flags = compiler.Flags()
+        self.targetdescr.options.parse_as_flags(flags, self.targetoptions)
+        flags = self._customize_flags(flags)
+        impl = self._get_implementation(args, {})
+        codegen = self.targetdescr.target_context.codegen()
+        cres = compiler.compile_extra(
+            self.targetdescr.typing_context,
+            self.targetdescr.target_context,
+            impl,
+            args=args,
+            return_type=return_type,
+            flags=flags,
+            locals=self.locals,
+            library=_LinkOnlyLibrary(codegen, impl.__qualname__),
+            pipeline_class=self.pipeline_class,
+        )
+        if cres.typing_error is not None:
+            raise cres.typing_error
+        return cres
+
+
+class _LinkOnlyCacheImpl(CompileResultCacheImpl):
+    """numba's cache of compile results, rebuilding a helper's library from its IR."""
+
+    def rebuild(self, target_context: Any, payload: Any) -> Any:
+        if payload[0][1] != LINK_ONLY:
+            return super().rebuild(target_context, payload)
+        # numba's rebuild asks the codegen to unserialize the library: for the span of this
+        # call (under numba's compiler lock) the codegen makes a link-only one
+        codegen = target_context.codegen()
+        codegen.unserialize_library = lambda state: _LinkOnlyLibrary.from_cache(codegen, state)
+        try:
+            return super().rebuild(target_context, payload)
+        finally:
+            del codegen.unserialize_library
+
+
+class _LinkOnlyCache(FunctionCache):
+    _impl_class = _LinkOnlyCacheImpl
+
+
+# numba's internals the link-only helpers rely on (numba 0.68); without them, plain helpers
+_LINK_ONLY_OK = all(
+    hasattr(c, a)
+    for c, a in (
+        (JITCodeLibrary, "_finalize_final_module"),
+        (JITCodeLibrary, "_finalize_dynamic_globals"),
+        (JITCodeLibrary, "_verify_declare_only_symbols"),
+        (JITCodeLibrary, "_get_module_for_linking"),
+        (_FunctionCompiler, "_compile_core"),
+        (_FunctionCompiler, "_customize_flags"),
+        (CompileResultCacheImpl, "rebuild"),
+    )
+)
+
+
 class CompiledOnly(CPUDispatcher):
     """The dispatcher of a :func:`helper`: its function is compiled to be called from
     compiled code only.
@@ -50,9 +174,24 @@ class CompiledOnly(CPUDispatcher):
     work arrays that only the solver makes, and are never called from Python: without the
     wrappers the cold compile of ``simulate("paper-3.3", series=False)`` takes 0.7-0.9 s of
     CPU less (15.6-16.8 s against 16.5-17.6 s, three alternated pairs), with the same
-    results to the bit. A call from Python would then jump to no code at all, so it raises
-    instead; tests call a helper through a function compiled for it.
+    results to the bit. Nor is the function itself made into machine code
+    (:class:`_LinkOnlyLibrary`). A call from Python would then jump to no code at all, so
+    it raises instead; tests call a helper through a function compiled for it.
     """
+
+    def __init__(self, *args: Any, **kws: Any) -> None:
+        super().__init__(*args, **kws)
+        if _LINK_ONLY_OK:
+            c: Any = self._compiler  # type: ignore[has-type]
+            self._compiler = _LinkOnlyCompiler(
+                c.py_func, c.targetdescr, c.targetoptions, c.locals, c.pipeline_class
+            )
+
+    def enable_caching(self) -> None:
+        if _LINK_ONLY_OK:
+            self._cache = _LinkOnlyCache(self.py_func)
+        else:
+            super().enable_caching()
 
     def __call__(self, *args: Any, **kws: Any) -> Any:
         raise TypeError(
