@@ -72,12 +72,16 @@ class _LinkOnlyLibrary(JITCodeLibrary):
         # numba's first, cheap module passes alone: the caller's library runs the full
         # optimisation over its own code and the helpers it links, which then inlines them
         # in their context (see the class docstring)
-        mpm_cheap, mpb_cheap = self._codegen._module_pass_manager(
-            loop_vectorize=self._codegen._loopvect,
-            slp_vectorize=False,
-            opt=self._codegen._opt_level,
-            cost="cheap",
-        )
+        try:
+            mpm_cheap, mpb_cheap = self._codegen._module_pass_manager(
+                loop_vectorize=self._codegen._loopvect,
+                slp_vectorize=False,
+                opt=self._codegen._opt_level,
+                cost="cheap",
+            )
+        except (AttributeError, TypeError):  # an older numba, with other pass managers
+            super()._optimize_final_module()
+            return
         mpm_cheap.run(self._final_module, mpb_cheap)
 
     def _finalize_final_module(self) -> None:
@@ -177,6 +181,7 @@ _LINK_ONLY_OK = all(
     hasattr(c, a)
     for c, a in (
         (JITCodeLibrary, "_finalize_final_module"),
+        (JITCodeLibrary, "_optimize_final_module"),
         (JITCodeLibrary, "_finalize_dynamic_globals"),
         (JITCodeLibrary, "_verify_declare_only_symbols"),
         (JITCodeLibrary, "_get_module_for_linking"),
