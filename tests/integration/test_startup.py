@@ -203,6 +203,30 @@ def first(a):
 @njit(cache=True)
 def second(a):
     return scaled_sum(a, 2.0) + 1.0
+
+@helper(always_inline=True)
+def scaled_sum_inlined(a, s):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += s * a[i]
+    return acc
+
+@njit(cache=True)
+def third(a):
+    return scaled_sum_inlined(a, 2.0) + scaled_sum_inlined(a, 3.0)
+
+@njit(cache=True)
+def fourth(a):
+    return scaled_sum_inlined(a, 4.0)
+
+def inlined_everywhere(helper, caller):
+    # the helper's IR carries the attribute, and the caller's optimised code calls neither
+    # helper (scaled_sum, not marked, is small enough that LLVM inlines it anyway)
+    (cres,) = helper.overloads.values()
+    ir = cres.library.get_llvm_str()
+    assert "alwaysinline" in ir, ir
+    (code,) = caller.inspect_llvm().values()
+    assert "scaled_sum_inlined" not in code.split("define", 2)[1]
 """
 
 
@@ -210,7 +234,9 @@ def test_helpers_are_link_only_and_load_from_cache(tmp_path: Path) -> None:
     """A helper (:func:`braidsim.core.generic.helper`) is compiled to IR that its callers
     link, with no machine code of its own, and refuses calls from Python; numba's cache
     keeps that IR, from which a caller compiled in a later process links it (the helper is
-    loaded from the cache, not compiled again) and computes the same."""
+    loaded from the cache, not compiled again) and computes the same. A helper marked
+    ``always_inline`` carries LLVM's attribute in its IR, from the cache as well, and its
+    caller holds no call of it."""
     folder = str(tmp_path)
     (tmp_path / "helper_mod.py").write_text(_HELPER_MODULE)
     env_code = f"import os, sys\nos.environ['NUMBA_CACHE_DIR'] = {folder + '/cache'!r}\n"
@@ -219,6 +245,8 @@ def test_helpers_are_link_only_and_load_from_cache(tmp_path: Path) -> None:
         env_code + "import numpy as np\n"
         "import helper_mod as m\n"
         "assert m.first(np.arange(4.0)) == 12.0\n"
+        "assert m.third(np.arange(4.0)) == 30.0\n"
+        "m.inlined_everywhere(m.scaled_sum_inlined, m.third)\n"
         "(cres,) = m.scaled_sum.overloads.values()\n"
         "assert type(cres.library).__name__ == '_LinkOnlyLibrary'\n"
         "assert m.scaled_sum.stats.cache_misses and not m.scaled_sum.stats.cache_hits\n"
@@ -234,6 +262,10 @@ def test_helpers_are_link_only_and_load_from_cache(tmp_path: Path) -> None:
         "import helper_mod as m\n"
         "assert m.second(np.arange(4.0)) == 13.0\n"
         "assert m.scaled_sum.stats.cache_hits and not m.scaled_sum.stats.cache_misses\n"
+        "assert m.fourth(np.arange(4.0)) == 24.0\n"
+        "assert m.scaled_sum_inlined.stats.cache_hits\n"
+        "assert not m.scaled_sum_inlined.stats.cache_misses\n"
+        "m.inlined_everywhere(m.scaled_sum_inlined, m.fourth)\n"
         "(cres,) = m.scaled_sum.overloads.values()\n"
         "assert type(cres.library).__name__ == '_LinkOnlyLibrary'\n"
     )

@@ -59,7 +59,7 @@ RK_A[6, :6] = (A71, 0.0, A73, A74, A75, A76)
 RK_C = np.array([0.0, C2, C3, C4, C5, 1.0, 1.0])
 
 
-@helper
+@helper(always_inline=True)  # (called at every step: see core.generic.helper)
 def rk_step(model, t, y, h, K, modes, v0s, n, yt, y1):
     """One step of size h from (t, y) with K[0] = f(t, y); fills K[1..6] and y1.
 

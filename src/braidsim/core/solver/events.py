@@ -122,7 +122,7 @@ def events_possible(model, pair, h, f0, f1, mode, i0, i1):
     return min(i0[I_P], i1[I_P]) <= margin
 
 
-@helper
+@helper(always_inline=True)  # (called at every step: see core.generic.helper)
 def sample_events(model, n_pairs, t0, h, RC, modes, n, ys, GS, f0, f1, INF0, INF1):
     """Event functions at the N_SUB + 1 equally spaced points of the step (GS[j, k]).
 

@@ -124,7 +124,7 @@ def _transfer(model, t, y):
     return apply_transfer(model, t, y)
 
 
-@helper
+@helper(always_inline=True)  # (called at every step: see core.generic.helper)
 def _dense_at(theta, RCs, out, n):
     """:func:`~braidsim.core.solver.dense.dense_eval` as a call (inlined into the loop, whose
     variables numba reference-counts, it cost an atomic increment and decrement of each

@@ -257,7 +257,7 @@ def episode_start_values(model, EP, ie, t, y, pair, mode, v0):
     episode_fold(EP, ie, p, fc, nn, t)
 
 
-@helper
+@helper(always_inline=True)  # (called at every step: see core.generic.helper)
 def scan_step(
     model,
     n_pairs,

@@ -71,7 +71,7 @@ ONSET_ORDER = 24
 
 # (in IEEE order: with the sums reassociated, which LLVM then vectorises, the carrier's series
 # of order 12 took 1.1-2.1 times as long, on sums of at most 13 terms)
-@helper
+@helper(always_inline=True)  # (called at every step: see core.generic.helper)
 def taylor_coefficients(model, t, y, modes, v0s, n, C, W, n_dof2, tol_scale, hstop):
     """Fill C[:n, 0..N] (N = C.shape[1] - 1) with the Taylor coefficients of the state at
     (t, y) in the contact modes, and return (the time over which the model's series hold,
