@@ -268,12 +268,13 @@ def helper(func: Any = None, *, always_inline: bool = False) -> Any:
     numba compiles it no more than once; numba's own ``inline="always"`` copies the
     helper's numba IR into each caller and types and lowers it again there). For the
     large functions the loop calls at every step with many arguments: a call passes each
-    array as 7 words and spills the loop's live values around it. Measured on paper-3.3
-    (0.5 s, best of 60 calls, alternated processes), with :func:`~braidsim.core.solver.
-    recorders.scan_step` alone inlined, Taylor steps at rtol 1.8e-9 took 1.31 instead of
-    1.42-1.50 ms; with the five helpers marked so in the solver, 1.17-1.23 ms, and the
-    default integrator at rtol 5.6e-9 1.19-1.21 instead of 1.43-1.44 ms, results
-    bit-identical, for 0.4 s more of cold compile (10.9-11.3 against 10.4-10.9 s).
+    array as 7 words and saves the loop's live values around it. Measured on paper-3.3
+    (0.5 s, best of 60 calls, alternated processes), with ``scan_step`` alone inlined,
+    Taylor steps at rtol 1.8e-9 took 1.31 instead of 1.42-1.50 ms; with the five helpers
+    of the step marked so, 1.19-1.22 ms, and the default integrator at rtol 5.6e-9
+    1.20-1.22 instead of 1.44 ms, results bit-identical. The cold compile stayed within its
+    spread (10.6-11.3 against 10.3-11.3 s, five alternated pairs): numba compiles the
+    helper once either way.
     """
     if func is None:
         return lambda f: helper(f, always_inline=always_inline)
