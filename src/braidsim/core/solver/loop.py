@@ -53,7 +53,7 @@ from braidsim.core.solver.dopri5 import (
     onset_error_ratio,
     rk_step,
 )
-from braidsim.core.solver.events import N_SUB, locate_event, sample_events
+from braidsim.core.solver.events import N_SUB, locate_event, sample_events, sample_events_call
 from braidsim.core.solver.pairs import I_DN, I_FC, I_FK, I_P, I_PD, NI, gaps, pair_infos
 from braidsim.core.solver.radau import (
     ATTEMPT_OK,
@@ -752,7 +752,15 @@ def integrate(
         theta_ev = 2.0
         j_ev = -1
         # (the event functions read the coordinates and speeds only)
-        if sample_events(model, n_pairs, t, h, RCs, modes, n_dof2, ys, GS, K0, K6, INF0, INF1):
+        if SENS is None:
+            sampled = sample_events(
+                model, n_pairs, t, h, RCs, modes, n_dof2, ys, GS, K0, K6, INF0, INF1
+            )
+        else:
+            sampled = sample_events_call(
+                model, n_pairs, t, h, RCs, modes, n_dof2, ys, GS, K0, K6, INF0, INF1
+            )
+        if sampled:
             for j in range(2 * n_pairs):
                 th = locate_event(model, j, t, h, RCs, modes, n_dof2, ys, GS)
                 if th < theta_ev:
