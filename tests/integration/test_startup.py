@@ -220,8 +220,8 @@ def fourth(a):
     return scaled_sum_inlined(a, 4.0)
 
 def inlined_everywhere(helper, caller):
-    # the helper's IR carries the attribute, and the caller's optimised code calls neither
-    # helper (scaled_sum, not marked, is small enough that LLVM inlines it anyway)
+    # the helper's IR carries the attribute, and the caller's optimised code (its first
+    # function: the caller itself) holds no call of it
     (cres,) = helper.overloads.values()
     ir = cres.library.get_llvm_str()
     assert "alwaysinline" in ir, ir
