@@ -525,16 +525,38 @@ def _pair_series(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
     return fc, nn
 
 
-def _motion_series_for(n_coords):
-    """:func:`_motion_series` of the carrier with ``n_coords`` coordinates (see
-    :func:`_for_each_carrier`)."""
+def _coefficient_for(n_coords, pair_coefficient, shift):
+    """One coefficient of the series of the carrier with ``n_coords`` coordinates (see
+    :func:`_for_each_carrier`): C[:, k + shift] from the coefficients k of the equations of
+    motion of the module docstring, each times fac = shift / (k + shift). In time (shift 1,
+    ``pair_coefficient`` :func:`_pair_series`) coefficient k + 1 of y is coefficient k of
+    dy/dt over k + 1 (:func:`_series`); in s = sqrt(t - t_onset) from an onset (shift 2,
+    :func:`_pair_onset`) dy/ds = 2 s dy/dt, so coefficient k + 2 is 2 (dy/dt)_k / (k + 2)
+    (:func:`_onset_series`). The coordinates first (the pairs' penetrations read them), then
+    the pairs' forces, the friction, the speeds and the quadratures."""
+    fshift = float(shift)
 
     @inline_helper
-    def _motion_series(model, k, j, fac, mt, ms, n_state, C, W):
-        """From the pairs' force rows at coefficient k (W[R_NT], W[R_FCT], ...): the friction,
-        the speeds' C[1, j] (and C[3, j]) and the quadratures' C[q, j], each coefficient k of
-        its derivative times ``fac``: j = k + 1, fac = 1 / (k + 1) in time (:func:`_series`),
-        j = k + 2, fac = 2 / (k + 2) in s from an onset (:func:`_onset_series`)."""
+    def _coefficient(model, k, modes, v0s, n_state, C, W):
+        j = k + shift
+        fac = fshift / (k + fshift)
+        C[0, j] = C[1, k] * fac
+        mt = modes[0]
+        ms = modes[1] if n_coords == 2 else 0
+        fct, nt = pair_coefficient(
+            model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
+        )
+        W[R_FCT, k] = fct
+        W[R_NT, k] = nt
+        if n_coords == 2:
+            C[2, j] = C[3, k] * fac
+            fcs, ns = pair_coefficient(
+                model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
+            )
+            W[R_FCS, k] = fcs
+            W[R_NS, k] = ns
+        # from the pairs' force rows at coefficient k (W[R_NT], W[R_FCT], ...): the friction,
+        # the speeds' C[1, j] (and C[3, j]) and the quadratures' C[q, j]
         fx = friction_force_series(
             model.friction, k, C[1], W[R_NX, :1], model.mu_x, W[R_FR_X : R_FR_X + SERIES_ROWS]
         )
@@ -575,33 +597,16 @@ def _motion_series_for(n_coords):
             else:
                 C[q + 2, j] = 0.0
 
-    return _motion_series
+    return _coefficient
 
 
 @_for_each_carrier(model_series)
 def _series_for(n_coords):
-    _motion_series = _motion_series_for(n_coords)
+    coefficient = _coefficient_for(n_coords, _pair_series, 1)
 
     def _series(model, k, modes, v0s, n_state, C, W):
-        # the equations of motion of the module docstring, coefficient by coefficient: the
-        # coordinates' coefficient k + 1 from the speeds' k, the pairs' forces, then the rest
-        ik1 = 1.0 / (k + 1.0)
-        C[0, k + 1] = C[1, k] * ik1
-        mt = modes[0]
-        ms = modes[1] if n_coords == 2 else 0
-        fct, nt = _pair_series(
-            model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
-        )
-        W[R_FCT, k] = fct
-        W[R_NT, k] = nt
-        if n_coords == 2:
-            C[2, k + 1] = C[3, k] * ik1
-            fcs, ns = _pair_series(
-                model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
-            )
-            W[R_FCS, k] = fcs
-            W[R_NS, k] = ns
-        _motion_series(model, k, k + 1, ik1, mt, ms, n_state, C, W)
+        # the equations of motion of the module docstring, coefficient by coefficient
+        coefficient(model, k, modes, v0s, n_state, C, W)
 
     return _series
 
@@ -649,30 +654,13 @@ def _pair_onset(law, k, mode, clearance, C, i, W, r_wall, r_p, v0, r_law):
 
 @_for_each_carrier(model_onset_series)
 def _onset_series_for(n_coords):
-    _motion_series = _motion_series_for(n_coords)
+    coefficient = _coefficient_for(n_coords, _pair_onset, 2)
 
     def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
-        # the equations of _series along t + s^2 (dy/ds = 2 s dy/dt), coefficient by
-        # coefficient: the coordinates first (coefficient k + 2 is 2 x'_k / (k + 2)), then the
-        # penetration p = s^2 q to k + 2, i.e. q to k, then the forces and the rest; the other
-        # pair is free (_onset_start)
-        c2 = 2.0 / (k + 2.0)
-        mt = modes[0]
-        ms = modes[1] if n_coords == 2 else 0
-        C[0, k + 2] = C[1, k] * c2
-        fct, nt = _pair_onset(
-            model.track_law, k, mt, model.track_clearance, C, 0, W, R_H, R_PT, v0s[0], R_LAW_T
-        )
-        W[R_FCT, k] = fct
-        W[R_NT, k] = nt
-        if n_coords == 2:
-            C[2, k + 2] = C[3, k] * c2
-            fcs, ns = _pair_onset(
-                model.slot_law, k, ms, model.slot_clearance, C, 2, W, R_SL, R_PS, v0s[1], R_LAW_S
-            )
-            W[R_FCS, k] = fcs
-            W[R_NS, k] = ns
-        _motion_series(model, k, k + 2, c2, mt, ms, n_state, C, W)
+        # the equations of _series along t + s^2, coefficient by coefficient: the penetration
+        # p = s^2 q to k + 2, i.e. q to k, with the coordinates; the other pair is free
+        # (_onset_start)
+        coefficient(model, k, modes, v0s, n_state, C, W)
 
     return _onset_series
 
