@@ -1,7 +1,10 @@
 """The compiled core against its peers, as ratios of CPU time measured in one process.
 
 Run: ``python benchmarks/bench_core.py [--part lean|numbalsoda|scipy|dop853|taylor|batch|machine|
-memory|startup] [--repeats 15]`` (every part by default; ``--part`` may be given more than once).
+memory|startup] [--repeats 15] [--set KEY=VALUE]`` (every part by default; ``--part`` may be
+given more than once). ``--set`` (repeatable) changes a key of the scenario for the parts run
+in this process, to see whether a ratio holds away from paper-3.3 itself (e.g.
+``--set track.clearance=0.0024``); the lean peers read the same keys.
 
 Parts (all on paper-3.3, x only, unless said otherwise):
 
@@ -85,6 +88,10 @@ import lean_dp5
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = "paper-3.3"
+# what the in-process parts run: SCENARIO, or SCENARIO with the --set overrides
+LABEL = [SCENARIO]
+# the parts that run SCENARIO itself (in subprocesses, or another scenario): no --set there
+UNSET_PARTS = ("machine", "memory", "startup")
 DURATION = 0.5
 LEVELS = (2.5e-6, 1.2e-7)  # peak-force accuracies at which the integrators are compared
 TIGHT = {
@@ -354,7 +361,7 @@ def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
     repeats = args.repeats
     print(
         f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, "
-        f"{SCENARIO} x only, {DURATION} s"
+        f"{LABEL[0]} x only, {DURATION} s"
     )
     print(
         "   braidsim call: simulate(sc, 0.5, series=False) (the lean path: impacts, ranges, "
@@ -380,7 +387,7 @@ def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
 
     print(
         f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, "
-        f"{SCENARIO} x only, {DURATION} s"
+        f"{LABEL[0]} x only, {DURATION} s"
     )
     res = reference(sc)
     q = lean_peer(sc, res).q
@@ -533,7 +540,7 @@ class LeanDop853Peer(LeanPeer):
 def part_dop853(sc: Scenario, args: argparse.Namespace) -> None:
     print(
         f"\n== dop853: what a higher-order pair buys: the lean DP5 loop vs the same loop with "
-        f"DOP853 (lean_dop853.py), {SCENARIO} x only, {DURATION} s"
+        f"DOP853 (lean_dop853.py), {LABEL[0]} x only, {DURATION} s"
     )
     res = reference(sc)
     lean = lean_peer(sc, res)
@@ -591,7 +598,7 @@ class LeanTaylorPeer(LeanPeer):
 def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:
     print(
         f"\n== taylor: what a Taylor method buys: the lean DP5 loop vs the hybrid Taylor / DP5 "
-        f"loop (lean_taylor.py), {SCENARIO} x only, {DURATION} s"
+        f"loop (lean_taylor.py), {LABEL[0]} x only, {DURATION} s"
     )
     print(
         "   hybrid Taylor loop: 'rhs evaluations' = DP5 evaluations + Taylor steps, one each "
@@ -658,7 +665,7 @@ def part_numbalsoda(sc: Scenario, args: argparse.Namespace) -> None:
     repeats = args.repeats
     print(
         f"\n== numbalsoda: braidsim simulate() vs numbalsoda's DOP853 with events, "
-        f"{SCENARIO} x only, {DURATION} s"
+        f"{LABEL[0]} x only, {DURATION} s"
     )
     try:
         import numbalsoda  # noqa: F401
@@ -687,7 +694,7 @@ def part_batch(sc: Scenario, args: argparse.Namespace) -> None:
     n = 64
     sets = [{"track.vibration_amplitude": float(h)} for h in np.linspace(0.11e-3, 0.13e-3, n)]
     print(
-        f"\n== batch: simulate_batch of {n} one-second {SCENARIO} runs "
+        f"\n== batch: simulate_batch of {n} one-second {LABEL[0]} runs "
         "(h_a 0.11-0.13 mm), one worker"
     )
     for integrator in ("dormand-prince", "taylor"):
@@ -893,6 +900,33 @@ PART_FUNCTIONS: dict[str, Callable[[Scenario, argparse.Namespace], None]] = {
 }
 
 
+def _refuse(message: str) -> None:
+    print(message, file=sys.stderr)
+    sys.exit(2)
+
+
+def with_settings(sc: Scenario, settings: list[str], parts: list[str]) -> Scenario:
+    """``sc`` with the ``--set KEY=VALUE`` overrides (a number where VALUE reads as one);
+    one line naming what is wrong and exit code 2 for a malformed or unknown setting."""
+    clash = [p for p in parts if p in UNSET_PARTS]
+    if clash:
+        _refuse(f"--set: not with --part {', '.join(clash)} (they run {SCENARIO} itself)")
+    overrides: dict[str, Any] = {}
+    for item in settings:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            _refuse(f"--set: {item!r}; expected KEY=VALUE, e.g. track.clearance=0.0024")
+        try:
+            overrides[key] = float(text)
+        except ValueError:
+            overrides[key] = text
+    try:
+        return sc.with_overrides(overrides)
+    except braidsim.InputError as exc:
+        _refuse(f"--set: {exc}")
+    raise AssertionError  # (unreachable: _refuse exits)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument(
@@ -906,9 +940,20 @@ def main() -> None:
         default=12.0,
         help="memory part: address-space limit per child [GB]",
     )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="override a scenario key (repeatable) in the parts run in this process: the "
+        "ratios away from paper-3.3 itself (not with machine, memory, startup)",
+    )
     args = ap.parse_args()
     parts = args.part or list(PARTS)
     sc = load_scenario(SCENARIO)
+    if args.set:
+        sc = with_settings(sc, args.set, parts)
+        LABEL[0] = f"{SCENARIO} with {', '.join(args.set)}"
     braidsim_call(sc)  # load the compiled kernel
     print(
         f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; "
