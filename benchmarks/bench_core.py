@@ -24,6 +24,7 @@ lean
     the same comparison over the whole grid: both timed at every rtol (interleaved, best of
     5 sweeps), a line of log time against log error fitted to each through the points within
     30x of the level, and the ratio of the two lines at the level (:func:`fitted_time`).
+    Last, the fixed cost of a call, a 1-us run of each (:func:`fixed_costs`).
 numbalsoda
     the same against numbalsoda's DOP853 (Hairer's DOP853, Fortran) where it is installed.
     Its ``solve_ivp`` is called from numba-compiled code, with the right-hand side and the
@@ -104,6 +105,9 @@ ATOL_X_PER_RTOL = 1e-13 / 1e-8
 ATOL_V_PER_RTOL = 1e-9 / 1e-8
 RTOL_GRID = tuple(10.0 ** (-6.0 - k / 8.0) for k in range(0, 49))  # 1e-6 ... 1e-12
 FIT_BAND = 30.0  # the grid points whose error is within this factor of a level are fitted
+# the fixed cost of a call: a run this long [s], timed in batches of this many calls
+FIXED_RUN = 1e-6
+FIXED_BATCH = 100
 FIT_REPEATS = 5  # sweeps of the grid for the fitted times (best of)
 HMAX = 1e-3  # braidsim's default maximum step for a 60-Hz track (1 ms cap)
 PARTS = ("lean", "numbalsoda", "scipy", "dop853", "taylor", "batch", "machine", "memory", "startup")
@@ -379,6 +383,53 @@ def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
     compare(BraidsimPeer(sc), lean, ref, repeats, fitted=True)
     print("   with Taylor-series steps (simulation.integrator = taylor):")
     compare(BraidsimPeer(sc, "taylor"), lean, ref, repeats, fitted=True)
+    fixed = fixed_costs(sc, lean, repeats)
+    print(
+        f"   fixed cost of a call (a {FIXED_RUN * 1e6:g}-us run, best of {repeats} batches of "
+        f"{FIXED_BATCH}): braidsim simulate() {fixed[0] * 1e6:.1f} us, with Taylor steps "
+        f"{fixed[1] * 1e6:.1f} us; the lean DP5 loop {fixed[2] * 1e6:.1f} us"
+    )
+
+
+def fixed_costs(sc: Scenario, lean: LeanPeer, repeats: int) -> tuple[float, float, float]:
+    """CPU time [s] of one call that integrates FIXED_RUN seconds, for braidsim's call with
+    each integrator and for the lean loop: what a call costs besides its steps (argument
+    checks, records, results; for the lean loop its Python wrapper). Each timed as a batch
+    of FIXED_BATCH calls, the three batches interleaved, best of ``repeats``."""
+    taylor = sc.with_overrides({"simulation.integrator": "taylor"})
+    runner = lean.runner()
+    rtol = 1e-8
+
+    def batch(call: Callable[[], Any]) -> Callable[[], None]:
+        def run() -> None:
+            for _ in range(FIXED_BATCH):
+                call()
+
+        return run
+
+    calls = (
+        batch(lambda: braidsim.simulate(sc, FIXED_RUN, series=False)),
+        batch(lambda: braidsim.simulate(taylor, FIXED_RUN, series=False)),
+        batch(
+            lambda: runner(
+                lean.q,
+                FIXED_RUN,
+                lean.x0,
+                lean.v0,
+                rtol,
+                ATOL_X_PER_RTOL * rtol,
+                ATOL_V_PER_RTOL * rtol,
+                HMAX,
+            )
+        ),
+    )
+    best = [math.inf] * len(calls)
+    for _ in range(repeats):
+        for i, call in enumerate(calls):
+            c0 = time.process_time()
+            call()
+            best[i] = min(best[i], time.process_time() - c0)
+    return best[0] / FIXED_BATCH, best[1] / FIXED_BATCH, best[2] / FIXED_BATCH
 
 
 def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
