@@ -77,7 +77,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -89,8 +89,6 @@ import lean_dp5
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = "paper-3.3"
-# what the in-process parts run: SCENARIO, or SCENARIO with the --set overrides
-LABEL = [SCENARIO]
 # the parts that run SCENARIO itself (in subprocesses, or another scenario): no --set there
 UNSET_PARTS = ("machine", "memory", "startup")
 DURATION = 0.5
@@ -365,7 +363,7 @@ def part_lean(sc: Scenario, args: argparse.Namespace) -> None:
     repeats = args.repeats
     print(
         f"\n== lean: braidsim simulate() vs the lean numba DP5 loop, "
-        f"{LABEL[0]} x only, {DURATION} s"
+        f"{args.label} x only, {DURATION} s"
     )
     print(
         "   braidsim call: simulate(sc, 0.5, series=False) (the lean path: impacts, ranges, "
@@ -438,7 +436,7 @@ def part_scipy(sc: Scenario, args: argparse.Namespace) -> None:
 
     print(
         f"\n== scipy: braidsim simulate() vs solve_ivp DOP853 with events, "
-        f"{LABEL[0]} x only, {DURATION} s"
+        f"{args.label} x only, {DURATION} s"
     )
     res = reference(sc)
     q = lean_peer(sc, res).q
@@ -591,7 +589,7 @@ class LeanDop853Peer(LeanPeer):
 def part_dop853(sc: Scenario, args: argparse.Namespace) -> None:
     print(
         f"\n== dop853: what a higher-order pair buys: the lean DP5 loop vs the same loop with "
-        f"DOP853 (lean_dop853.py), {LABEL[0]} x only, {DURATION} s"
+        f"DOP853 (lean_dop853.py), {args.label} x only, {DURATION} s"
     )
     res = reference(sc)
     lean = lean_peer(sc, res)
@@ -649,7 +647,7 @@ class LeanTaylorPeer(LeanPeer):
 def part_taylor(sc: Scenario, args: argparse.Namespace) -> None:
     print(
         f"\n== taylor: what a Taylor method buys: the lean DP5 loop vs the hybrid Taylor / DP5 "
-        f"loop (lean_taylor.py), {LABEL[0]} x only, {DURATION} s"
+        f"loop (lean_taylor.py), {args.label} x only, {DURATION} s"
     )
     print(
         "   hybrid Taylor loop: 'rhs evaluations' = DP5 evaluations + Taylor steps, one each "
@@ -716,7 +714,7 @@ def part_numbalsoda(sc: Scenario, args: argparse.Namespace) -> None:
     repeats = args.repeats
     print(
         f"\n== numbalsoda: braidsim simulate() vs numbalsoda's DOP853 with events, "
-        f"{LABEL[0]} x only, {DURATION} s"
+        f"{args.label} x only, {DURATION} s"
     )
     try:
         import numbalsoda  # noqa: F401
@@ -745,7 +743,7 @@ def part_batch(sc: Scenario, args: argparse.Namespace) -> None:
     n = 64
     sets = [{"track.vibration_amplitude": float(h)} for h in np.linspace(0.11e-3, 0.13e-3, n)]
     print(
-        f"\n== batch: simulate_batch of {n} one-second {LABEL[0]} runs "
+        f"\n== batch: simulate_batch of {n} one-second {args.label} runs "
         "(h_a 0.11-0.13 mm), one worker"
     )
     for integrator in ("dormand-prince", "taylor"):
@@ -951,7 +949,7 @@ PART_FUNCTIONS: dict[str, Callable[[Scenario, argparse.Namespace], None]] = {
 }
 
 
-def _refuse(message: str) -> None:
+def _refuse(message: str) -> NoReturn:
     print(message, file=sys.stderr)
     sys.exit(2)
 
@@ -975,7 +973,6 @@ def with_settings(sc: Scenario, settings: list[str], parts: list[str]) -> Scenar
         return sc.with_overrides(overrides)
     except braidsim.InputError as exc:
         _refuse(f"--set: {exc}")
-    raise AssertionError  # (unreachable: _refuse exits)
 
 
 def main() -> None:
@@ -1002,9 +999,11 @@ def main() -> None:
     args = ap.parse_args()
     parts = args.part or list(PARTS)
     sc = load_scenario(SCENARIO)
+    # what the in-process parts run, named in their headers
+    args.label = SCENARIO
     if args.set:
         sc = with_settings(sc, args.set, parts)
-        LABEL[0] = f"{SCENARIO} with {', '.join(args.set)}"
+        args.label = f"{SCENARIO} with {', '.join(args.set)}"
     braidsim_call(sc)  # load the compiled kernel
     print(
         f"braidsim {braidsim.__version__}, numba cache loaded; {os.cpu_count()} cores; "
