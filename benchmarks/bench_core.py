@@ -146,12 +146,19 @@ def timed_pair(fa: Callable[[], Any], fb: Callable[[], Any]) -> tuple[float, flo
 
 def interleaved(fa: Callable[[], Any], fb: Callable[[], Any], repeats: int) -> tuple[float, float]:
     """Best CPU times [s] of fa and fb, called A B A B ... ``repeats`` times each."""
-    ta = tb = math.inf
-    for _ in range(repeats):
-        a, b = timed_pair(fa, fb)
-        ta = min(ta, a)
-        tb = min(tb, b)
+    ta, tb = interleaved_all((fa, fb), repeats)
     return ta, tb
+
+
+def interleaved_all(calls: tuple[Callable[[], Any], ...], repeats: int) -> list[float]:
+    """Best CPU times [s] of each of ``calls``, called in turn ``repeats`` times each."""
+    best = [math.inf] * len(calls)
+    for _ in range(repeats):
+        for i, call in enumerate(calls):
+            c0 = time.process_time()
+            call()
+            best[i] = min(best[i], time.process_time() - c0)
+    return best
 
 
 class Peer:
@@ -421,12 +428,7 @@ def fixed_costs(sc: Scenario, lean: LeanPeer, repeats: int) -> tuple[float, floa
             )
         ),
     )
-    best = [math.inf] * len(calls)
-    for _ in range(repeats):
-        for i, call in enumerate(calls):
-            c0 = time.process_time()
-            call()
-            best[i] = min(best[i], time.process_time() - c0)
+    best = interleaved_all(calls, repeats)
     return best[0] / FIXED_BATCH, best[1] / FIXED_BATCH, best[2] / FIXED_BATCH
 
 
