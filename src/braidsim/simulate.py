@@ -215,29 +215,35 @@ def stats_dict(raw: RawRun) -> dict[str, Any]:
     ``rhs_evaluations``, ``implicit_steps``, ``taylor_steps`` (of them ``onset_steps``),
     ``transfers``, ``min_step``, ``max_step``; a Taylor step counts one evaluation, at its
     end)."""
-    rec = L.fields_of(raw.stats)
-    names = ("steps", "rejected_steps", "events", "rhs_evaluations", "implicit_steps")
-    out: dict[str, Any] = {name: int(rec[name]) for name in (*names, "taylor_steps", "onset_steps")}
-    out["transfers"] = int(rec["transfers"])
-    out["min_step"] = float(rec["min_step"]) if math.isfinite(rec["min_step"]) else None
-    out["max_step"] = float(rec["max_step"])
-    return out
+    rec = L.record_view(raw.stats)
+    return {
+        "steps": int(rec.steps),
+        "rejected_steps": int(rec.rejected_steps),
+        "events": int(rec.events),
+        "rhs_evaluations": int(rec.rhs_evaluations),
+        "implicit_steps": int(rec.implicit_steps),
+        "taylor_steps": int(rec.taylor_steps),
+        "onset_steps": int(rec.onset_steps),
+        "transfers": int(rec.transfers),
+        "min_step": rec.min_step if math.isfinite(rec.min_step) else None,
+        "max_step": rec.max_step,
+    }
 
 
 def final_state(raw: RawRun) -> State:
     """Where a run ended, with its contacts and step control: a run started from it
     (``simulate(..., start=state)``) continues it."""
-    r = L.fields_of(raw.restart)
+    r = L.record_view(raw.restart)
     return State(
-        t=float(r["t"]),
+        t=r.t,
         y=tuple(raw.y.tolist()),
-        track_mode=int(r["mode_0"]),
-        slot_mode=int(r["mode_1"]),
-        track_v0=float(r["v0_0"]),
-        slot_v0=float(r["v0_1"]),
-        step=float(r["h"]),
-        err_old=float(r["err_old"]),
-        onset_q=float(r["onset_q"]),
+        track_mode=int(r.mode_0),
+        slot_mode=int(r.mode_1),
+        track_v0=r.v0_0,
+        slot_v0=r.v0_1,
+        step=r.h,
+        err_old=r.err_old,
+        onset_q=r.onset_q,
     )
 
 
@@ -350,7 +356,9 @@ def run_model(
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
     if n < n_full:
-        raw.y = np.concatenate([raw.y, np.full(n_full - n, np.nan)])
+        y_full = np.full(n_full, np.nan)
+        y_full[:n] = raw.y
+        raw.y = y_full
     return raw
 
 
@@ -507,15 +515,17 @@ def simulate(
         start=start,
         tangents=tangents,
     )
-    series_cols = {}
-    empty = np.zeros((len(CARRIER_COLUMNS), 0))  # (one array for the columns of no rows)
-    for i, name in enumerate(CARRIER_COLUMNS):
-        if raw.series is not None:
+    series_cols: dict[str, np.ndarray] = {}
+    if raw.series is not None:
+        for i, name in enumerate(CARRIER_COLUMNS):
             series_cols[name] = raw.series[:, i].copy()
-            continue
-        series_cols[name] = np.concatenate(columns[i]) if columns[i] else empty[i]
-        columns[i] = []
-    if not model.two_dof:
+    elif any(columns):
+        for i, name in enumerate(CARRIER_COLUMNS):
+            series_cols[name] = np.concatenate(columns[i]) if columns[i] else np.zeros(0)
+            columns[i] = []
+    else:  # no rows (the lean path): one empty array serves every column
+        series_cols = dict.fromkeys(CARRIER_COLUMNS, np.zeros(0))
+    if not model.two_dof and series_cols["x"].size:
         # the x-only carrier does not move tangentially: y and y' stay at their start values
         series_cols["y"][:] = sc["initial.y"]
         series_cols["vy"][:] = sc["initial.vy"]
@@ -528,13 +538,13 @@ def simulate(
         series_rows=raw.rows_written,
     )
     fs = final_state(raw)
-    y = raw.y
+    y = fs.y  # (Python floats)
     final = {
         "t": fs.t,
-        "x": float(y[0]),
-        "vx": float(y[1]),
-        "y": float(y[2]) if model.two_dof else float(sc["initial.y"]),
-        "vy": float(y[3]) if model.two_dof else float(sc["initial.vy"]),
+        "x": y[0],
+        "vx": y[1],
+        "y": y[2] if model.two_dof else float(sc["initial.y"]),
+        "vy": y[3] if model.two_dof else float(sc["initial.vy"]),
     }
     xsq = raw.xsq if raw.xsq is not None else np.full(W.shape[0], np.nan)
     rms_x = np.sqrt(xsq / (W[:, 1] - W[:, 0]))

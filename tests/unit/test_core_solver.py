@@ -258,9 +258,29 @@ def test_as_declared_makes_ints_floats_only_where_a_float_is_declared() -> None:
     assert as_declared(arr) is arr
     rec = L.new_stats()
     rec[0]["steps"] = 7
-    fields = L.fields_of(rec)
-    assert fields["steps"] == 7 and fields["min_step"] == math.inf
-    assert list(fields) == list(L.STATS_DTYPE.names or ())
+    fields = L.record_view(rec)
+    assert fields.steps == 7 and fields.min_step == math.inf
+    assert fields._fields == L.STATS_DTYPE.names
+
+
+def test_record_view_reads_the_first_record_as_numpy_does() -> None:
+    """The named view of a record holds what numpy's ``item()`` gives, field by field, for
+    the packed float64 records (read from their bytes), another layout and a strided
+    array (read by numpy)."""
+    rs = L.new_restart()
+    rs[0]["t"], rs[0]["mode_1"], rs[0]["v0_0"] = 0.25, -1.0, math.inf
+    mixed = np.zeros(3, dtype=[("a", "<f8"), ("n", "<i4"), ("b", "<f8")])
+    mixed[0] = (1.5, 7, -2.0)
+    strided = np.zeros(4, dtype=L.STATS_DTYPE)[::2]
+    strided[0]["steps"] = 3.0
+    for records in (rs, L.new_stats(), mixed, strided):
+        view = L.record_view(records)
+        assert view._fields == records.dtype.names
+        expected = records[0].item()
+        assert tuple(view) == expected
+        assert [type(v) for v in view] == [type(v) for v in expected]
+    assert L.record_view(rs).t == 0.25 and L.record_view(rs).v0_0 == math.inf
+    assert L.record_view(mixed).n == 7
 
 
 def test_declared_options_are_kept_by_value_and_field_types() -> None:

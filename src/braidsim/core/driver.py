@@ -507,9 +507,9 @@ def run(
         status = integrate(
             model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
         )
-        r = RS[0]
+        r = L.record_view(RS)  # (read once; the writes below go to RS itself)
         final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)
-        nrow = int(r["rows"])
+        nrow = int(r.rows)
         if rows is not None:
             if nrow > rows.shape[0]:
                 raise RuntimeError(f"solver wrote {nrow} rows into a buffer of {rows.shape[0]}")
@@ -528,11 +528,11 @@ def run(
                     chunks.append(chunk)
                 elif sink is not None:
                     sink(chunk)
-                r["rows"] = 0
+                RS[0]["rows"] = 0
         if final:
-            closed.append(L.copy_records(EP[: int(r["episodes"])]))
+            closed.append(L.copy_records(EP[: int(r.episodes)]))
             if SENS is not None:
-                sens_closed.append(SENS.ESENS[: int(r["episodes"])].copy())
+                sens_closed.append(SENS.ESENS[: int(r.episodes)].copy())
             break
         if status == L.ST_EPISODES_FULL:
             _flush_episodes(EP, RS, closed, None if SENS is None else (SENS.ESENS, sens_closed))
@@ -546,7 +546,7 @@ def run(
         if np.any(order != np.arange(order.size)):
             by_onset = order
             episodes = episodes[order]
-    _close_open(episodes, RS, y, model, n)
+    _close_open(episodes, r, y, model, n)
     series_rows = None
     if keep:
         series_rows = np.concatenate(chunks) if chunks else np.zeros((0, ncol))
@@ -710,13 +710,13 @@ def _last_open(episodes: np.ndarray, pair: int) -> int:
     return -1
 
 
-def _close_open(episodes: np.ndarray, RS: np.ndarray, y: np.ndarray, model: Any, n: int) -> None:
-    """Close, in the output table, the contacts still open at the end of the run."""
-    r = RS[0]
-    modes = (int(r["mode_0"]), int(r["mode_1"]))
+def _close_open(episodes: np.ndarray, r: Any, y: np.ndarray, model: Any, n: int) -> None:
+    """Close, in the output table, the contacts still open at the end of the run (``r``:
+    the restart record at the end, :func:`~braidsim.core.layout.record_view`)."""
+    modes = (int(r.mode_0), int(r.mode_1))
     if modes == (0, 0):
         return
-    t = float(r["t"])
+    t = r.t
     for pair in range(2):
         if modes[pair] == 0:
             continue

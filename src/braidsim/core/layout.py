@@ -12,6 +12,8 @@ Physical parameters are records too, but they belong to the model that uses them
 
 from __future__ import annotations
 
+import struct
+from collections import namedtuple
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -376,11 +378,36 @@ def new_restart() -> np.ndarray:
     return _from_bytes(_NEW_RESTART, RESTART_DTYPE)
 
 
-def fields_of(records: np.ndarray) -> dict[str, Any]:
-    """The first record of a structured array as ``{field: Python value}`` (one read of the
-    record instead of one per field)."""
-    names = records.dtype.names or ()
-    return dict(zip(names, records[0].item(), strict=True))
+# per record dtype: the named tuple of its fields, and the struct that unpacks a record of
+# packed float64 fields (None for another layout)
+_RECORD_VIEWS: dict[np.dtype, tuple[Any, struct.Struct | None]] = {}
+
+
+def record_view(records: np.ndarray) -> Any:
+    """The first record of a structured array as a named tuple of Python values, read in
+    one go (``record_view(RS).t``): the restart and statistics records are read this way
+    after every run. A record of packed float64 fields (all of this module's one-record
+    dtypes) is unpacked from its bytes: the view of a restart record in 0.8 us, against
+    1.0 us for numpy's ``item()`` alone and 2.6 us for a dict of the fields."""
+    dtype = records.dtype
+    known = _RECORD_VIEWS.get(dtype)
+    if known is None:
+        names = dtype.names or ()
+        fields: Any = dtype.fields or {}
+        packed = dtype.itemsize == 8 * len(names) and all(
+            fields[f][0] == np.dtype("<f8") and fields[f][1] == 8 * i for i, f in enumerate(names)
+        )
+        known = (
+            namedtuple("RecordView", names),
+            struct.Struct(f"<{len(names)}d") if packed else None,
+        )
+        _RECORD_VIEWS[dtype] = known
+    view: Any = known[0]
+    unpack = known[1]
+    if unpack is not None and records.flags.c_contiguous:
+        # (an ndarray is a buffer; numpy's stubs do not say so. Through a memoryview: 4x slower)
+        return view._make(unpack.unpack_from(records))  # type: ignore[arg-type]
+    return view._make(records[0].item())
 
 
 def _stats_template() -> bytes:
@@ -401,9 +428,17 @@ def new_stats() -> np.ndarray:
 RANGE_QUANTITIES = ("depth", "stiffness_force", "damping_force", "contact_force")
 
 
-def new_ranges(n_windows: int) -> np.ndarray:
-    """Window extremes initialised to (+inf, -inf)."""
+def _ranges_template(n_windows: int) -> np.ndarray:
     r = np.empty((n_windows, MAX_PAIRS, len(RANGE_QUANTITIES), 2))
     r[..., 0] = np.inf
     r[..., 1] = -np.inf
     return r
+
+
+_ONE_WINDOW = _ranges_template(1)
+
+
+def new_ranges(n_windows: int) -> np.ndarray:
+    """Window extremes initialised to (+inf, -inf) (one window, the usual case: a copy of a
+    template, a fifth of the time of filling a new array)."""
+    return _ONE_WINDOW.copy() if n_windows == 1 else _ranges_template(n_windows)
