@@ -184,7 +184,8 @@ class Result:
     rms_x : np.ndarray or None
         RMS of x over each window [m], sqrt((1 / (t1 - t0)) int_t0^t1 x^2 dt), the integral
         by a 4-point Gauss-Legendre rule on the interpolant of every step (exact up to the
-        integrator's own error, whatever the samples).
+        integrator's own error, whatever the samples). None where the run did not integrate
+        it: the lean path (``simulate(..., series=False)``) unless asked with ``rms=True``.
     sensitivity : Sensitivities or None
         The forward sensitivities, when ``simulate(..., sensitivities=[...])`` asked for
         them (:class:`braidsim.sensitivity.Sensitivities`).

@@ -258,6 +258,7 @@ def run_model(
     start: State | None = None,
     tangents: Tangents | None = None,
     in_memory: bool = True,
+    xsq: bool = True,
 ) -> RawRun:
     """Run one model through the compiled core: the one way from a :class:`Model` to its
     results, for :func:`simulate`, the batches, the machine and the analyses.
@@ -278,7 +279,8 @@ def run_model(
 
     ``in_memory``: the rows kept, or handed to a callable that keeps them, count against
     ``BRAIDSIM_MAX_MEMORY`` as they come (the sample grid is sized beforehand, the event rows
-    are not); False for a callable that streams them away.
+    are not); False for a callable that streams them away. ``xsq``: integrate x^2 over the
+    windows (``RawRun.xsq``, for the RMS of x); False compiles that recorder out.
     """
     if getattr(numba_config, "DISABLE_JIT", False):
         # the solver passes its records by reference (a compiled intrinsic) and resolves its
@@ -331,6 +333,7 @@ def run_model(
             series=series,
             restart=restart,
             tangents=tangents,
+            xsq=xsq,
             implicit=model.implicit_rest,
             taylor=model.taylor_order,
             max_rows=int(limits.limit("memory") // (8 * len(CARRIER_COLUMNS)))
@@ -379,6 +382,7 @@ def simulate(
     series: bool | SeriesSink = True,
     max_series_bytes: int | None = SERIES_MEMORY,
     sensitivities: Sequence[str] | None = None,
+    rms: bool | None = None,
 ) -> Result:
     """Simulate one carrier.
 
@@ -425,6 +429,10 @@ def simulate(
         (``Result.sensitivity``, a :class:`braidsim.sensitivity.Sensitivities`; the summary
         and ``braidsim run --json`` carry them per impact and in ``final``). Not with a
         series callable.
+    rms : bool, optional
+        Integrate x^2 over each window for ``Result.rms_x`` (a 4-point Gauss-Legendre rule on
+        the interpolant of every step). Default: with a series; the lean path
+        (``series=False``) leaves it out, and ``Result.rms_x`` is None, unless ``rms=True``.
 
     Returns
     -------
@@ -458,6 +466,8 @@ def simulate(
         raise InputError("sensitivities: a list of keys, e.g. ['track.clearance']")
     if keys and callable(series):
         raise InputError("sensitivities: need series=True or False, not a series callable")
+    if not (rms is None or isinstance(rms, bool | np.bool_)):
+        raise InputError(f"rms: {_shown(rms)} is not allowed; allowed True, False or None")
     model = build_model(sc, duration, t_start=t_start, keep_zero_harmonics=bool(keys))
     tangents = None
     if keys:
@@ -514,6 +524,8 @@ def simulate(
         energy="dissipation" if series is False else True,
         start=start,
         tangents=tangents,
+        # the RMS of x where it is asked for: with a series unless said otherwise
+        xsq=series is not False if rms is None else bool(rms),
     )
     series_cols: dict[str, np.ndarray] = {}
     if raw.series is not None:
@@ -546,8 +558,7 @@ def simulate(
         "y": y[2] if model.two_dof else float(sc["initial.y"]),
         "vy": y[3] if model.two_dof else float(sc["initial.vy"]),
     }
-    xsq = raw.xsq if raw.xsq is not None else np.full(W.shape[0], np.nan)
-    rms_x = np.sqrt(xsq / (W[:, 1] - W[:, 0]))
+    rms_x = None if raw.xsq is None else np.sqrt(raw.xsq / (W[:, 1] - W[:, 0]))
     sens = None
     if raw.sensitivity is not None:
         from braidsim.sensitivity import Sensitivities

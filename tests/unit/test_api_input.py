@@ -114,6 +114,12 @@ def test_windows_accept_unit_strings(res: braidsim.Result) -> None:
     assert sp[0].window[0] == pytest.approx(0.005)
 
 
+@pytest.mark.parametrize("value", ["yes", 1, 0.0])
+def test_rms_is_true_false_or_none(value: object) -> None:
+    with pytest.raises(InputError, match=r"^rms: .* allowed True, False or None$"):
+        braidsim.simulate(SC, 0.001, series=False, rms=value)  # type: ignore[arg-type]
+
+
 def test_sample_times_accept_unit_strings() -> None:
     a = braidsim.simulate(SC, 0.01, sample_times=["1 ms", "2 ms"], record_events=False)
     np.testing.assert_array_equal(a.series["t"], [0.001, 0.002])

@@ -485,6 +485,31 @@ def test_the_dissipation_quadratures_alone_give_the_impact_table_of_the_full_run
     assert np.isfinite(rest).all()
 
 
+@pytest.mark.parametrize("integrator", ["dormand-prince", "taylor"])
+def test_the_rms_of_x_is_integrated_where_asked_and_changes_no_bit(integrator: str) -> None:
+    """The lean path integrates no x^2 unless ``rms=True``; asked for, its RMS is the full
+    run's to the bit, and with it or without the impacts, ranges and final state are the
+    same bits (the recorder only reads the motion)."""
+    sc = load_scenario("paper-3.3").with_overrides({"simulation.integrator": integrator})
+    windows = [(0.01, 0.05)]
+    lean = simulate(sc, 0.1, series=False, windows=windows)
+    asked = simulate(sc, 0.1, series=False, windows=windows, rms=True)
+    whole = simulate(sc, 0.1, windows=windows)
+    without = simulate(sc, 0.1, windows=windows, rms=False)
+    assert lean.rms_x is None and without.rms_x is None
+    assert asked.rms_x is not None and whole.rms_x is not None
+    np.testing.assert_array_equal(asked.rms_x, whole.rms_x)
+    assert asked.rms_x.shape == (2,) and np.all(asked.rms_x > 0.0)
+    pd.testing.assert_frame_equal(lean.impacts, asked.impacts)
+    pd.testing.assert_frame_equal(whole.impacts, without.impacts)
+    np.testing.assert_array_equal(lean.ranges, asked.ranges)
+    np.testing.assert_array_equal(whole.ranges, without.ranges)
+    np.testing.assert_array_equal(lean.final_state.y, asked.final_state.y)  # (NaN: not integrated)
+    assert lean.final_state.t == asked.final_state.t
+    for name in whole.series:
+        np.testing.assert_array_equal(whole.series[name], without.series[name])
+
+
 @pytest.mark.parametrize("dof", ["x", "xy"])
 def test_gaps_along_rows_are_the_per_row_gaps_to_the_bit(dof: str) -> None:
     """One compiled call over many rows gives what the model's pair_gaps gives row by row

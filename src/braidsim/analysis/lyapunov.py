@@ -202,7 +202,7 @@ class CarrierFlow:
 
         model = dataclasses.replace(self.full, duration=float(tau))
         W = np.array([[state.t, state.t + tau]])
-        raw = run_model(model, windows=W, series=False, record_events=False, start=state)
+        raw = run_model(model, windows=W, series=False, record_events=False, start=state, xsq=False)
         return final_state(raw)
 
     def _components(self) -> tuple[int, ...]:

@@ -861,7 +861,7 @@ def simulate_state(
         from braidsim.simulate import final_state, run_model
 
         model = build_model(system.scenario_at(values), t_end)
-        raw = run_model(model, series=False, record_events=False, energy=False)
+        raw = run_model(model, series=False, record_events=False, energy=False, xsq=False)
         fs = final_state(raw)
         n = 2 * prep.n_coords
         m = (fs.track_mode, fs.slot_mode)
