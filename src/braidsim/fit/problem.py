@@ -50,7 +50,7 @@ of a measurement, and they need no support from the core.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -254,17 +254,29 @@ class Problem:
 
     def residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
         """Record residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""
+        return self._evaluate(u, jac, self._record_r, self._record_J_exact)
+
+    def _evaluate(
+        self,
+        u: np.ndarray,
+        jac: bool,
+        r_of: Callable[[Result], np.ndarray],
+        J_exact_of: Callable[[Result, np.ndarray], np.ndarray],
+    ) -> Evaluation:
+        """The residuals ``r_of(run)`` of the run at ``u`` and, with ``jac``, their Jacobian:
+        exact from the run's sensitivities (``J_exact_of``) where the problem allows them
+        and they succeed, else by finite differences."""
         u = np.asarray(u, dtype=float)
         if jac and self.exact:
             try:
                 res = self.run(u, sensitivities=True)
-                return Evaluation(u, self._record_r(res), self._record_J_exact(res, u), res)
+                return Evaluation(u, r_of(res), J_exact_of(res, u), res)
             except SimulationError as exc:
                 if not self._exact_failed(exc):
                     raise
         res = self.run(u)
-        r = self._record_r(res)
-        J = self._fd(u, lambda v: self._record_r(self.run(v)), r) if jac else None
+        r = r_of(res)
+        J = self._fd(u, lambda v: r_of(self.run(v)), r) if jac else None
         return Evaluation(u, r, J, res)
 
     # -- events ----------------------------------------------------------------------------
@@ -320,18 +332,7 @@ class Problem:
 
     def event_residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
         """Event residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""
-        u = np.asarray(u, dtype=float)
-        if jac and self.exact:
-            try:
-                res = self.run(u, sensitivities=True)
-                return Evaluation(u, self._event_r(res), self._event_J_exact(res, u), res)
-            except SimulationError as exc:
-                if not self._exact_failed(exc):
-                    raise
-        res = self.run(u)
-        r = self._event_r(res)
-        J = self._fd(u, lambda v: self._event_r(self.run(v)), r) if jac else None
-        return Evaluation(u, r, J, res)
+        return self._evaluate(u, jac, self._event_r, self._event_J_exact)
 
     @property
     def has_events(self) -> bool:
