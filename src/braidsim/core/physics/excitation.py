@@ -125,6 +125,20 @@ class HornGear(NamedTuple):
     profile_integral: np.ndarray  # int of omega from profile_times[0] to each time [rad]
 
 
+@inline_helper
+def _profile_segment(tau, pt, period):
+    """(k, j, dt) of the periodic profile with times ``pt``: the whole periods k in tau (time
+    from the profile start), the piece [pt[j], pt[j + 1]] that holds the rest, and the time
+    dt into that piece."""
+    npf = pt.shape[0]
+    k = math.floor(tau / period)
+    tau -= k * period
+    j = 0
+    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
+        j += 1
+    return k, j, tau - (pt[j] - pt[0])
+
+
 @helper
 def _profile_integral(tau, hg, period):
     """(omega, int of the periodic piecewise-linear omega from the profile start over tau)."""
@@ -132,12 +146,7 @@ def _profile_integral(tau, hg, period):
     pw = hg.profile_speeds
     pi_ = hg.profile_integral
     npf = pt.shape[0]
-    k = math.floor(tau / period)
-    tau -= k * period
-    j = 0
-    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
-        j += 1
-    dt = tau - (pt[j] - pt[0])
+    k, j, dt = _profile_segment(tau, pt, period)
     w0 = pw[j]
     slope = (pw[j + 1] - w0) / (pt[j + 1] - pt[j])
     om = w0 + slope * dt
@@ -148,13 +157,7 @@ def _profile_integral(tau, hg, period):
 def _profile_piece(tau, hg, period):
     """Index j of the piece [pt[j], pt[j+1]] of the periodic profile that holds tau (time
     from the profile start, reduced to one period here)."""
-    pt = hg.profile_times
-    npf = pt.shape[0]
-    tau -= math.floor(tau / period) * period
-    j = 0
-    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
-        j += 1
-    return j
+    return _profile_segment(tau, hg.profile_times, period)[1]
 
 
 @inline_helper
@@ -207,12 +210,7 @@ def _profile_integral_jvp(tau, hg, dhg, period):
     dpw = dhg.profile_speeds
     dpi = dhg.profile_integral
     npf = pt.shape[0]
-    k = math.floor(tau / period)
-    tau -= k * period
-    j = 0
-    while j < npf - 2 and pt[j + 1] - pt[0] <= tau:
-        j += 1
-    dt = tau - (pt[j] - pt[0])
+    k, j, dt = _profile_segment(tau, pt, period)
     dslope = (dpw[j + 1] - dpw[j]) / (pt[j + 1] - pt[j])
     return dpw[j] + dslope * dt, k * dpi[npf - 1] + dpi[j] + dpw[j] * dt + 0.5 * dslope * dt * dt
 
