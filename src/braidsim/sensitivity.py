@@ -403,6 +403,21 @@ class FlowMap:
         return M
 
 
+def _contact_state(
+    modes: Sequence[int], v0s: Sequence[float]
+) -> tuple[tuple[int, int], np.ndarray]:
+    """The contact modes and latched speeds a flow map starts from, checked: each mode -1,
+    0 or +1, and a speed > 0 for a pair in contact."""
+    modes_t = (int(modes[0]), int(modes[1]))
+    v0a = np.array(v0s, dtype=float).reshape(2)
+    for p in range(2):
+        if modes_t[p] not in (-1, 0, 1):
+            raise InputError(f"flow_map: modes[{p}] = {modes_t[p]}; allowed -1, 0, +1")
+        if modes_t[p] != 0 and not (v0a[p] > 0):
+            raise InputError(f"flow_map: v0s[{p}] must be > 0 m/s for a pair in contact")
+    return modes_t, v0a
+
+
 def flow_map(
     scenario: Scenario | str | Mapping[str, Any],
     t0: float,
@@ -447,13 +462,7 @@ def flow_map(
             raise InputError(f"flow_map: y0 needs {n} finite entries, got {ya.shape}")
         y[:n] = ya
         y[n:] = 0.0
-    modes_t = (int(modes[0]), int(modes[1]))
-    v0a = np.array(v0s, dtype=float).reshape(2)
-    for p in range(2):
-        if modes_t[p] not in (-1, 0, 1):
-            raise InputError(f"flow_map: modes[{p}] = {modes_t[p]}; allowed -1, 0, +1")
-        if modes_t[p] != 0 and not (v0a[p] > 0):
-            raise InputError(f"flow_map: v0s[{p}] must be > 0 m/s for a pair in contact")
+    modes_t, v0a = _contact_state(modes, v0s)
     # directions: the n state components, the 2 latched speeds, the keys
     dirs = directions(model, keys) if keys else None
     zero = zero_tangent(model.record)
@@ -641,13 +650,7 @@ def record_flow_map(
     ya = np.asarray(y0, dtype=float)
     if ya.shape != (n,) or not np.all(np.isfinite(ya)):
         raise InputError(f"flow_map: y0 needs {n} finite entries, got {ya.shape}")
-    modes_t = (int(modes[0]), int(modes[1]))
-    v0a = np.array(v0s, dtype=float).reshape(2)
-    for p in range(2):
-        if modes_t[p] not in (-1, 0, 1):
-            raise InputError(f"flow_map: modes[{p}] = {modes_t[p]}; allowed -1, 0, +1")
-        if modes_t[p] != 0 and not (v0a[p] > 0):
-            raise InputError(f"flow_map: v0s[{p}] must be > 0 m/s for a pair in contact")
+    modes_t, v0a = _contact_state(modes, v0s)
     zero = zero_tangent(record)
     records = [zero] * (n + 2)
     scale = np.ones(n + 2 + len(keys))
