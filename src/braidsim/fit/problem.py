@@ -79,6 +79,18 @@ def exact_available() -> bool:
     return True
 
 
+def _exact_jacobian(jacobian: str) -> bool:
+    """Whether a problem uses the exact Jacobian for ``fit.jacobian`` = ``jacobian``
+    ("exact", "auto" or "fd"): "auto" where the installation has the forward sensitivities;
+    "exact" without them is refused."""
+    if jacobian == "exact" and not exact_available():
+        raise InputError(
+            "fit.jacobian: 'exact' needs the simulator's forward sensitivities, which this "
+            "installation lacks; allowed auto or fd"
+        )
+    return jacobian == "exact" or (jacobian == "auto" and exact_available())
+
+
 def model_acceleration(res: Result) -> np.ndarray:
     """The carrier's acceleration dvx/dt [m/s^2] on the rows of ``res.series``:
     a_x = (-F_c - f_x - F_x - m r_c omega^2) / m, the equation of motion of the core."""
@@ -160,12 +172,7 @@ class Problem:
         self.sigma = sig
         self.data = np.concatenate([record.columns[q] / sig[q] for q in self.quantities])
         self.n_t = record.t.size
-        if jacobian == "exact" and not exact_available():
-            raise InputError(
-                "fit.jacobian: 'exact' needs the simulator's forward sensitivities, which this "
-                "installation lacks; allowed auto or fd"
-            )
-        self.exact = jacobian == "exact" or (jacobian == "auto" and exact_available())
+        self.exact = _exact_jacobian(jacobian)
         self.jacobian_choice = jacobian
         self.notes: set[str] = set()
         # impact onsets of the record, from its first acceleration or force column
@@ -452,12 +459,7 @@ class ImpactProblem(Problem):
             sig[q] = float(s) if s > 0 else 1e-9
         self.sigma = sig
         self.duration = 1.2 * record.duration + 0.01
-        if jacobian == "exact" and not exact_available():
-            raise InputError(
-                "fit.jacobian: 'exact' needs the simulator's forward sensitivities, which this "
-                "installation lacks; allowed auto or fd"
-            )
-        self.exact = jacobian == "exact" or (jacobian == "auto" and exact_available())
+        self.exact = _exact_jacobian(jacobian)
         self.jacobian_choice = jacobian
         self.notes: set[str] = set()
         self.event_quantity = None
