@@ -145,20 +145,7 @@ def _target(path: str | Path) -> Path:
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file in the same folder + rename);
     a symbolic link at ``path`` is followed."""
-    p = _target(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale(p)
-    fd, tmp = tempfile.mkstemp(prefix=_prefix(p), suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, FILE_MODE)  # mkstemp makes 0600; outputs are ordinary files
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    WRITTEN.append(p)
-    return p
+    return atomic_write_with(path, lambda tmp: tmp.write_bytes(data))
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:
@@ -166,7 +153,7 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
     return atomic_write_bytes(path, text.encode("utf-8"))
 
 
-def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
+def atomic_write_with(path: str | Path, writer: Callable[[Path], object]) -> Path:
     """Let ``writer(tmp_path)`` produce a file (e.g. ``fig.savefig``), then rename it into
     place; a symbolic link at ``path`` is followed."""
     p = _target(path)
@@ -176,7 +163,7 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], None]) -> Path:
     os.close(fd)
     try:
         writer(Path(tmp))
-        os.chmod(tmp, FILE_MODE)
+        os.chmod(tmp, FILE_MODE)  # mkstemp makes 0600; outputs are ordinary files
         os.replace(tmp, p)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
