@@ -244,12 +244,11 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
     failure : str
         "" for a run that finished, else the reason (what failed, when, what to change).
     """
-    T = model.duration
     t0, t1 = _window_of(model, opts)
     # the energy integrals are read at the window's ends; the RMS of x comes from the kernel
     edges = np.array([t0, t1])
     st = np.union1d(edges, opts.series_times) if opts.series_times.size else edges
-    W = np.array([[0.0, T], [t0, t1]])
+    W = np.array([[t0, t1]])  # (the metrics' window alone: its ranges and x^2 integral)
     values = np.full(len(METRICS), math.nan)
     series = np.full((len(opts.series), opts.series_times.size), math.nan) if opts.series else None
     try:
@@ -273,10 +272,10 @@ def run_metrics(model: Model, opts: RunOptions) -> tuple[np.ndarray, np.ndarray 
     )
     fw = rows[:, _COL["friction_work_x"]] + rows[:, _COL["friction_work_y"]]
     values[METRIC_INDEX["friction_work"]] = fw[i1] - fw[i0]
-    values[METRIC_INDEX["rms_x"]] = math.sqrt(xsq[1] / (t1 - t0))
+    values[METRIC_INDEX["rms_x"]] = math.sqrt(xsq[0] / (t1 - t0))
     for ip, pair in enumerate(("track", "slot")):
-        depth = R[1, ip, 0]
-        force = R[1, ip, 3]
+        depth = R[0, ip, 0]
+        force = R[0, ip, 3]
         values[METRIC_INDEX[f"{pair}_max_depth"]] = max(0.0, -depth[0], depth[1])
         values[METRIC_INDEX[f"{pair}_max_contact_force"]] = max(0.0, -force[0], force[1])
     values[METRIC_INDEX["final_x"]] = y[0]
