@@ -506,7 +506,8 @@ def simulate(
     W = run_windows(t_start, T, windows)
     # a series kept in memory is collected column by column from the solver's chunks, so
     # that it is held once (not as chunks and again as their concatenation)
-    columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS]
+    kept_here = series is True and tangents is None  # (else the driver keeps or streams them)
+    columns: list[list[np.ndarray]] = [[] for _ in CARRIER_COLUMNS] if kept_here else []
 
     def keep(chunk: np.ndarray) -> None:
         for i, col in enumerate(columns):
@@ -517,7 +518,7 @@ def simulate(
         sample_times=st,
         windows=W,
         # the series' tangents come back with the rows kept by the driver
-        series=(True if tangents is not None else keep) if series is True else series,
+        series=keep if kept_here else series,
         in_memory=series is True,  # a SeriesSink of the caller streams the rows away
         record_events=record_events and series is not False,
         # the lean path integrates only the energy the impact table reports
