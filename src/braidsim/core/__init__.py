@@ -21,10 +21,6 @@ This package is the only way into the compiled code: the rest of braidsim import
 here (``braidsim.core`` and its public modules), never from ``braidsim.core.solver``.
 """
 
-import warnings
-
-from numba.core.errors import NumbaIRAssumptionWarning
-
 from braidsim import startup
 from braidsim.core import layout
 from braidsim.core.driver import RawRun, SeriesOverflow, run, state_size
@@ -48,12 +44,6 @@ from braidsim.core.physics import (
 )
 from braidsim.core.physics.excitation import horn_gear_state
 from braidsim.core.solver.pairs import contact_quantities, gaps_along
-
-# numba's IR inlining of the generic functions (braidsim.core.generic) trips a pedantic
-# internal SSA check that numba itself describes as such; the compiled code is unaffected
-# (the solver's tests compare it with closed forms and with the first kernel's bits).
-# Compilation happens at the first call, after this.
-warnings.filterwarnings("ignore", category=NumbaIRAssumptionWarning)
 
 # A process that runs braidsim alone (the command line) loads cached functions without
 # numba's registries (braidsim.startup); nothing above calls a compiled function.

@@ -28,7 +28,7 @@ from llvmlite import binding as llvm_binding
 from numba import njit, types
 from numba.core import cgutils, compiler
 from numba.core import config as numba_config
-from numba.core.caching import CompileResultCacheImpl, FunctionCache
+from numba.core.caching import CompileResultCacheImpl, FunctionCache, NullCache
 from numba.core.codegen import JITCodeLibrary
 from numba.core.dispatcher import _FunctionCompiler  # type: ignore[attr-defined]
 from numba.core.imputils import impl_ret_borrowed, lower_getattr_generic
@@ -174,7 +174,15 @@ class _LinkOnlyCompiler(_FunctionCompiler):
 
 
 class _LinkOnlyCacheImpl(CompileResultCacheImpl):
-    """numba's cache of compile results, rebuilding a helper's library from its IR."""
+    """numba's cache of compile results, rebuilding a helper's library from its IR.
+
+    Its files are named apart from those of an ordinary compile of the same function (numba
+    names them by the function alone, and keys their entries by signature, not by kind): an
+    :func:`inline_helper` has both, the link-only one for compiled callers and its Python
+    twin."""
+
+    def get_filename_base(self, fullname: str, abiflags: str) -> str:
+        return super().get_filename_base(fullname, abiflags) + ".link"
 
     def rebuild(self, target_context: Any, payload: Any) -> Any:
         if payload[0][1] != LINK_ONLY:
@@ -224,8 +232,12 @@ class CompiledOnly(CPUDispatcher):
     it raises instead; tests call a helper through a function compiled for it.
     """
 
-    def __init__(self, *args: Any, always_inline: bool = False, **kws: Any) -> None:
+    def __init__(
+        self, *args: Any, always_inline: bool = False, python_twin: bool = False, **kws: Any
+    ) -> None:
         super().__init__(*args, **kws)
+        self._python_twin = python_twin
+        self._twin: Any = None
         if _LINK_ONLY_OK:
             c: Any = self._compiler  # type: ignore[has-type]
             self._compiler = _LinkOnlyCompiler(
@@ -240,6 +252,12 @@ class CompiledOnly(CPUDispatcher):
             super().enable_caching()
 
     def __call__(self, *args: Any, **kws: Any) -> Any:
+        if self._python_twin:
+            if self._twin is None:  # compiled (or loaded from the cache) at the first call
+                cache = self._cache.__class__ is not NullCache
+                twin = njit(cache=cache, error_model="numpy", _nrt=False)  # type: ignore[call-overload]
+                self._twin = twin(self.py_func)
+            return self._twin(*args, **kws)
         raise TypeError(
             f"{self.py_func.__qualname__} is compiled to be called from the solver's compiled "
             "code only; call it from a function compiled with numba"
@@ -247,14 +265,16 @@ class CompiledOnly(CPUDispatcher):
 
 
 @overload_type
-def helper(func: F, *, always_inline: bool = False) -> F: ...
+def helper(func: F, *, always_inline: bool = False, python_twin: bool = False) -> F: ...
 
 
 @overload_type
-def helper(func: None = None, *, always_inline: bool = False) -> Callable[[F], F]: ...
+def helper(
+    func: None = None, *, always_inline: bool = False, python_twin: bool = False
+) -> Callable[[F], F]: ...
 
 
-def helper(func: Any = None, *, always_inline: bool = False) -> Any:
+def helper(func: Any = None, *, always_inline: bool = False, python_twin: bool = False) -> Any:
     """Compile ``func`` as a helper of the compiled core (``@helper`` or
     ``@helper(always_inline=True)``).
 
@@ -275,9 +295,12 @@ def helper(func: Any = None, *, always_inline: bool = False) -> Any:
     1.20-1.22 instead of 1.44 ms, results bit-identical. The cold compile stayed within its
     spread (10.6-11.3 against 10.3-11.3 s, five alternated pairs): numba compiles the
     helper once either way.
+
+    ``python_twin``: a call from Python runs an ordinary compile of the same function, made
+    (or loaded from numba's cache) at the first such call, instead of raising.
     """
     if func is None:
-        return lambda f: helper(f, always_inline=always_inline)
+        return lambda f: helper(f, always_inline=always_inline, python_twin=python_twin)
     if getattr(numba_config, "DISABLE_JIT", False):  # numba's switch to run plain Python
         return func
     disp = CompiledOnly(
@@ -291,15 +314,28 @@ def helper(func: Any = None, *, always_inline: bool = False) -> Any:
             "no_cfunc_wrapper": True,
         },
         always_inline=always_inline,
+        python_twin=python_twin,
     )
-    disp.enable_caching()
+    try:
+        disp.enable_caching()
+    except RuntimeError:  # no file to cache it by (typed at a prompt): compiled per process
+        pass
     return disp
 
 
-# ``_nrt`` is numba's switch for reference counting; its type stubs do not list it
-inline_helper = njit(  # the smallest, hottest ones are inlined into their callers
-    cache=True, error_model="numpy", inline="always", _nrt=False
-)  # type: ignore[call-overload]
+def inline_helper(func: F) -> F:
+    """Compile ``func`` as a small helper that LLVM inlines into every compiled caller
+    (:func:`helper` with ``always_inline``), callable from Python as well (its twin).
+
+    These were numba's own inlined functions (``inline="always"``), whose numba IR numba
+    copies into each caller, and types and lowers there again, at every call site; as
+    helpers numba compiles each once (per argument types), and LLVM inlines them with the
+    same machine code as a result (the impact tables, series, statistics and sensitivities
+    of 7 scenarios with each integrator bit-identical, and the runs as fast). With these and
+    the generic functions' implementations so compiled, the cold ``braidsim run paper-3.3
+    --json`` took 7.5-7.7 s of CPU instead of 9.1-9.8 s (2-core development machine), with
+    Taylor steps 12.2 s instead of 18.4-19.8 s."""
+    return helper(func, always_inline=True, python_twin=True)
 
 
 def overload_inlined(stub: Callable[..., Any], typer: Callable[..., Any]) -> None:
@@ -440,74 +476,58 @@ class GenericFunction:
         self.name = stub.__name__
         self.__doc__ = stub.__doc__
         self.params = list(inspect.signature(stub).parameters)
-        # the implementation per record class: the Python function of an inlined one (its
-        # compiled function, for calls from Python, in _compiled), the helper of a called one
+        self.inline = inline
+        # the implementation per record class as registered (a Python function), and the
+        # helper compiled from it that compiled callers call (made at its first use)
         self.impls: dict[type, Any] = {}
-        self._compiled: dict[type, Any] = {}
+        self._helpers: dict[type, Any] = {}
         # The typing function must have the stub's own parameters (numba matches them by
-        # name), so it is written out for this signature. An inlined implementation is
-        # handed to numba as the overload itself (its parameters are named as the stub's);
-        # one that is called goes through a wrapper that calls its compiled function.
+        # name), so it is written out for this signature; the stub's call becomes a call of
+        # the helper, through a wrapper that numba inlines (one call, cheap to inline).
         args = ", ".join(self.params)
         src = (
             f"def typer({args}):\n"
-            f"    fn = impls.get(record_class({self.params[0]}))\n"
-            f"    if fn is None or inline:\n"
-            f"        return fn\n"
+            f"    fn = helper_for(record_class({self.params[0]}))\n"
+            f"    if fn is None:\n"
+            f"        return None\n"
             f"    def impl({args}):\n"
             f"        return fn({args})\n"
             f"    return impl\n"
         )
-        # impls: the Python functions when inlined, their compiled functions when called
-        self._overloads: dict[type, Any] = {}
-        namespace: dict[str, Any] = {
-            "impls": self._overloads,
-            "inline": inline,
-            "record_class": record_class,
-        }
+        namespace: dict[str, Any] = {"helper_for": self._helper_for, "record_class": record_class}
         exec(src, namespace)  # a fixed template over the stub's parameter names
-        if inline:
-            overload_inlined(stub, namespace["typer"])
-        else:
-            overload(stub, inline="never")(namespace["typer"])
-        self.inline = inline
+        overload_inlined(stub, namespace["typer"])
 
     def register(self, cls: type) -> Callable[[F], F]:
-        """Decorator: ``fn`` implements this generic function for records of class ``cls``."""
+        """Decorator: ``fn`` implements this generic function for records of class ``cls``
+        (its parameters in the declaration's order)."""
 
         def deco(fn: F) -> F:
             if cls in self.impls:
                 raise TypeError(f"{self.name} is already defined for {cls.__name__}")
-            names = list(inspect.signature(fn).parameters)
-            if self.inline and names != self.params:
-                # numba inlines the implementation in place of the stub: same names
-                raise TypeError(
-                    f"{fn.__name__} implements {self.name}: its parameters must be named "
-                    f"({', '.join(self.params)}), not ({', '.join(names)})"
-                )
-            if self.inline:
-                # handing numba the Python function itself saves a level of inlining: the
-                # wrapper's IR copied and typed at every call site was ~5 s of a 40-s cold
-                # compile. Its own compiled function serves calls from Python only, and is
-                # made at the first (a dispatcher costs ~0.2 ms of every start otherwise).
-                self.impls[cls] = fn
-                self._overloads[cls] = fn
-            else:
-                self.impls[cls] = self._overloads[cls] = helper(fn)
+            self.impls[cls] = fn
             return fn
 
         return deco
+
+    def _helper_for(self, cls: Any) -> Any:
+        """The helper of ``cls``'s implementation (None if it has none), made at its first
+        use: a dispatcher costs about 0.2 ms of every start, and a run uses few of them."""
+        compiled = self._helpers.get(cls)
+        if compiled is None and cls in self.impls:
+            fn = self.impls[cls]
+            # inlined: LLVM inlines it into every caller (inline_helper); else a call, a
+            # helper that compiled code alone can call
+            compiled = self._helpers[cls] = inline_helper(fn) if self.inline else helper(fn)
+        return compiled
 
     def implementation(self, cls: type) -> Any:
         """The compiled implementation registered for ``cls``: callable from Python for an
         inlined generic function; for one declared ``inline=False`` a helper that only
         compiled code can call (:class:`CompiledOnly`)."""
-        if not self.inline:
-            return self.impls[cls]
-        compiled = self._compiled.get(cls)
-        if compiled is None:
-            compiled = self._compiled[cls] = inline_helper(self.impls[cls])
-        return compiled
+        if cls not in self.impls:
+            raise KeyError(f"{self.name} has no implementation for {cls.__name__}")
+        return self._helper_for(cls)
 
     def py(self, *args: Any) -> Any:
         """Call from Python (tests, the SciPy reference backend): the implementation of the
@@ -523,20 +543,21 @@ class GenericFunction:
         run: the compiled call would first load one more library from numba's cache in every
         process, for a tuple of constants (a warm ``braidsim run`` took 0.96 times as long
         without it: 15 alternated pairs)."""
-        impl = self.impls[type(args[0])]
-        return getattr(impl, "py_func", impl)(*args)  # (a helper's Python function)
+        return self.impls[type(args[0])](*args)
 
 
 def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> Any:
     """Declare a generic function of the compiled core (see the module docstring).
 
-    The implementations are inlined into their callers (numba IR inlining) unless
-    ``inline=False``: numba passes a record to a function it calls as one argument per
+    Each implementation is compiled once per argument types as an :func:`inline_helper`,
+    which LLVM inlines into every caller, unless ``inline=False`` (then a :func:`helper`
+    that stays a call): numba passes a record to a function it calls as one argument per
     field (the carrier's are about 65 with its tables), which cost more than the work of
     the small functions here. Measured on paper-3.3: 193 ns per right-hand-side evaluation
-    with calls, 134 ns inlined (an inlined implementation is typed, never compiled alone:
-    see :func:`overload_inlined`). The solver's own helpers, which are called, get the
-    model as a :class:`RecordRef` (:func:`by_ref`) instead.
+    with calls, 134 ns inlined. (Until 2026-11-29 they were inlined as numba IR, typed and
+    lowered again at every call site: the same machine code, and 0.7 s more of the 9.3-s
+    cold compile of ``simulate("paper-3.3", series=False)``.) The solver's own helpers,
+    which are called, get the model as a :class:`RecordRef` (:func:`by_ref`) instead.
 
     Returns the stub itself (compiled code resolves calls to it by name), carrying
     ``register``, ``implementation``, ``py`` and ``plain`` of its :class:`GenericFunction`."""
