@@ -187,7 +187,7 @@ def test_cache_loads_without_refresh(tmp_path: Path) -> None:
 _HELPER_MODULE = """
 import numpy as np
 from numba import njit
-from braidsim.core.generic import helper
+from braidsim.core.generic import helper, inline_helper
 
 @helper
 def scaled_sum(a, s):
@@ -218,6 +218,17 @@ def third(a):
 @njit(cache=True)
 def fourth(a):
     return scaled_sum_inlined(a, 4.0)
+
+@inline_helper
+def twin_sum(a, s):
+    acc = 0.0
+    for i in range(a.shape[0]):
+        acc += s * a[i]
+    return acc
+
+@njit(cache=True)
+def fifth(a):
+    return twin_sum(a, 5.0)
 
 def inlined_everywhere(helper, caller):
     # the helper's IR carries the attribute, and the caller's optimised code (its first
@@ -268,6 +279,37 @@ def test_helpers_are_link_only_and_load_from_cache(tmp_path: Path) -> None:
         "m.inlined_everywhere(m.scaled_sum_inlined, m.fourth)\n"
         "(cres,) = m.scaled_sum.overloads.values()\n"
         "assert type(cres.library).__name__ == '_LinkOnlyLibrary'\n"
+    )
+
+
+def test_an_inline_helper_and_its_python_twin_cache_apart(tmp_path: Path) -> None:
+    """An :func:`~braidsim.core.generic.inline_helper` is a link-only helper for compiled
+    callers and an ordinary compiled function for calls from Python (its twin). numba names
+    a function's cache files by the function alone and keys their entries by argument
+    types, so the two of one signature would overwrite each other's entry and load the
+    wrong kind; the link-only files are named apart. Both load from the cache in a later
+    process, in either order, and compute the same."""
+    folder = str(tmp_path)
+    (tmp_path / "helper_mod.py").write_text(_HELPER_MODULE)
+    env_code = f"import os, sys\nos.environ['NUMBA_CACHE_DIR'] = {folder + '/cache'!r}\n"
+    env_code += f"sys.path.insert(0, {folder!r})\n"
+    _python(
+        env_code + "import numpy as np\n"
+        "import helper_mod as m\n"
+        "assert m.twin_sum(np.arange(4.0), 2.0) == 12.0\n"  # the twin first
+        "assert m.fifth(np.arange(4.0)) == 30.0\n"
+        "assert not m.twin_sum.stats.cache_hits and not m.fifth.stats.cache_hits\n"
+        "m.inlined_everywhere(m.twin_sum, m.fifth)\n"
+    )
+    names = sorted(p.name for p in (tmp_path / "cache").rglob("*twin_sum*.nbi"))
+    assert len(names) == 2 and sum(".link." in n for n in names) == 1, names
+    _python(
+        env_code + "import numpy as np\n"
+        "import helper_mod as m\n"
+        "assert m.fifth(np.arange(4.0)) == 30.0\n"  # the compiled caller first
+        "assert m.twin_sum(np.arange(4.0), 2.0) == 12.0\n"
+        "assert m.fifth.stats.cache_hits and not m.fifth.stats.cache_misses\n"
+        "assert m.twin_sum._twin.stats.cache_hits and not m.twin_sum._twin.stats.cache_misses\n"
     )
 
 
