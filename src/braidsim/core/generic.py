@@ -550,10 +550,10 @@ def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> A
     """Declare a generic function of the compiled core (see the module docstring).
 
     Each implementation is compiled once per argument types as an :func:`inline_helper`,
-    which LLVM inlines into every caller, unless ``inline=False`` (then a :func:`helper`
-    that stays a call): numba passes a record to a function it calls as one argument per
-    field (the carrier's are about 65 with its tables), which cost more than the work of
-    the small functions here. Measured on paper-3.3: 193 ns per right-hand-side evaluation
+    which LLVM inlines into every caller, unless ``inline=False`` (then a :func:`helper`,
+    which LLVM inlines only where its cost model finds it cheap): numba passes a record to
+    a function it calls as one argument per field (the carrier's are about 65 with its
+    tables), which cost more than the work of the small functions here. Measured on paper-3.3: 193 ns per right-hand-side evaluation
     with calls, 134 ns inlined. (Until 2026-11-29 they were inlined as numba IR, typed and
     lowered again at every call site: the same machine code, and 0.7 s more of the 9.3-s
     cold compile of ``simulate("paper-3.3", series=False)``.) The solver's own helpers,
