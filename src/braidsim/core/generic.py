@@ -553,11 +553,12 @@ def generic(stub: Callable[..., Any] | None = None, *, inline: bool = True) -> A
     which LLVM inlines into every caller, unless ``inline=False`` (then a :func:`helper`,
     which LLVM inlines only where its cost model finds it cheap): numba passes a record to
     a function it calls as one argument per field (the carrier's are about 65 with its
-    tables), which cost more than the work of the small functions here. Measured on paper-3.3: 193 ns per right-hand-side evaluation
-    with calls, 134 ns inlined. (Until 2026-11-29 they were inlined as numba IR, typed and
-    lowered again at every call site: the same machine code, and 0.7 s more of the 9.3-s
-    cold compile of ``simulate("paper-3.3", series=False)``.) The solver's own helpers,
-    which are called, get the model as a :class:`RecordRef` (:func:`by_ref`) instead.
+    tables), which cost more than the work of the small functions here. Measured on
+    paper-3.3: 193 ns per right-hand-side evaluation with calls, 134 ns inlined. (Until
+    2026-11-29 they were inlined as numba IR, typed and lowered again at every call site:
+    the same machine code, and 0.7 s more of the 9.3-s cold compile of
+    ``simulate("paper-3.3", series=False)``.) The solver's own helpers, which are called,
+    get the model as a :class:`RecordRef` (:func:`by_ref`) instead.
 
     Returns the stub itself (compiled code resolves calls to it by name), carrying
     ``register``, ``implementation``, ``py`` and ``plain`` of its :class:`GenericFunction`."""
