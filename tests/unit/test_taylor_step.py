@@ -90,6 +90,50 @@ def test_elastic_power_law_impact_closed_form(n: float, onset: bool) -> None:
     assert abs(ep["dissipated_energy"]) < 1e-12
     assert raw.stats[0]["taylor_steps"] > 10
     assert raw.stats[0]["onset_steps"] == (1 if onset and n != 2.3 else 0)
+    # the deepest point half-way through the contact, whose duration is
+    # 2 (p_m / v) int_0^1 du / sqrt(1 - u^(n+1)) = 2 (p_m / v) sqrt(pi) G(1 + a) / G(1/2 + a),
+    # a = 1 / (n + 1); the extremes are found on the Taylor step's series
+    a = 1.0 / n1
+    half = (p_m / v) * math.sqrt(math.pi) * math.gamma(1.0 + a) / math.gamma(0.5 + a)
+    assert ep["t_end"] - ep["t"] == pytest.approx(2.0 * half, rel=1e-9)
+    assert ep["t_max_depth"] - ep["t"] == pytest.approx(half, rel=1e-8)
+    assert ep["t_peak_force"] - ep["t"] == pytest.approx(half, rel=1e-8)
+
+
+def test_the_turn_of_a_series_is_found_on_its_polynomial() -> None:
+    """``series_extreme``: the root of a polynomial's slope in a step, by Newton's method
+    from the secant, against closed forms; -1 where the slope does not go from > 0 to <= 0
+    (the caller then refines on the interpolant)."""
+    from numba import njit
+
+    from braidsim.core.solver.recorders import series_extreme
+
+    @njit
+    def turn(A, m, sign, h):  # (a helper is called from compiled code)
+        return series_extreme(A, m, sign, h)
+
+    h = 2e-4
+    # q = -(tau - tau0)^2 (tau + c): q' = -(tau - tau0) (3 tau + 2 c - tau0), one root in (0, h)
+    tau0, c = 0.37 * h, 0.5 * h
+    A = np.zeros(13)
+    A[:4] = (
+        np.polynomial.polynomial.polymul(
+            np.polynomial.polynomial.polymul([-tau0, 1.0], [-tau0, 1.0]), [c, 1.0]
+        )
+        * -1.0
+    )
+    assert turn(A, 12, 1.0, h) == pytest.approx(0.37, abs=1e-15)
+    # a sine's series, sin(w tau + phi), its maximum at w tau = pi/2 - phi
+    w, phi = 3000.0, 0.4
+    A = np.array([w**k / math.factorial(k) * math.sin(phi + k * math.pi / 2) for k in range(25)])
+    theta = turn(A, 24, 1.0, 1e-3)
+    assert theta * 1e-3 == pytest.approx((math.pi / 2 - phi) / w, rel=1e-13)
+    # a minimum of -sin (sign -1): the same turn
+    assert turn(-A, 24, -1.0, 1e-3) == theta
+    # no turn inside: rising throughout, or falling from the start
+    assert turn(A, 24, 1.0, 1e-4) == -1.0
+    assert turn(-A, 24, 1.0, 1e-3) == -1.0
+    assert turn(A, 1, 1.0, 1e-3) == -1.0
 
 
 @pytest.mark.parametrize("name", ["hunt_crossley", "lankarani_nikravesh", "flores"])

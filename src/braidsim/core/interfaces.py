@@ -311,6 +311,16 @@ def model_series(model, k, modes, v0s, n_state, C, W):
     raise NotImplementedError
 
 
+@generic
+def pair_series_rows(model, pair):
+    """The rows of the work array ``W`` in which :func:`model_series` leaves pair ``pair``'s
+    penetration p, damping force F_c and normal force N as series in time (coefficients
+    0..k + 1 of p and 0..k of F_c and N after the call for k): (row_p, row_fc, row_n), -1
+    for a quantity the model does not keep there. The solver finds the extremes inside a
+    Taylor step on these polynomials (:mod:`braidsim.core.solver.recorders`)."""
+    raise NotImplementedError
+
+
 # The onset series: at a contact's onset p = 0 and p' > 0, so a power law's p^n has a branch
 # point there (no Taylor series in tau, and a radius of convergence equal to the time since
 # the onset just after it). In s = sqrt(tau) it is gone: p(t_on + s^2) = s^2 q(s) with q

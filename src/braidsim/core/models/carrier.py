@@ -65,6 +65,7 @@ from braidsim.core.interfaces import (
     pair_law_jvp,
     pair_law_rates,
     pair_onset_step,
+    pair_series_rows,
     penetration,
     penetration_jvp,
     series_row,
@@ -598,6 +599,17 @@ def _coefficient_for(n_coords, pair_coefficient, shift):
                 C[q + 2, j] = 0.0
 
     return _coefficient
+
+
+def _series_rows(model, pair):
+    # (model_series leaves each pair's p, F_c and N in these rows: _pair_series)
+    if pair == 0:
+        return R_PT, R_FCT, R_NT
+    return R_PS, R_FCS, R_NS
+
+
+pair_series_rows.register(CarrierX)(_series_rows)
+pair_series_rows.register(CarrierXY)(_series_rows)
 
 
 @_for_each_carrier(model_series)

@@ -47,6 +47,7 @@ from braidsim.core.interfaces import (
     pair_law_jvp,
     pair_law_rates,
     pair_onset_step,
+    pair_series_rows,
     penetration,
     penetration_jvp,
     series_row,
@@ -179,9 +180,14 @@ def _row(model, t, y, modes, v0s, n_state, kind, row):
 
 
 # ---- Taylor series -------------------------------------------------------------------------
-# rows of the work array: the forcing, the penetration, its rate, the damping force, then the
-# contact law's work rows
-R_FORCE, R_P, R_PD, R_FC, R_LAW = range(5)
+# rows of the work array: the forcing, the penetration, its rate, the damping and normal
+# forces, then the contact law's work rows
+R_FORCE, R_P, R_PD, R_FC, R_N, R_LAW = range(6)
+
+
+@pair_series_rows.register(ImpactOscillator)
+def _series_rows(model, pair):
+    return R_P, R_FC, R_N
 
 
 @model_series_start.register(ImpactOscillator)
@@ -200,6 +206,7 @@ def _series(model, k, modes, v0s, n_state, C, W):
     nn = 0.0
     W[R_PD, k] = 0.0
     W[R_FC, k] = 0.0
+    W[R_N, k] = 0.0
     if mode != 0:
         # p = -(x + gap_inner) on the inner wall, x - gap_outer on the outer one
         if k == 0:
@@ -210,6 +217,7 @@ def _series(model, k, modes, v0s, n_state, C, W):
             model.law, k, W[R_P], v0s[0], W[R_LAW : R_LAW + SERIES_ROWS]
         )
         W[R_FC, k] = fc
+        W[R_N, k] = nn
     C[1, k + 1] = (
         W[R_FORCE, k] - model.damping * C[1, k] - model.stiffness * C[0, k] - mode * nn
     ) / (model.mass * k1)

@@ -494,6 +494,7 @@ def integrate(
         # paper-3.3 4-8 % slower)
         took_implicit = False
         took_taylor = False
+        series_order = 0  # (> 0: a Taylor step of that order, its series in TW)
         if TAY is not None:
             # the step's dense output (RCs, braidsim.core.solver.dense) is the Runge-Kutta
             # interpolant unless a Taylor step is taken below
@@ -570,6 +571,7 @@ def integrate(
                         hits_stop = True
                     taylor_dense(TC, h, n, TRT)
                     TKIND[0] = 1
+                    series_order = used
                 else:
                     # near a singularity: the Runge-Kutta steps from here on, starting no
                     # longer than the series' own step (the distance to the singularity
@@ -848,6 +850,8 @@ def integrate(
             INF1,
             IX,
             rec,
+            TAY,
+            series_order,
         )
         st.steps += 1
         if TAY is not None:
