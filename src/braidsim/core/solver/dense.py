@@ -97,16 +97,22 @@ def dense_deriv(theta: float, h: float, RC: Any, out: np.ndarray, n: int) -> Non
         interpolant_deriv(theta, h, RC, out, n)
 
 
-def _plain(fn: Any) -> Any:
-    # the Python function of an inlined helper: handed to numba as the overload itself, it
-    # is inlined once, not through a second level of inlining (numba matches the arguments
-    # by name: the parameters are named as the stub's)
-    return getattr(fn, "py_func", fn)
+# the interpolant's readers are inline helpers, compiled once (core.generic.inline_helper):
+# these one-line implementations call them, where handing numba their Python functions had
+# their IR typed and lowered again at every call site
+
+
+def _interpolant_component(theta, RC, i):
+    return interpolant_component(theta, RC, i)
+
+
+def _interpolant_deriv(theta, h, RC, out, n):
+    interpolant_deriv(theta, h, RC, out, n)
 
 
 def _component_typer(theta: Any, RC: Any, i: Any) -> Any:
     if isinstance(RC, types.Array):
-        return _plain(interpolant_component)
+        return _interpolant_component
     if record_class(RC) is StepPolynomial:
         return _either_component
     return None
@@ -114,7 +120,7 @@ def _component_typer(theta: Any, RC: Any, i: Any) -> Any:
 
 def _deriv_typer(theta: Any, h: Any, RC: Any, out: Any, n: Any) -> Any:
     if isinstance(RC, types.Array):
-        return _plain(interpolant_deriv)
+        return _interpolant_deriv
     if record_class(RC) is StepPolynomial:
         return _either_deriv
     return None
