@@ -229,7 +229,8 @@ class CompiledOnly(CPUDispatcher):
     CPU less (15.6-16.8 s against 16.5-17.6 s, three alternated pairs), with the same
     results to the bit. Nor is the function itself made into machine code
     (:class:`_LinkOnlyLibrary`). A call from Python would then jump to no code at all, so
-    it raises instead; tests call a helper through a function compiled for it.
+    it raises instead; tests call a helper through a function compiled for it. (An
+    :func:`inline_helper` has a twin for calls from Python instead.)
     """
 
     def __init__(
