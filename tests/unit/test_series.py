@@ -31,10 +31,13 @@ from braidsim.core.interfaces import (
     contact_onset_power,
     friction_force,
     friction_force_series,
+    friction_series_reach,
     wall_motion,
     wall_series,
 )
 from braidsim.core.jets import (
+    HIDDEN_FALL,
+    SATURATED,
     jet_atan,
     jet_cos_linear,
     jet_div,
@@ -44,6 +47,7 @@ from braidsim.core.jets import (
     jet_pow,
     jet_sq,
     jet_tanh,
+    saturation_reach,
 )
 from braidsim.core.physics import (
     CoulombViscousFriction,
@@ -468,6 +472,61 @@ def test_tanh_friction_series_is_the_closed_form_on_a_linear_speed() -> None:
     out = np.full(ORDER + 1, np.nan)
     _friction_series(law, V, NS, 0.4, ORDER, _work(ORDER), out)
     _close(out, 0.4 * 5.0 * np.array(_tanh_coefficients(ORDER)))
+
+
+@njit(boundscheck=True)
+def _friction_reach(law, V, h):
+    return friction_series_reach(law, V, h)
+
+
+def _linear(v0: float, a: float, order: int = 12) -> np.ndarray:
+    V = np.zeros(order + 1)
+    V[0], V[1] = v0, a
+    return V
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+@pytest.mark.parametrize(("scale", "power"), [(5e-4, 1), (0.01, 2)])
+def test_saturation_reach_stops_where_the_exponent_has_fallen(
+    sign: float, scale: float, power: int
+) -> None:
+    """v = v0 - a sigma from deep saturation through 0 in one step: the reach is where
+    E = (|v| / scale)^power has fallen to SATURATED - HIDDEN_FALL (closed form), whether the
+    samples straddle v = 0 (a long step) or land near it."""
+    e_stop = (SATURATED - HIDDEN_FALL) ** (1.0 / power)
+    for h in (4e-4, 5.2e-5):
+        V = sign * _linear(0.5, -10400.0)
+        expect = (0.5 - e_stop * scale) / 10400.0
+        assert saturation_reach(V, scale, power, h) == pytest.approx(expect, rel=1e-8)
+
+
+def test_saturation_reach_is_the_whole_step_where_nothing_hides() -> None:
+    vh2 = 5e-4  # tanh's scale for v_hat = 1 mm/s
+    # saturated throughout (E from 2000 to 1200)
+    assert saturation_reach(_linear(1.0, -400.0), vh2, 1, 1e-3) == 1e-3
+    # a fall of E by less than HIDDEN_FALL (20 to 15)
+    assert saturation_reach(_linear(10 * vh2, -2.5 * vh2 / 1e-3), vh2, 1, 1e-3) == 1e-3
+    # from the turn-over's core (E_0 = 4): tanh's poles show in its coefficients there
+    assert saturation_reach(_linear(2 * vh2, -1.0), vh2, 1, 1e-3) == 1e-3
+    # growing |v| (a decaying exp(-E)): its coefficients show it
+    assert saturation_reach(_linear(0.02, 100.0), vh2, 1, 1e-3) == 1e-3
+
+
+@pytest.mark.parametrize("law", FRICTION_LAWS, ids=lambda law: f"{type(law).__name__}{law[0]}")
+def test_friction_series_reach_of_each_law(law) -> None:
+    """A turn-over from v = 0.5 m/s at 10^4 m/s^2 within a step of 0.4 ms: a law with a tanh
+    part stops the step before it; arctan (whose series carry its branch points) and the
+    law none do not."""
+    V = _linear(0.5, -1e4)
+    reach = _friction_reach(law, V, 4e-4)
+    saturating = isinstance(law, CoulombViscousFriction) or law.law in (
+        FRICTION_CODES["tanh"],
+        FRICTION_CODES["stribeck"],
+    )
+    if saturating:
+        assert 0.0 < reach < 0.5 / 1e4
+    else:
+        assert reach == 4e-4
 
 
 # ---------------------------------------------------------------------------------------

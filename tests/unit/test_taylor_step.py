@@ -27,6 +27,7 @@ from braidsim.core import (
 from braidsim.core import layout as L
 from braidsim.core.driver import taylor_capable
 from braidsim.core.interfaces import contact_forces
+from braidsim.core.physics.friction import FRICTION_CODES
 from braidsim.model import build_model
 from braidsim.params import load_scenario
 from braidsim.simulate import run_model
@@ -214,20 +215,80 @@ def test_viscous_friction_decays_the_speed_exponentially() -> None:
     assert _taylor_share(raw) > 0.95
 
 
+@pytest.mark.parametrize("law", ["tanh", "stribeck", "arctan"])
+@pytest.mark.parametrize("integrator", ["taylor", "dormand-prince"])
+def test_a_friction_turn_over_is_not_stepped_over(law: str, integrator: str) -> None:
+    """Free flight through x' = 0 at about 10^4 m/s^2 (a horn gear at 400 rad/s, no track
+    motion): m x'' = -L - f(x'), so t(v) = int_v^v0 m dw / (L + f(w)), by quadrature
+    (scipy.integrate.quad, through the turn-over at w = 0). tanh and the Stribeck term
+    saturate: far from v = 0 their series are flat to the last bit (1 - tanh(u)^2 = 0), and
+    a step from v0 = 0.5 m/s (u = 500) crossed the turn-over in one Taylor step, missing it
+    (a velocity error of 5e-4 m/s, friction never reversed)."""
+    from scipy.integrate import quad
+
+    v0, T = 0.5, 4e-4
+    sc = load_scenario("paper-3.3").with_overrides(
+        {
+            "friction.law": law,
+            "simulation.integrator": integrator,
+            "track.vibration_amplitude": 0.0,
+            "horn_gear.angular_velocity": 400.0,
+            "initial.x": 1.5e-3,
+            "initial.vx": v0,
+            "simulation.rtol": 1e-10,
+            "simulation.atol_position": 1e-15,
+            "simulation.atol_velocity": 1e-11,
+        }
+    )
+    model = build_model(sc, T)
+    rec = model.record
+    assert rec.friction.law == FRICTION_CODES[law]
+    load = rec.mass_radius * rec.horn_gear.omega0**2 + rec.load_x
+    mu_n, vh = rec.mu_x * rec.normal_x, rec.friction.regularization_velocity
+    vs, rs = rec.friction.stribeck_velocity, rec.friction.static_ratio
+
+    def force(w: float) -> float:
+        if law == "arctan":
+            return mu_n * 2.0 / math.pi * math.atan(w / vh)
+        g = math.tanh(w / vh)
+        if law == "stribeck":
+            return mu_n * (1.0 + (rs - 1.0) * math.exp(-((w / vs) ** 2))) * g
+        return mu_n * g
+
+    raw = run_model(model, series=False, energy=True)
+    assert raw.episodes.size == 0  # (free flight throughout)
+    v = float(raw.y[1])
+    assert v < -1.0  # through the turn-over and back
+    t_of_v = quad(
+        lambda w: rec.mass / (load + force(w)),
+        v,
+        v0,
+        points=[0.0],
+        epsabs=0.0,
+        epsrel=1e-13,
+        limit=400,
+    )[0]
+    # the velocity's error: the time's times the deceleration there
+    assert abs(t_of_v - T) * (load + force(v)) / rec.mass < 2e-9
+
+
 @pytest.mark.parametrize(
-    ("scenario", "dof"),
+    ("scenario", "dof", "friction"),
     [
-        ("paper-3.3", "x"),
-        pytest.param("paper-3.4a", "x", marks=pytest.mark.slow),
-        pytest.param("paper-3.4a", "xy", marks=pytest.mark.slow),
+        ("paper-3.3", "x", "arctan"),
+        ("paper-3.3", "x", "tanh"),
+        pytest.param("paper-3.4a", "x", "arctan", marks=pytest.mark.slow),
+        pytest.param("paper-3.4a", "xy", "arctan", marks=pytest.mark.slow),
     ],
 )
-def test_carrier_runs_agree_with_dormand_prince(scenario: str, dof: str) -> None:
+def test_carrier_runs_agree_with_dormand_prince(scenario: str, dof: str, friction: str) -> None:
     """The x-only carrier of paper-3.3 and 3.4a, and the xy carrier: impact table of the
     Taylor run against the Dormand-Prince run, both at tight tolerances, and the same
-    energy quadratures."""
+    energy quadratures. With tanh friction as well, whose turn-overs inside the contacts the
+    Taylor steps must not step over (test_a_friction_turn_over_is_not_stepped_over)."""
     sc = load_scenario(scenario).with_overrides(
         {
+            "friction.law": friction,
             "simulation.dof": dof,
             "simulation.rtol": 1e-12,
             "simulation.atol_position": 1e-16,

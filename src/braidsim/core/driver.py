@@ -317,19 +317,20 @@ _TAYLOR_CAPABLE: set[tuple[type, ...]] = set()
 
 def taylor_capable(model: Any) -> str:
     """Why ``model`` cannot take Taylor steps ("" when it can): the model must register
-    :func:`~braidsim.core.interfaces.model_series`, its start and
+    :func:`~braidsim.core.interfaces.model_series`, its start, its reach and
     :func:`~braidsim.core.interfaces.pair_series_rows`, and each physics record in
     its fields (found by the role it plays: a contact law, a friction law, an excitation)
-    the series of its function."""
+    the series of its function (a friction law also its reach)."""
     classes = (type(model), *map(type, model))
     if classes in _TAYLOR_CAPABLE:
         return ""
     missing = I.first_missing(
         model,
-        (I.model_series, I.model_series_start, I.pair_series_rows),
+        (I.model_series, I.model_series_start, I.model_series_reach, I.pair_series_rows),
         (
             (I.contact_forces, I.contact_force_series),
             (I.friction_force, I.friction_force_series),
+            (I.friction_force, I.friction_series_reach),
             (I.wall_motion, I.wall_series),
         ),
     )

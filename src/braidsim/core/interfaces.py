@@ -286,6 +286,20 @@ def friction_force_series(law, k, V, NS, mu, S):
 
 
 @generic
+def friction_series_reach(law, V, h):
+    """How far [0, h'] along a step of length ``h`` the law's series (:func:`friction_force_series`)
+    along the sliding speed's polynomial v = sum_j V[j] sigma^j (sigma the step's variable:
+    tau, or s = sqrt(tau) in an onset step) shows the force's change to the step-size rule,
+    h' <= h. A law whose series has only algebraic singularities (arctan) returns ``h``: its
+    coefficients carry them. A saturating part (tanh(v / v_hat), exp(-(v / v_s)^2)) hides a
+    turn-over that is far away in its argument: its coefficients are exponentially small there
+    (1 - tanh(u)^2 is 0 in double precision beyond |u| ~ 19), so a series of order 12 is
+    constant while the force is about to change sign, and the rule would step across; such a
+    law returns the part of the step before that (:func:`braidsim.core.jets.saturation_reach`)."""
+    raise NotImplementedError
+
+
+@generic
 def wall_series(ex, t, order, H):
     """Write the coefficients H[0..order] of the inner wall's position h(t + tau) [m s^-k];
     return the time [s] from t over which this series is the wall's motion (inf for an
@@ -308,6 +322,16 @@ def model_series(model, k, modes, v0s, n_state, C, W):
     C[:n_state, 0..k] (coefficient k of dy/dt divided by k + 1), after
     :func:`model_series_start`; called for k = 0, 1, 2, ... in turn. A pair in contact has
     a penetration > 0 at the start of the step."""
+    raise NotImplementedError
+
+
+@generic
+def model_series_reach(model, C, h):
+    """The part [0, h'] of a series step of length ``h`` (in the series' variable: tau, or
+    s = sqrt(tau) in an onset step) over which the model's series, the state's coefficients
+    C[i, k] in that variable, show every change of the model's forces to the step-size rule:
+    ``h`` unless a law's series hides one (:func:`friction_series_reach` of each sliding
+    speed). Called on each Taylor and onset step after its size is chosen."""
     raise NotImplementedError
 
 

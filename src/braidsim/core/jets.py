@@ -168,3 +168,80 @@ def jet_in_sqrt(A, half, order):
         A[2 * j - 1] = 0.0
     for j in range(2 * half + 1, order + 1):
         A[j] = 0.0
+
+
+# ---- where a saturating function's series stops showing its change ---------------------------
+# exp(-E) for E >= SATURATED is below the last bit of a force (e^-40 = 4e-18)
+SATURATED = 40.0
+# the largest fall of the exponent E over one step: the series of exp(-E) along a step where E
+# falls by D has the terms D^k / k! exp(-E_0), which shrink from k ~ D on; with D = 6 those
+# past the 12th sum to less than the 12th (a series of order 12), so the last terms the step
+# rule reads bound what the series leaves out
+HIDDEN_FALL = 6.0
+REACH_SAMPLES = 8  # points of a step at which the exponent is checked
+
+
+@inline_helper
+def _horner(V, sigma):
+    """sum_j V[j] sigma^j."""
+    deg = V.shape[0] - 1
+    acc = V[deg]
+    for j in range(deg - 1, -1, -1):
+        acc = acc * sigma + V[j]
+    return acc
+
+
+@inline_helper
+def _below_floor(V, sigma, scale, power, floor, v0):
+    """Whether E = (|v| / scale)^power < floor at sigma, or v has left the sign of v0 (then
+    |v| has passed 0 since the start, below any floor)."""
+    v = _horner(V, sigma)
+    if v * v0 <= 0.0:
+        return True
+    e = abs(v) / scale
+    if power != 1:
+        e = e * e
+    return e < floor
+
+
+@inline_helper
+def saturation_reach(V, scale, power, h):
+    """The part [0, h'] of a step of length h over which the series of a function that
+    saturates as exp(-E), E = (|v| / scale)^power (tanh(v / v_hat): 1 - |tanh| ~ 2 exp(-2 |v|
+    / v_hat), scale v_hat / 2, power 1; exp(-(v / v_s)^2): scale v_s, power 2), along the
+    polynomial v = sum_j V[j] sigma^j, shows its change to a last-terms step rule.
+
+    Far in saturation the function's coefficients are exp(-E_0) D^k / k! (D the fall of E
+    over the step), exponentially small: a series of order N does not see a fall of E much
+    beyond N, although the function then changes by exp(D) of its size, and near v = 0 by
+    all of it (a friction force that turns over unseen). So E may fall over the step by at
+    most HIDDEN_FALL below min(E_0, SATURATED): h' is the first sigma where it would, h
+    where it does not, or where E_0 is already within HIDDEN_FALL of 0 (the function is not
+    saturated: its poles show in its coefficients). Jorba & Zou's rule assumes coefficients
+    that decay with the radius of convergence (doi:10.1080/10586458.2005.10128904); an
+    entire function's do not. The fall is checked at REACH_SAMPLES points of the step (a
+    change of the sign of v between two of them counts: |v| passed 0), the first crossing
+    then bisected; a dip of |v| that turns back between two points is not seen.
+    """
+    v0 = V[0]
+    e0 = abs(v0) / scale
+    if power != 1:
+        e0 = e0 * e0
+    floor = min(e0, SATURATED) - HIDDEN_FALL
+    if not floor > 0.0:
+        return h
+    lo = 0.0
+    for j in range(1, REACH_SAMPLES + 1):
+        hi = h * j / REACH_SAMPLES
+        if _below_floor(V, hi, scale, power, floor, v0):
+            # a crossing lies in [lo, hi]: bisected to 2^-30 of the interval (the reach
+            # needs no more; E >= floor at lo)
+            for _ in range(30):
+                mid = 0.5 * (lo + hi)
+                if _below_floor(V, mid, scale, power, floor, v0):
+                    hi = mid
+                else:
+                    lo = mid
+            return lo
+        lo = hi
+    return h

@@ -53,9 +53,11 @@ from braidsim.core.interfaces import (
     friction_force,
     friction_force_jvp,
     friction_force_series,
+    friction_series_reach,
     model_onset_series,
     model_onset_start,
     model_series,
+    model_series_reach,
     model_series_start,
     model_size,
     pair_gap_accel,
@@ -610,6 +612,18 @@ def _series_rows(model, pair):
 
 pair_series_rows.register(CarrierX)(_series_rows)
 pair_series_rows.register(CarrierXY)(_series_rows)
+
+
+@_for_each_carrier(model_series_reach)
+def _series_reach_for(n_coords):
+    def _series_reach(model, C, h):
+        # the friction along x (and along y) turns over with its sliding speed, x' (y')
+        h = friction_series_reach(model.friction, C[1], h)
+        if n_coords == 2:
+            h = friction_series_reach(model.friction, C[3], h)
+        return h
+
+    return _series_reach
 
 
 @_for_each_carrier(model_series)

@@ -38,6 +38,7 @@ from braidsim.core.interfaces import (
     model_onset_series,
     model_onset_start,
     model_series,
+    model_series_reach,
     model_series_start,
     model_size,
     pair_gap_accel,
@@ -188,6 +189,11 @@ R_FORCE, R_P, R_PD, R_FC, R_N, R_LAW = range(6)
 @pair_series_rows.register(ImpactOscillator)
 def _series_rows(model, pair):
     return R_P, R_FC, R_N
+
+
+@model_series_reach.register(ImpactOscillator)
+def _series_reach(model, C, h):
+    return h  # (no friction: every force's series shows its singularities)
 
 
 @model_series_start.register(ImpactOscillator)

@@ -14,8 +14,13 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import friction_force, friction_force_jvp, friction_force_series
-from braidsim.core.jets import jet_mul_const, jet_tanh
+from braidsim.core.interfaces import (
+    friction_force,
+    friction_force_jvp,
+    friction_force_series,
+    friction_series_reach,
+)
+from braidsim.core.jets import jet_mul_const, jet_tanh, saturation_reach
 
 
 class CoulombViscousFriction(NamedTuple):
@@ -38,6 +43,13 @@ def _friction_series(law, k, V, NS, mu, S):
     U[k] = V[k] / law.regularization_velocity
     jet_tanh(U, S[1], S[2], k)
     return mu * jet_mul_const(NS, S[1], k) + law.viscous * V[k]
+
+
+@friction_series_reach.register(CoulombViscousFriction)
+def _friction_reach(law, V, h):
+    # tanh(u) saturates as exp(-2 |u|): its turn-over hides in coefficients that underflow
+    # (core.jets.saturation_reach); the viscous term is linear
+    return saturation_reach(V, 0.5 * law.regularization_velocity, 1, h)
 
 
 @friction_force_jvp.register(CoulombViscousFriction)

@@ -15,8 +15,21 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-from braidsim.core.interfaces import friction_force, friction_force_jvp, friction_force_series
-from braidsim.core.jets import jet_atan, jet_exp, jet_mul, jet_mul_const, jet_sq, jet_tanh
+from braidsim.core.interfaces import (
+    friction_force,
+    friction_force_jvp,
+    friction_force_series,
+    friction_series_reach,
+)
+from braidsim.core.jets import (
+    jet_atan,
+    jet_exp,
+    jet_mul,
+    jet_mul_const,
+    jet_sq,
+    jet_tanh,
+    saturation_reach,
+)
 
 FRICTION_CODES = {"arctan": 0, "tanh": 1, "stribeck": 2, "none": 3}
 
@@ -73,6 +86,19 @@ def _friction_series(law, k, V, NS, mu, S):
     E[k] = jet_exp(G, E, k)
     phi[k] = T[k] + (law.static_ratio - 1.0) * jet_mul(E, T, k)
     return mu * jet_mul_const(NS, phi, k)
+
+
+@friction_series_reach.register(RegularizedFriction)
+def _friction_reach(law, V, h):
+    # arctan's series carries its branch points at v = +-i v_hat; tanh saturates as
+    # exp(-2 |v| / v_hat) and the Stribeck term as exp(-(v / v_s)^2): their turn-overs hide
+    # in coefficients that underflow (core.jets.saturation_reach)
+    kind = law.law
+    if kind == 1 or kind == 2:
+        h = saturation_reach(V, 0.5 * law.regularization_velocity, 1, h)
+        if kind == 2:
+            h = saturation_reach(V, law.stribeck_velocity, 2, h)
+    return h
 
 
 @friction_force_jvp.register(RegularizedFriction)

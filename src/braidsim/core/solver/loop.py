@@ -18,6 +18,7 @@ from braidsim.core.generic import by_ref, helper
 from braidsim.core.interfaces import (
     apply_transfer,
     dissipation_index,
+    model_series_reach,
     model_size,
     pair_onset_step,
 )
@@ -557,6 +558,8 @@ def integrate(
                 )
                 if ht > horizon:
                     ht = horizon  # (a piecewise motion: to the end of its piece)
+                # (and not past where a saturating law's series stops showing its change)
+                ht = model_series_reach(model, TC, ht)
                 if ht >= h:
                     took_taylor = True
                     # the Runge-Kutta step and its controller's memory are carried over the

@@ -56,6 +56,7 @@ from braidsim.core.interfaces import (
     model_onset_series,
     model_onset_start,
     model_series,
+    model_series_reach,
     model_series_start,
 )
 
@@ -220,6 +221,7 @@ def _onset_taylor(model, t, y, pair, modes, v0s, n, n_dof2, tols, hstop, t_left,
         return 0.0
     rtol, atol_x, atol_v = tols
     s = onset_step_size(CS, n_dof2, rtol, atol_x, atol_v, math.sqrt(min(hstop, horizon)))
+    s = model_series_reach(model, CS, s)  # (its polynomials are in s)
     h = s * s
     if h >= t_left * (1.0 - 1e-9):
         h = t_left  # (the loop reaches its stop exactly)
