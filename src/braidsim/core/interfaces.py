@@ -325,7 +325,7 @@ def model_series(model, k, modes, v0s, n_state, C, W):
     raise NotImplementedError
 
 
-@generic(inline=False)  # (a call: inlined at its two call sites it took 0.7 s more to compile)
+@generic(inline=False)  # (a call, once a step: not its checks compiled into the loop twice)
 def model_series_reach(model, C, h):
     """The part [0, h'] of a series step of length ``h`` (in the series' variable: tau, or
     s = sqrt(tau) in an onset step) over which the model's series, the state's coefficients
