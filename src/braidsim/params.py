@@ -24,7 +24,7 @@ from typing import Any
 
 from braidsim.contact import GEOMETRIES, get_law, law_names
 from braidsim.errors import InputError
-from braidsim.units import force_per_length_power, to_si
+from braidsim.units import UNIT_HINT, force_per_length_power, to_si
 
 PI = math.pi
 
@@ -418,7 +418,10 @@ def convert(spec: ParamSpec, value: Any) -> Any:
         )
     try:
         return _convert(spec, value)
-    except InputError:
+    except InputError as exc:
+        msg = str(exc)
+        if msg.endswith(UNIT_HINT):  # (text that is no unit: say what this key takes)
+            raise InputError(msg[: -len(UNIT_HINT)] + f"allowed {spec.range_text()}") from None
         raise
     except (TypeError, ValueError, OverflowError, AttributeError, KeyError, IndexError) as exc:
         raise InputError(

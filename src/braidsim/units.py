@@ -91,6 +91,11 @@ COMMON_UNITS = (
 )  # fmt: skip
 
 
+# the end of an unknown unit's message when no known unit is close (a parameter that knows its
+# unit and range says those instead: braidsim.params.convert)
+UNIT_HINT = "allowed e.g. 'mm', 'kN', 'rpm'"
+
+
 def unknown_unit_message(exc: Exception, text: str) -> str:
     """``unknown unit 'rmp'; did you mean 'rpm'?``: the name pint did not know (from its
     error, else ``text``) and the closest common or known unit, if one is close."""
@@ -100,7 +105,7 @@ def unknown_unit_message(exc: Exception, text: str) -> str:
     if not near:
         known = [n for n in dir(registry()) if not n.startswith("_")]
         near = difflib.get_close_matches(bad, known, n=1, cutoff=0.8)
-    hint = f"did you mean {near[0]!r}?" if near else "allowed e.g. 'mm', 'kN', 'rpm'"
+    hint = f"did you mean {near[0]!r}?" if near else UNIT_HINT
     return f"unknown unit {bad!r}; {hint}"
 
 
