@@ -22,7 +22,8 @@ def paper(
 ) -> None:
     """Reproduce sections 3.1-3.5: Figures 3-22, Table 1 and a report of every number.
 
-    Files: report.md, report.html, items.json, items.csv, table1.csv, table1.md, figures/.
+    Files: report.md, report.html, items.json, items.csv, table1.csv, table1.md, excerpt.md
+    (a few rows of the report, for a README), figures/.
 
     OUT is built aside and renamed into place at the end: complete or absent.
     """
