@@ -80,6 +80,9 @@ def test_run_window_and_set(capsys) -> None:
         (["impact", "--mass", "-1 kg"], "--mass: -1 kg is out of range"),
         (["impact", "--exponent", "-1"], "--exponent: -1 is out of range"),
         (["run", "paper-3.1", "--set", "horn_gear.angular_velocity=150 rmp"], "'rpm'?"),
+        # text that is neither a number nor a unit: the key's own unit and range
+        (["run", "paper-3.1", "--set", "carrier.mass=abc"], "'abc'; allowed > 0 kg"),
+        (["run", "paper-3.1", "--set", "simulation.rtol=abc"], "allowed > 0 and <= 0.01"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) -> None:
@@ -90,6 +93,33 @@ def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) ->
     assert len(lines) == 1, err
     assert fragment in lines[0]
     assert "Traceback" not in err
+
+
+def test_run_table_counts_impacts_not_the_contact_present_at_the_start(capsys) -> None:
+    """The printed count is the onsets, as in the metrics of a sweep; the contact present at
+    t = 0 (paper-3.3 starts on the inner wall) is listed apart."""
+    code, out, err = run_cli(capsys, "run", "paper-3.3", "--duration", "0.01", "--json")
+    assert code == 0, err
+    imp = json.loads(out)["impacts"]
+    n_initial = sum(1 for r in imp if r["initial"])
+    assert n_initial == 1 and len(imp) > 2
+    code, out, err = run_cli(capsys, "run", "paper-3.3", "--duration", "0.01")
+    assert code == 0, err
+    assert f"{len(imp) - 1} impacts (+1 contact at the start);" in out
+
+
+@pytest.mark.parametrize("command", ["models", "scenarios"])
+def test_listed_names_are_whole_in_80_columns(capsys, monkeypatch, command: str) -> None:
+    """The names a user types back (a law for --model, a scenario) are never cut short."""
+    monkeypatch.setenv("COLUMNS", "80")
+    code, out, err = run_cli(capsys, command, "--json")
+    assert code == 0, err
+    names = [r["name"] for r in json.loads(out)[command]]
+    code, out, err = run_cli(capsys, command)
+    assert code == 0, err
+    assert max(map(len, out.splitlines())) <= 80
+    for name in names:
+        assert name in out, name
 
 
 def test_malformed_toml_file(capsys, tmp_path) -> None:

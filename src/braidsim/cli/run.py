@@ -139,7 +139,17 @@ def _print_summary(summary: dict, out: Path | None) -> None:
     final = f"final x = {fin['x'] * 1e3:.6g} mm"
     if xy:
         final += f", y = {fin['y'] * 1e3:.6g} mm"
-    con.print(f"{len(imp)} impacts; {final}")
+    # (a contact present at the start or after a transfer is listed, not counted: an impact
+    # is an onset, as in the metrics of a sweep or a batch)
+    initial = [r for r in imp if r.get("initial")]
+    counted = f"{len(imp) - len(initial)} impacts"
+    if initial:
+        later = sum(1 for r in initial if r["t"] > 0.0)
+        when = ("at the start", "at the start or after a transfer", "after a transfer")[
+            (later > 0) + (later == len(initial))
+        ]
+        counted += f" (+{len(initial)} contact{'s' if len(initial) > 1 else ''} {when})"
+    con.print(f"{counted}; {final}")
     if "sensitivity" in fin:
         ts = Table("d/d KEY (SI)", "x", "vx", "y", "vy", title="sensitivity of the final state")
         for key, d in fin["sensitivity"].items():
@@ -283,9 +293,12 @@ def models(
         print_json({"models": rows})
         return
     from rich.console import Console
-    from rich.table import Table
+    from rich.table import Column, Table
 
-    tab = Table("name", "paper", "n", "D(5/9)", "e(5/9)", "reference")
+    tab = Table(
+        _whole("name", [r["name"] for r in rows]),
+        *(Column(h, overflow="fold") for h in ("paper", "n", "D(5/9)", "e(5/9)", "reference")),
+    )
     for r in rows:
         tab.add_row(
             r["name"],
@@ -326,11 +339,8 @@ def scenarios(
         from rich.markup import escape
         from rich.table import Column, Table
 
-        # the key whole on one line, whatever the terminal's width (it is what --set takes),
-        # and the other columns folded rather than cut short
-        width = max(len(r["key"]) for r in rows)
         tab = Table(
-            Column("key", no_wrap=True, min_width=width),
+            _whole("key", [r["key"] for r in rows]),
             *(Column(h, overflow="fold") for h in ("unit", "default", "allowed", "meaning")),
         )
         for r in rows:
@@ -348,9 +358,21 @@ def scenarios(
         print_json({"scenarios": rows})
         return
     from rich.console import Console
-    from rich.table import Table
+    from rich.table import Column, Table
 
-    tab = Table("name", "description", "source")
+    tab = Table(
+        _whole("name", [r["name"] for r in rows]),
+        *(Column(h, overflow="fold") for h in ("description", "source")),
+    )
     for r in rows:
         tab.add_row(r["name"], r["description"], r["source"])
     Console().print(tab)
+
+
+def _whole(title: str, names: list[str]) -> Any:
+    """A table column that shows each name whole on one line, whatever the terminal's width
+    (a name the user types back: a law for --model, a scenario, a key for --set); the other
+    columns fold instead of cutting it short."""
+    from rich.table import Column
+
+    return Column(title, no_wrap=True, min_width=max(map(len, names), default=len(title)))
