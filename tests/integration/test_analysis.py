@@ -401,6 +401,7 @@ def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
         (("basins", "paper-3.3", "--x", "initial.vx"), "two different"),
         (("lyapunov", "paper-3.3", "--d0", "0"), "d0"),
         (("analyze", "no-such-scenario"), "scenario"),
+        (("analyze", "results/no-such-run"), "a folder written by `braidsim run --out`"),
     ],
 )
 def test_cli_bad_input_is_one_line_exit_2(capsys, argv, needle) -> None:

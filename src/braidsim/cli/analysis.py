@@ -493,6 +493,13 @@ def _run_source(run: str) -> tuple[Any, float | None]:
             ) from None
         sc = braidsim.load_scenario(params).with_overrides(None, name=name)
         return sc, t_end
+    if not p.exists() and len(p.parts) > 1:
+        # a path that is not there (load_scenario would name scenarios and TOML files only;
+        # a bare name goes on to it, for its "did you mean" among the built-in scenarios)
+        raise InputError(
+            f"RUN: {run!r} does not exist; allowed a folder written by `braidsim run --out`, "
+            "a TOML file or a built-in scenario (`braidsim scenarios` lists them)"
+        )
     return braidsim.load_scenario(run), None
 
 
