@@ -207,7 +207,9 @@ def _axis_value(option: str, key: str, text: str) -> float:
 @app.command()
 @guarded
 def bifurcation(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    scenario: Annotated[
+        str, typer.Argument(help="Built-in scenario name or TOML file.", metavar="SCENARIO")
+    ],
     param: Annotated[
         str, typer.Option("--param", help="Scalar parameter, e.g. track.vibration_amplitude.")
     ],
@@ -290,7 +292,9 @@ def bifurcation(
 @app.command()
 @guarded
 def basins(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    scenario: Annotated[
+        str, typer.Argument(help="Built-in scenario name or TOML file.", metavar="SCENARIO")
+    ],
     x: Annotated[str, typer.Option("--x", help="First grid parameter.")] = "initial.x",
     x_from: Annotated[str, typer.Option("--x-from", help="First value of x.")] = "0 mm",
     x_to: Annotated[str, typer.Option("--x-to", help="Last value of x.")] = "3 mm",
@@ -380,7 +384,9 @@ def basins(
 @app.command()
 @guarded
 def lyapunov(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    scenario: Annotated[
+        str, typer.Argument(help="Built-in scenario name or TOML file.", metavar="SCENARIO")
+    ],
     set_: SetOpt = None,
     transient_cycles: TransientOpt = 100.0,
     cycles: Annotated[float, typer.Option(help="Measuring time [excitation cycles].")] = 100.0,
@@ -510,7 +516,8 @@ def analyze(
         str,
         typer.Argument(
             help="Scenario name or TOML file, or a folder written by `braidsim run --out` "
-            "(the run is repeated from its parameters; runs are deterministic)."
+            "(the run is repeated from its parameters; runs are deterministic).",
+            metavar="RUN",
         ),
     ],
     set_: SetOpt = None,

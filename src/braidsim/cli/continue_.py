@@ -16,7 +16,7 @@ from braidsim.cli.common import app, guarded, print_json
 @guarded
 def continue_(
     spec: Annotated[
-        Path, typer.Argument(help="Continuation spec TOML (see braidsim.continuation.study).")
+        Path, typer.Argument(help="Continuation spec TOML (docs/continuation.md).", metavar="SPEC")
     ],
     out: Annotated[Path, typer.Option("--out", help="Output directory to write.")],
     fmt: Annotated[

@@ -14,7 +14,9 @@ from braidsim.cli.common import app, guarded, print_json
 @app.command()
 @guarded
 def design(
-    spec: Annotated[Path, typer.Argument(help="Design spec TOML (see braidsim.design.spec).")],
+    spec: Annotated[
+        Path, typer.Argument(help="Design spec TOML (docs/design.md).", metavar="SPEC")
+    ],
     out: Annotated[Path, typer.Option("--out", help="Report directory to write.")],
     workers: Annotated[
         int | None,

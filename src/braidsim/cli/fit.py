@@ -13,7 +13,7 @@ from braidsim.cli.common import app, guarded, print_json
 @app.command()
 @guarded
 def fit(
-    spec: Annotated[Path, typer.Argument(help="Fit spec TOML (see braidsim.fit.spec).")],
+    spec: Annotated[Path, typer.Argument(help="Fit spec TOML (docs/fit.md).", metavar="SPEC")],
     data: Annotated[
         list[Path] | None,
         typer.Option(

@@ -13,7 +13,9 @@ from braidsim.cli.common import app, guarded, print_json, quantity_option
 @app.command()
 @guarded
 def machine(
-    spec: Annotated[Path, typer.Argument(help="Machine spec TOML (see braidsim.machine.spec).")],
+    spec: Annotated[
+        Path, typer.Argument(help="Machine spec TOML (docs/machine.md).", metavar="SPEC")
+    ],
     out: Annotated[Path, typer.Option("--out", help="Report directory to write.")],
     duration: Annotated[
         str | None,

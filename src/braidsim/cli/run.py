@@ -14,7 +14,9 @@ from braidsim.errors import InputError
 @app.command()
 @guarded
 def run(
-    scenario: Annotated[str, typer.Argument(help="Built-in scenario name or TOML file.")],
+    scenario: Annotated[
+        str, typer.Argument(help="Built-in scenario name or TOML file.", metavar="SCENARIO")
+    ],
     set_: Annotated[
         list[str] | None, typer.Option("--set", help="KEY=VALUE override (repeatable).")
     ] = None,

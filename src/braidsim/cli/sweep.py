@@ -13,7 +13,7 @@ from braidsim.cli.common import app, fail, flush_notices, guarded, print_json
 @app.command()
 @guarded
 def sweep(
-    spec: Annotated[Path, typer.Argument(help="Sweep spec TOML (see braidsim.sweep.spec).")],
+    spec: Annotated[Path, typer.Argument(help="Sweep spec TOML (docs/sweeps.md).", metavar="SPEC")],
     out: Annotated[Path, typer.Option("--out", help="The zarr store to write (a folder).")],
     processes: Annotated[
         int | None, typer.Option(help="Local worker processes (default: all cores).")
@@ -103,7 +103,9 @@ def sweep(
 @app.command("sweep-plot")
 @guarded
 def sweep_plot(
-    store: Annotated[Path, typer.Argument(help="A sweep store written by `braidsim sweep`.")],
+    store: Annotated[
+        Path, typer.Argument(help="A sweep store written by `braidsim sweep`.", metavar="STORE")
+    ],
     metric: Annotated[
         str, typer.Option(help="Metric to plot (e.g. regime, track_max_contact_force).")
     ],
