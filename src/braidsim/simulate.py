@@ -163,7 +163,7 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, flo
             f"stiff: rate ~ {damp_rate:.3g} 1/s)"
         )
     if status == L.ST_STEP_COLLAPSE:
-        return f"step size collapsed below 1e-14 s at t = {t:.9g} s; {hint}"
+        return f"step size collapsed to the rounding of t at t = {t:.9g} s; {hint}"
     if status == L.ST_NONFINITE:
         return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
     if status == L.ST_MAX_STEPS:

@@ -98,6 +98,12 @@ from braidsim.core.solver.taylor import (
 )
 
 ONSET_RK_FRACTION = 0.25  # the Runge-Kutta step after an onset step, as its fraction
+# the Runge-Kutta step carried over a Taylor step is at least this fraction of it
+RK_CARRY = 1e-6
+# a step below COLLAPSE max(COLLAPSE_T, |t|) has collapsed: 14 rounding units of t, and of
+# 1 ns near t = 0, where a contact that starts from rest takes steps of femtoseconds first
+COLLAPSE = 8 * 4e-16
+COLLAPSE_T = 1e-9
 EPISODE_RESERVE = 4  # impact-table rows one step can open at most
 EVENT_ROWS = 16  # series rows one step writes at most besides its samples
 # the controller's memory of the last error is at least 1e-4 (DOPRI5's floor); its log, as
@@ -487,9 +493,12 @@ def integrate(
             # reach the stop exactly (and never leave a sliver too small to step over)
             h = t_stop - t
             hits_stop = True
-        if not hits_stop and h < 4e-16 * max(1.0, abs(t)) * 8:
-            status = ST_STEP_COLLAPSE
-            break
+        if not hits_stop and h < COLLAPSE * max(COLLAPSE_T, abs(t)):
+            if TAY is None:
+                status = ST_STEP_COLLAPSE
+                break
+            # (with Taylor steps h is the Runge-Kutta step carried over them: the step taken
+            # is checked below, once it is known)
         # (without IMP the step is written as if there were no implicit step at all: any
         # test around the explicit step, even one the compiler can fold, made every step of
         # paper-3.3 4-8 % slower)
@@ -563,8 +572,11 @@ def integrate(
                 if ht >= h:
                     took_taylor = True
                     # the Runge-Kutta step and its controller's memory are carried over the
-                    # Taylor steps
-                    h_rk = h
+                    # Taylor steps; the step no shorter than RK_CARRY of the Taylor step, where
+                    # it never binds but after an onset from rest (its branch point a few
+                    # femtoseconds away, the step proposed there would otherwise be carried
+                    # through a resting contact of any length)
+                    h_rk = max(h, RK_CARRY * ht)
                     err_old_rk = err_old
                     lerr_old_rk = lerr_old
                     h = ht
@@ -591,6 +603,10 @@ def integrate(
                 st.rhs_evaluations += 1
                 nsteps += 1
                 err = 0.0
+        if TAY is not None:
+            if not hits_stop and h < COLLAPSE * max(COLLAPSE_T, abs(t)):
+                status = ST_STEP_COLLAPSE
+                break
         if not took_taylor:  # (the Taylor step was taken above)
             if IMP is None:
                 rk_step(model, t, y, h, K, modes, v0s, n, yt, y1)
