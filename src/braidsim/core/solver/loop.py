@@ -493,12 +493,12 @@ def integrate(
             # reach the stop exactly (and never leave a sliver too small to step over)
             h = t_stop - t
             hits_stop = True
-        if not hits_stop and h < COLLAPSE * max(COLLAPSE_T, abs(t)):
-            if TAY is None:
+        # (with Taylor steps h is here the Runge-Kutta step carried over them: the step taken
+        # is checked below, once it is known)
+        if TAY is None:
+            if not hits_stop and h < COLLAPSE * max(COLLAPSE_T, abs(t)):
                 status = ST_STEP_COLLAPSE
                 break
-            # (with Taylor steps h is the Runge-Kutta step carried over them: the step taken
-            # is checked below, once it is known)
         # (without IMP the step is written as if there were no implicit step at all: any
         # test around the explicit step, even one the compiler can fold, made every step of
         # paper-3.3 4-8 % slower)
