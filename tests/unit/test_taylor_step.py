@@ -26,7 +26,7 @@ from braidsim.core import (
 )
 from braidsim.core import layout as L
 from braidsim.core.driver import taylor_capable
-from braidsim.core.interfaces import contact_forces
+from braidsim.core.interfaces import contact_forces, friction_force, friction_force_series
 from braidsim.core.physics.friction import FRICTION_CODES
 from braidsim.model import build_model
 from braidsim.params import load_scenario
@@ -372,6 +372,29 @@ class _NoSeriesLaw(NamedTuple):
 def _no_series_forces(law, p, p_dot, v0):  # type: ignore[no-untyped-def]
     fk = law.stiffness * p
     return fk, 0.0, fk
+
+
+class _NoReachFriction(NamedTuple):
+    regularization_velocity: float
+
+
+@friction_force.register(_NoReachFriction)
+def _no_reach_force(law, v, normal, mu):  # type: ignore[no-untyped-def]
+    return mu * normal * math.tanh(v / law.regularization_velocity)
+
+
+@friction_force_series.register(_NoReachFriction)
+def _no_reach_series(law, k, V, NS, mu, S):  # type: ignore[no-untyped-def]
+    return 0.0  # (never run: the run is refused first)
+
+
+def test_a_friction_law_without_its_reach_is_named() -> None:
+    """A friction law with a series but no friction_series_reach cannot take Taylor steps:
+    the solver could not know whether its series hides a turn-over."""
+    rec = build_model(load_scenario("paper-3.3"), 0.01).record
+    rec = rec._replace(friction=_NoReachFriction(1e-3))
+    assert "_NoReachFriction (friction)" in taylor_capable(rec)
+    assert "friction_series_reach" in taylor_capable(rec)
 
 
 def test_a_record_without_series_is_named() -> None:
