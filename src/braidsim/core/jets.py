@@ -192,16 +192,20 @@ def _horner(V, sigma):
 
 
 @inline_helper
+def _exponent(v, scale, power):
+    """E = (|v| / scale)^power (power 1 or 2)."""
+    e = abs(v) / scale
+    return e if power == 1 else e * e
+
+
+@inline_helper
 def _below_floor(V, sigma, scale, power, floor, v0):
-    """Whether E = (|v| / scale)^power < floor at sigma, or v has left the sign of v0 (then
-    |v| has passed 0 since the start, below any floor)."""
+    """Whether E < floor at sigma, or v has left the sign of v0 (then |v| has passed 0
+    since the start, below any floor)."""
     v = _horner(V, sigma)
     if v * v0 <= 0.0:
         return True
-    e = abs(v) / scale
-    if power != 1:
-        e = e * e
-    return e < floor
+    return _exponent(v, scale, power) < floor
 
 
 @inline_helper
@@ -224,10 +228,7 @@ def saturation_reach(V, scale, power, h):
     then bisected; a dip of |v| that turns back between two points is not seen.
     """
     v0 = V[0]
-    e0 = abs(v0) / scale
-    if power != 1:
-        e0 = e0 * e0
-    floor = min(e0, SATURATED) - HIDDEN_FALL
+    floor = min(_exponent(v0, scale, power), SATURATED) - HIDDEN_FALL
     if not floor > 0.0:
         return h
     lo = 0.0
