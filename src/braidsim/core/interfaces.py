@@ -98,7 +98,11 @@ def penetration(mode, g_in, g_out, rate):
 def contact_forces(law, p, p_dot, v0):
     """(F_k, F_c, N) [N] at penetration ``p`` >= 0 [m], rate ``p_dot`` [m/s], with the
     approach speed ``v0`` [m/s] latched at onset: the stiffness-related force, the
-    damping-related force and the normal force (>= 0 unless the law allows tension)."""
+    damping-related force and the normal force (>= 0 unless the law allows tension).
+
+    A law that cannot pull returns N = max(0, F_k + F_c): the solver reads N = 0 where
+    F_k + F_c < 0 as the clamp and ends its steps at the kink where F_k + F_c crosses 0
+    (:mod:`braidsim.core.solver.events`); one that may pull returns N = F_k + F_c."""
     raise NotImplementedError
 
 

@@ -10,6 +10,15 @@ halves the retained end's value when the same end is kept twice: Dowell & Jarrat
 (1971) 168-174, doi:10.1007/BF01934364), and an interior minimum that does not change sign
 at the samples is searched for by golden section, so that a contact cannot hide between two
 samples.
+
+Where a contact law clamps its force, N = max(0, F_k + F_c), the force has a kink where the
+unclamped F_k + F_c crosses 0 (the damping term outpulls the stiffness term: the wall
+releases the body before it leaves the contact, and may press it again): the right-hand side
+is continuous there but not its derivative, and a step over it is of order h^2 however its
+error estimate reads it. A step whose ends lie on the two sides is cut there as at an event
+(functions ``CLAMP0 + 2 pair + rising``: the unclamped force, its sign turned so that it is
+positive at the step's start), located on the same samples and by the same method, without
+the dip search (the force is 0 to the bit past an exit, where the search would only creep).
 """
 
 from __future__ import annotations
@@ -18,16 +27,27 @@ import math
 
 from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import free_accel_bound, pair_gaps
+from braidsim.core.layout import MAX_PAIRS
 from braidsim.core.solver.dense import dense_eval
-from braidsim.core.solver.pairs import I_GIN, I_GOUT, I_P, I_PDD
+from braidsim.core.solver.pairs import I_FC, I_FK, I_GIN, I_GOUT, I_N, I_P, I_PDD, pair_forces
 
 N_SUB = 8  # a step is sampled at k / N_SUB, k = 0..N_SUB, for events and extremes
 GOLD = 0.3819660112501051  # 2 - golden ratio
+# event functions 0 .. CLAMP0 - 1: a pair's walls (j // 2 the pair, j % 2 the wall); from
+# CLAMP0 on, the clamps of the contact forces (CLAMP0 + 2 pair + 1 where the force is clamped
+# at the step's start and rises from it, + 0 where it falls to it)
+CLAMP0 = 2 * MAX_PAIRS
+N_EVENTS = CLAMP0 + 2 * MAX_PAIRS
 
 
 @helper
-def event_value(model, j, t, y, modes):
+def event_value(model, j, t, y, modes, v0s):
     """Event function j (>= 0 allowed, < 0 means the event happened); +1 when inactive."""
+    if j >= CLAMP0:
+        c = j - CLAMP0
+        pair = c // 2
+        _, _, fk, fc, _ = pair_forces(model, pair, t, y, modes[pair], v0s[pair])
+        return -(fk + fc) if c % 2 == 1 else fk + fc
     pair = j // 2
     side = -1 if j % 2 == 0 else 1
     mode = modes[pair]
@@ -37,6 +57,47 @@ def event_value(model, j, t, y, modes):
     if mode == 0:
         return g_in if side < 0 else g_out
     return -g_in if side < 0 else -g_out
+
+
+@inline_helper
+def clamp_crossing(INF0, INF1, pair):
+    """Which clamp event a contact's step holds, from the pair's summaries at its two ends
+    (rows ``pair`` of INF0, INF1: indexed here, a row view made in the loop costs numba's
+    reference counting at every step):
+    0 where the unclamped force F_k + F_c falls from > 0 to the clamp (<= 0: at or past an
+    exit it is 0), 1 where it rises from < 0 above 0, -1 for neither (no crossing between the
+    ends, or a law that allows tension: N = F_k + F_c < 0 there, no kink)."""
+    f0 = INF0[pair, I_FK] + INF0[pair, I_FC]
+    f1 = INF1[pair, I_FK] + INF1[pair, I_FC]
+    if f0 > 0.0 and f1 <= 0.0 and INF1[pair, I_N] == 0.0:
+        return 0
+    if f0 < 0.0 and f1 > 0.0 and INF0[pair, I_N] == 0.0:
+        return 1
+    return -1
+
+
+@helper
+def locate_clamp(model, n_pairs, t0, h, RC, modes, v0s, n, ys, GS, INF0, INF1):
+    """(theta, j): the earliest clamp event in the step (:func:`clamp_crossing`; its function
+    sampled at the N_SUB + 1 points into GS[j], then located by :func:`locate_event`), or
+    (2.0, -1). A call, made only in steps with a contact: inlined, the loop of every step
+    grew and ran 2-4 % slower on paper-3.3, where no force is ever clamped."""
+    theta = 2.0
+    j_ev = -1
+    for pair in range(n_pairs):
+        if modes[pair] == 0:
+            continue
+        rising = clamp_crossing(INF0, INF1, pair)
+        if rising < 0:
+            continue
+        j = CLAMP0 + 2 * pair + rising
+        for k in range(N_SUB + 1):
+            GS[j, k] = _event_at(model, j, t0, h, k / N_SUB, RC, modes, v0s, n, ys)
+        th = locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS)
+        if th < theta:
+            theta = th
+            j_ev = j
+    return theta, j_ev
 
 
 @inline_helper
@@ -65,21 +126,21 @@ def secant_point(lo, hi, glo, ghi, tol):
 
 
 @helper
-def _event_at(model, j, t0, h, theta, RC, modes, n, ys):
+def _event_at(model, j, t0, h, theta, RC, modes, v0s, n, ys):
     dense_eval(theta, RC, ys, n)
-    return event_value(model, j, t0 + theta * h, ys, modes)
+    return event_value(model, j, t0 + theta * h, ys, modes, v0s)
 
 
 @helper
-def _golden_dip(model, j, t0, h, a, b, RC, modes, n, ys):
+def _golden_dip(model, j, t0, h, a, b, RC, modes, v0s, n, ys):
     """Golden-section search of event function j on [a, b] for a value below zero.
 
     Returns the first theta found with a negative value, or 2.0 when the minimum is >= 0.
     """
     c = a + GOLD * (b - a)
     d = b - GOLD * (b - a)
-    fc = _event_at(model, j, t0, h, c, RC, modes, n, ys)
-    fd = _event_at(model, j, t0, h, d, RC, modes, n, ys)
+    fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
+    fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
     for _ in range(80):
         if fc < 0.0:
             return c
@@ -92,13 +153,13 @@ def _golden_dip(model, j, t0, h, a, b, RC, modes, n, ys):
             d = c
             fd = fc
             c = a + GOLD * (b - a)
-            fc = _event_at(model, j, t0, h, c, RC, modes, n, ys)
+            fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
         else:
             a = c
             c = d
             fc = fd
             d = b - GOLD * (b - a)
-            fd = _event_at(model, j, t0, h, d, RC, modes, n, ys)
+            fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
     return 2.0
 
 
@@ -165,13 +226,14 @@ def sample_events_call(model, n_pairs, t0, h, RC, modes, n, ys, GS, f0, f1, INF0
 
 
 @helper
-def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
+def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
     """Earliest theta in (0, 1] where event function j turns negative; 2.0 when none.
 
-    Uses the samples GS[j] (:func:`sample_events`); a sign change is refined by the Illinois
-    method, an interior local minimum of the samples by golden section.
+    Uses the samples GS[j] (:func:`sample_events`, :func:`sample_clamp`); a sign change is
+    refined by the Illinois method, an interior local minimum of the samples of a wall's
+    function by golden section.
     """
-    if not event_active(j, modes):
+    if j < CLAMP0 and not event_active(j, modes):
         return 2.0
     gs = GS[j]
     gs[0] = max(gs[0], 0.0)
@@ -188,18 +250,21 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
             break
         if (
             k < N_SUB
+            and j < CLAMP0
             and gs[k] < gs[k - 1]
             and gs[k] <= gs[k + 1]
             and gs[k] < max(gs[k - 1] - gs[k], gs[k + 1] - gs[k])
         ):
             # interior local minimum of the samples, close enough to zero that the function
             # could dip below it between the samples: golden section for that dip
-            dip = _golden_dip(model, j, t0, h, (k - 1) / N_SUB, (k + 1) / N_SUB, RC, modes, n, ys)
+            dip = _golden_dip(
+                model, j, t0, h, (k - 1) / N_SUB, (k + 1) / N_SUB, RC, modes, v0s, n, ys
+            )
             if dip < 2.0:
                 lo = (k - 1) / N_SUB
                 hi = dip
                 glo = gs[k - 1]
-                ghi = _event_at(model, j, t0, h, hi, RC, modes, n, ys)
+                ghi = _event_at(model, j, t0, h, hi, RC, modes, v0s, n, ys)
                 break
     if hi < 0.0:
         return 2.0
@@ -223,7 +288,7 @@ def locate_event(model, j, t0, h, RC, modes, n, ys, GS):
             zstep *= 2.0
             if not (lo < mid < hi):
                 mid = 0.5 * (lo + hi)
-        gm = _event_at(model, j, t0, h, mid, RC, modes, n, ys)
+        gm = _event_at(model, j, t0, h, mid, RC, modes, v0s, n, ys)
         if gm < 0.0:
             hi = mid
             ghi = gm

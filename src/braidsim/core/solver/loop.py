@@ -54,7 +54,15 @@ from braidsim.core.solver.dopri5 import (
     onset_error_ratio,
     rk_step,
 )
-from braidsim.core.solver.events import N_SUB, locate_event, sample_events, sample_events_call
+from braidsim.core.solver.events import (
+    CLAMP0,
+    N_EVENTS,
+    N_SUB,
+    locate_clamp,
+    locate_event,
+    sample_events,
+    sample_events_call,
+)
 from braidsim.core.solver.pairs import I_DN, I_FC, I_FK, I_P, I_PD, NI, gaps, pair_infos
 from braidsim.core.solver.radau import (
     ATTEMPT_OK,
@@ -308,7 +316,7 @@ def integrate(
     jac_fresh = False  # the implicit step's Jacobian belongs to the current (t, y)
     newton_iters = 0
     RC = np.empty((5, n))
-    GS = np.empty((4, N_SUB + 1))
+    GS = np.empty((N_EVENTS, N_SUB + 1))
     if SENS is not None:
         nsens = SENS.S.shape[0]
         KS = np.empty((nsens, 7, n_dof2))
@@ -783,10 +791,16 @@ def integrate(
             )
         if sampled:
             for j in range(2 * n_pairs):
-                th = locate_event(model, j, t, h, RCs, modes, n_dof2, ys, GS)
+                th = locate_event(model, j, t, h, RCs, modes, v0s, n_dof2, ys, GS)
                 if th < theta_ev:
                     theta_ev = th
                     j_ev = j
+        if modes[0] != 0 or modes[1] != 0:
+            # a contact force that reaches or leaves its clamp in the step (events.py)
+            th, j = locate_clamp(model, n_pairs, t, h, RCs, modes, v0s, n_dof2, ys, GS, INF0, INF1)
+            if th < theta_ev:
+                theta_ev = th
+                j_ev = j
         if TAY is not None:
             if took_taylor:
                 # the Taylor step is taken again by the Runge-Kutta method where its
@@ -794,7 +808,7 @@ def integrate(
                 # ends at the branch point of p^n at p = 0), or where the law's clamp holds
                 # a contact force at 0 by the end of the step (not the series of the
                 # unclamped force)
-                refused = j_ev >= 0 and modes[j_ev // 2] != 0
+                refused = j_ev >= CLAMP0 or (j_ev >= 0 and modes[j_ev // 2] != 0)
                 for pair in range(n_pairs):
                     if modes[pair] != 0 and INF1[pair, I_FK] + INF1[pair, I_FC] < 0.0:
                         refused = True
@@ -956,14 +970,19 @@ def integrate(
             t_ev = t + h_taken
             for i in range(n):
                 y[i] = ye[i]
-            pair = j_ev // 2
+            kink = j_ev >= CLAMP0
+            pair = (j_ev - CLAMP0) // 2 if kink else j_ev // 2
             side = -1 if j_ev % 2 == 0 else 1
             _, _, rate_in = gaps(model, pair, t_ev, y)
             rate = -rate_in if side < 0 else rate_in  # penetration rate into this wall
             ev_onset = modes[pair] == 0
             ev_ie = open_ep[pair]
             nrow_ev = nrow
-            if modes[pair] == 0:
+            if kink:
+                # the contact force reached or left its clamp: the step is cut there, so that
+                # the next one starts on the kink's other side; the contact goes on
+                pass
+            elif modes[pair] == 0:
                 # onset: latch the approach speed
                 vmin = model.min_impact_velocity
                 vlat = rate if rate > vmin else vmin
@@ -1010,7 +1029,8 @@ def integrate(
             pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
             st.rhs_evaluations += 1
             if SENS is not None:
-                if not contact_event(
+                # (at a clamp the field is continuous: the tangents do not jump)
+                if not kink and not contact_event(
                     model, SENS, pair, side, ev_onset, t, y, Ke6, K0, n_dof2, ev_ie, KS
                 ):
                     status = ST_GRAZING
