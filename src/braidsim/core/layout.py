@@ -335,6 +335,10 @@ RESTART_DTYPE = np.dtype(
         ("implicit_prev_h", "f8"),  # [s] the last step, when implicit (its polynomial in Q)
         ("taylor_wait", "f8"),  # Runge-Kutta steps to take before a Taylor step is tried again
         ("onset_pair", "f8"),  # the pair whose contact the pending first step starts (-1: none)
+        # whether each pair's contact force is held at its law's clamp, as the last clamp
+        # event left it (-1: not known, read from the force's sign)
+        ("clamped_0", "f8"),
+        ("clamped_1", "f8"),
     ]
 )
 
@@ -349,6 +353,8 @@ def _restart_template() -> np.ndarray:
     r = np.zeros(1, dtype=RESTART_DTYPE)
     r[0]["open_0"] = -1.0
     r[0]["open_1"] = -1.0
+    r[0]["clamped_0"] = -1.0
+    r[0]["clamped_1"] = -1.0
     r[0]["v0_0"] = 1.0
     r[0]["v0_1"] = 1.0
     r[0]["err_old"] = 1e-4

@@ -46,8 +46,11 @@ def event_value(model, j, t, y, modes, v0s):
     if j >= CLAMP0:
         c = j - CLAMP0
         pair = c // 2
-        _, _, fk, fc, _ = pair_forces(model, pair, t, y, modes[pair], v0s[pair])
-        return -(fk + fc) if c % 2 == 1 else fk + fc
+        _, _, fk, fc, nn = pair_forces(model, pair, t, y, modes[pair], v0s[pair])
+        if c % 2 == 1:
+            return -(fk + fc)
+        # (falling: only where the law holds N at 0; one that allows tension has no kink)
+        return fk + fc if nn == 0.0 or fk + fc >= 0.0 else 1.0
     pair = j // 2
     side = -1 if j % 2 == 0 else 1
     mode = modes[pair]
@@ -60,24 +63,36 @@ def event_value(model, j, t, y, modes, v0s):
 
 
 @inline_helper
-def clamp_crossing(INF0, INF1, pair):
-    """Which clamp event a contact's step holds, from the pair's summaries at its two ends
+def clamp_crossing(INF0, INF1, pair, clamped):
+    """Which clamp event a contact's step may hold, from the pair's summaries at its two ends
     (rows ``pair`` of INF0, INF1: indexed here, a row view made in the loop costs numba's
-    reference counting at every step):
-    0 where the unclamped force F_k + F_c falls from > 0 to the clamp (<= 0: at or past an
-    exit it is 0), 1 where it rises from < 0 above 0, -1 for neither (no crossing between the
-    ends, or a law that allows tension: N = F_k + F_c < 0 there, no kink)."""
-    f0 = INF0[pair, I_FK] + INF0[pair, I_FC]
+    reference counting at every step) and whether its force is held at the clamp
+    (``clamped``, set at the last clamp event, not read from the force's sign: at the end of
+    a step cut at the kink the force is 0 to within the interpolant's error, of either
+    sign, and read from it the same kink would be found again and again, a step of a few
+    ulps each time). 0 where an unclamped force ends the step at or below 0 (at or past an
+    exit it is 0) and the law clamps it there (N = 0; a law that allows tension returns
+    N = F_k + F_c < 0: no kink); 1 where a clamped one ends it above 0; -1 for neither."""
     f1 = INF1[pair, I_FK] + INF1[pair, I_FC]
-    if f0 > 0.0 and f1 <= 0.0 and INF1[pair, I_N] == 0.0:
+    if clamped:
+        return 1 if f1 > 0.0 else -1
+    if f1 <= 0.0 and INF1[pair, I_N] == 0.0:
         return 0
-    if f0 < 0.0 and f1 > 0.0 and INF0[pair, I_N] == 0.0:
-        return 1
     return -1
 
 
+@inline_helper
+def clamp_state(INF, pair):
+    """Whether a contact's force is at its clamp, read from its sign where no clamp event
+    says it (at the start of a run, or of a contact after a transfer): 1 where F_k + F_c < 0
+    and the law holds N at 0."""
+    if INF[pair, I_FK] + INF[pair, I_FC] < 0.0 and INF[pair, I_N] == 0.0:
+        return 1
+    return 0
+
+
 @helper
-def locate_clamp(model, n_pairs, t0, h, RC, modes, v0s, n, ys, GS, INF0, INF1):
+def locate_clamp(model, n_pairs, t0, h, RC, modes, v0s, clamped, n, ys, GS, INF0, INF1):
     """(theta, j): the earliest clamp event in the step (:func:`clamp_crossing`; its function
     sampled at the N_SUB + 1 points into GS[j], then located by :func:`locate_event`), or
     (2.0, -1). A call, made only in steps with a contact: inlined, the loop of every step
@@ -87,7 +102,7 @@ def locate_clamp(model, n_pairs, t0, h, RC, modes, v0s, n, ys, GS, INF0, INF1):
     for pair in range(n_pairs):
         if modes[pair] == 0:
             continue
-        rising = clamp_crossing(INF0, INF1, pair)
+        rising = clamp_crossing(INF0, INF1, pair, clamped[pair])
         if rising < 0:
             continue
         j = CLAMP0 + 2 * pair + rising

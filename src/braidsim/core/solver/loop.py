@@ -58,6 +58,7 @@ from braidsim.core.solver.events import (
     CLAMP0,
     N_EVENTS,
     N_SUB,
+    clamp_state,
     locate_clamp,
     locate_event,
     sample_events,
@@ -341,6 +342,11 @@ def integrate(
     v0s[1] = r.v0_1
     open_ep[0] = int(r.open_0)
     open_ep[1] = int(r.open_1)
+    # whether each contact force is held at its clamp (events.clamp_crossing; -1: read from
+    # the force's sign once the pair summaries are known, below)
+    clamped = np.empty(2, dtype=np.int64)
+    clamped[0] = int(r.clamped_0)
+    clamped[1] = int(r.clamped_1)
     nrow = int(r.rows)
     nep = int(r.episodes)
     isamp = int(r.next_sample)
@@ -429,6 +435,9 @@ def integrate(
     rhs(model, t, y, modes, v0s, n, K0)
     pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
     st.rhs_evaluations += 1
+    for pair in range(n_pairs):
+        if clamped[pair] < 0:
+            clamped[pair] = clamp_state(INF0, pair)
     if SENS is not None:
         tangent_start(model, SENS, t, y, modes, v0s, KS)
     status = ST_OK
@@ -481,6 +490,8 @@ def integrate(
             rhs(model, t, y, modes, v0s, n, K0)
             pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
             st.rhs_evaluations += 1
+            for pair in range(reset):
+                clamped[pair] = clamp_state(INF0, pair)
             if SENS is not None:
                 for pair in range(reset):
                     ie = open_ep[pair]
@@ -797,7 +808,9 @@ def integrate(
                     j_ev = j
         if modes[0] != 0 or modes[1] != 0:
             # a contact force that reaches or leaves its clamp in the step (events.py)
-            th, j = locate_clamp(model, n_pairs, t, h, RCs, modes, v0s, n_dof2, ys, GS, INF0, INF1)
+            th, j = locate_clamp(
+                model, n_pairs, t, h, RCs, modes, v0s, clamped, n_dof2, ys, GS, INF0, INF1
+            )
             if th < theta_ev:
                 theta_ev = th
                 j_ev = j
@@ -981,7 +994,7 @@ def integrate(
             if kink:
                 # the contact force reached or left its clamp: the step is cut there, so that
                 # the next one starts on the kink's other side; the contact goes on
-                pass
+                clamped[pair] = 1 - clamped[pair]
             elif modes[pair] == 0:
                 # onset: latch the approach speed
                 vmin = model.min_impact_velocity
@@ -997,6 +1010,7 @@ def integrate(
                 h_on, onset_q = _onset_step(model, pair, vlat)
                 onset_pair = pair
                 h = min(h, h_on)
+                clamped[pair] = 0  # (the force starts at 0 or above: p = 0, p' > 0)
             else:
                 # exit
                 nrow = write_row(model, rows, nrow, t_ev, y, modes, v0s, n, KIND_EXIT, rec)
@@ -1007,6 +1021,7 @@ def integrate(
                     )
                 open_ep[pair] = -1
                 modes[pair] = 0
+                clamped[pair] = 0
             update_ranges(model, n_pairs, t_ev, y, modes, v0s, WIN, RANGES)
             st.events += 1
             if t_ev - last_event_t <= 1e-12 * max(1.0, t_ev):
@@ -1082,6 +1097,8 @@ def integrate(
     r.v0_1 = v0s[1]
     r.open_0 = open_ep[0]
     r.open_1 = open_ep[1]
+    r.clamped_0 = clamped[0]
+    r.clamped_1 = clamped[1]
     if status == ST_OK:
         nrow0 = nrow
         nrow = write_row(model, rows, nrow, t, y, modes, v0s, n, KIND_END, rec)
