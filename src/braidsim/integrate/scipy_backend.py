@@ -20,8 +20,11 @@ x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr.
 Method: one :func:`~scipy.integrate.solve_ivp` call per contact mode, with terminal events
 at contact onset (free pair: gap to each wall crosses zero downwards) and exit (penetration
 crosses zero downwards); the integration restarts after each event with the new mode and the
-newly latched v0. Steps are limited to the solver's ``max_step`` so that the event functions,
-which SciPy only checks at step ends, are sampled as often as in the compiled solver. Within
+newly latched v0. A law that clamps its force (N = max(0, F_k + F_c)) has a kink where
+F_k + F_c crosses zero inside a contact: a terminal event as well, after which the
+integration restarts in the same mode (watching the crossing back). Steps are limited to
+the solver's ``max_step`` so that the event functions, which SciPy only checks at step ends,
+are sampled as often as in the compiled solver. Within
 each contact segment the maxima and minima of the penetration, the damping-related force and
 the normal force are found on a grid of the dense output (step ends plus ``N_SUB`` interior
 points per step) and refined by bounded Brent minimisation
@@ -105,6 +108,21 @@ class _Equations:
         g_in, _, rate = self._gaps(self.record, pair, t, np.asarray(y, dtype=float))
         return g_in, rate
 
+    def unclamped_force(self, t: float, y: np.ndarray, pair: int, mode: int, v0: float) -> float:
+        """F_k + F_c [N] of ``pair`` in contact mode ``mode``: the force before the law's
+        clamp at 0."""
+        u, ud = self.pair_state(t, y, pair)
+        p, pd = (-u, -ud) if mode < 0 else (u - self.eps[pair], ud)
+        fk, fc, _ = self._law(self.record, pair, max(p, 0.0), pd, v0)
+        return float(fk + fc)
+
+    def law_clamps(self, pair: int) -> bool:
+        """Whether ``pair``'s law holds its force at 0 where the damping term outpulls the
+        stiffness term (asked with a body receding fast: an undamped law never pulls, one
+        that allows tension returns the negative sum)."""
+        fk, fc, nn = self._law(self.record, pair, 1e-6, -1e6, 1e-6)
+        return bool(fk + fc < 0.0 and nn == 0.0)
+
     def stiffness_force(self, pair: int, p: float) -> float:
         """F_k [N] of ``pair``'s contact law at penetration p (it depends on p alone)."""
         law = self._law(self.record, pair, float(p), 0.0, 1.0)
@@ -127,11 +145,13 @@ class _Equations:
 
         return rhs
 
-    def make_events(self, mt: int, ms: int) -> list[Any]:
-        """Terminal events of the modes (mt, ms): onset of a free pair, exit of a pair in contact.
+    def make_events(self, mt: int, ms: int, v0: Sequence[float], watch: Sequence[int]) -> list[Any]:
+        """Terminal events of the modes (mt, ms): onset of a free pair, exit of a pair in
+        contact, and the clamp of a contact force (where its law clamps; ``watch[pair]``: -1
+        for the unclamped force falling through zero, +1 for it rising).
 
-        Each returns a value that is >= 0 while nothing happens and crosses zero downwards at
-        the event; ``event.tag = (pair, side)``.
+        Onset and exit return a value that is >= 0 while nothing happens and crosses zero
+        downwards at the event; ``event.tag = (pair, side)``, side 0 for the clamp.
         """
         events: list[Any] = []
         npair = 2 if self.two_dof else 1
@@ -142,6 +162,8 @@ class _Equations:
             for side in sides:
                 ev = _make_event(self, pair, side, mode, eps)
                 events.append(ev)
+            if mode != 0 and self.law_clamps(pair):
+                events.append(_make_clamp_event(self, pair, mode, v0[pair], watch[pair]))
         return events
 
     def pair_arrays(
@@ -176,6 +198,17 @@ def _make_event(eq: _Equations, pair: int, side: int, mode: int, eps: float) -> 
     ev.terminal = True  # type: ignore[attr-defined]
     ev.direction = -1.0  # type: ignore[attr-defined]
     ev.tag = (pair, side)  # type: ignore[attr-defined]
+    return ev
+
+
+def _make_clamp_event(eq: _Equations, pair: int, mode: int, v0: float, direction: int) -> Any:
+    def ev(t: float, y: np.ndarray) -> float:
+        return eq.unclamped_force(t, y, pair, mode, v0)
+
+    ev.terminal = True  # type: ignore[attr-defined]
+    # (one direction only: the segment starts at the last crossing, the force about 0 there)
+    ev.direction = float(direction)  # type: ignore[attr-defined]
+    ev.tag = (pair, 0)  # type: ignore[attr-defined]
     return ev
 
 
@@ -293,6 +326,9 @@ class _Run:
         self.max_steps = int(model.options.max_steps)
         self.modes = [0, 0]
         self.v0 = [1.0, 1.0]
+        # the clamp crossing each contact waits for: -1 falling, +1 rising, 0 not known yet
+        # (read from the force's sign at the next segment's start)
+        self.clamp_watch = [0, 0]
         self.open: list[_Episode | None] = [None, None]
         self.episodes: list[_Episode] = []
         self.stats: dict[str, float] = {
@@ -473,7 +509,11 @@ class _Run:
             t_stop = transfers[itr] if itr < len(transfers) else t_end
             mt, ms = self.modes
             in_contact = any(self.modes[p] != 0 for p in range(self.npair))
-            events = eq.make_events(mt, ms)
+            for p in range(self.npair):
+                if self.modes[p] != 0 and self.clamp_watch[p] == 0:
+                    f = eq.unclamped_force(t, y, p, self.modes[p], self.v0[p])
+                    self.clamp_watch[p] = -1 if f >= 0.0 else 1
+            events = eq.make_events(mt, ms, self.v0, self.clamp_watch)
             c0 = time.perf_counter()
             sol = solve_ivp(
                 eq.make_rhs(mt, ms, self.v0[0], self.v0[1]),
@@ -520,7 +560,12 @@ class _Run:
             t, y = t_ev, y_ev
             if j >= 0:
                 pair, side = events[j].tag
-                self._switch(t, y, pair, side)
+                if side == 0:
+                    # the clamp: the same mode on, watching the crossing back
+                    self.clamp_watch[pair] = -self.clamp_watch[pair]
+                else:
+                    self._switch(t, y, pair, side)
+                    self.clamp_watch[pair] = 0
                 self.stats["events"] += 1
                 if t - last_event_t <= 1e-12 * max(1.0, t):
                     same_time += 1
@@ -579,6 +624,7 @@ class _Run:
         y[0] = h + eps - xr
         y[1] = 2.0 * hd - y[1] + eq.transfer_speed
         self.modes[0] = 0
+        self.clamp_watch[0] = 0
         self.start_contacts(t, y, 1)
 
 
