@@ -188,6 +188,33 @@ def test_the_xy_carrier_converges_through_a_clamped_slot_contact() -> None:
         assert abs(vy(rtol) - ref) <= 20.0 * rtol * abs(ref)
 
 
+def test_each_crossing_of_a_clamp_is_one_event() -> None:
+    """Slot contacts so damped (Flores, e = 0.1) that each ends clamped: the run's events are
+    its onsets, its exits and one per crossing of the unclamped force F_k + F_c through 0,
+    counted here on a 1-us series of that force (in the series, signed as the contact force
+    is: the clamp is where it turns positive). Read from the force's sign at the start of
+    each step, the same kink was found up to 4 times over."""
+    sc = load_scenario("paper-3.1").with_overrides(
+        {
+            "simulation.dof": "xy",
+            "contact.slot.model": "flores",
+            "contact.slot.restitution": 0.1,
+            "simulation.sample_interval": 1e-6,
+        }
+    )
+    res = simulate(sc, 0.02)
+    s = res.series
+    crossings = 0
+    for pair in ("track", "slot"):
+        f = s[f"{pair}_stiffness_force"] + s[f"{pair}_damping_force"]
+        both_in = (s[f"{pair}_depth"][1:] != 0) & (s[f"{pair}_depth"][:-1] != 0)
+        crossings += int(np.sum((np.sign(f[1:]) != np.sign(f[:-1])) & both_in))
+    imp = res.impacts
+    exits = int((~imp["ongoing"]).sum())
+    assert crossings == 2
+    assert res.stats["events"] == len(imp) + exits + crossings
+
+
 def test_oscillator_without_walls_is_the_harmonic_oscillator() -> None:
     """m x'' + k x = 0 from x0: x = x0 cos(w t), v = -x0 w sin(w t), energy conserved."""
     m, k, x0 = 2.0, 800.0, 0.01
