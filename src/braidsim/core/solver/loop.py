@@ -58,6 +58,7 @@ from braidsim.core.solver.events import (
     CLAMP0,
     N_EVENTS,
     N_SUB,
+    clamp_pending,
     clamp_state,
     locate_clamp,
     locate_event,
@@ -806,10 +807,24 @@ def integrate(
                 if th < theta_ev:
                     theta_ev = th
                     j_ev = j
-        if modes[0] != 0 or modes[1] != 0:
+        if clamp_pending(n_pairs, modes, clamped, INF0, INF1):
             # a contact force that reaches or leaves its clamp in the step (events.py)
             th, j = locate_clamp(
-                model, n_pairs, t, h, RCs, modes, v0s, clamped, n_dof2, ys, GS, INF0, INF1
+                model,
+                n_pairs,
+                t,
+                h,
+                RCs,
+                modes,
+                v0s,
+                clamped,
+                n_dof2,
+                ys,
+                GS,
+                INF0,
+                INF1,
+                theta_ev,
+                j_ev,
             )
             if th < theta_ev:
                 theta_ev = th
