@@ -15,10 +15,11 @@ Where a contact law clamps its force, N = max(0, F_k + F_c), the force has a kin
 unclamped F_k + F_c crosses 0 (the damping term outpulls the stiffness term: the wall
 releases the body before it leaves the contact, and may press it again): the right-hand side
 is continuous there but not its derivative, and a step over it is of order h^2 however its
-error estimate reads it. A step whose ends lie on the two sides is cut there as at an event
-(functions ``CLAMP0 + 2 pair + rising``: the unclamped force, its sign turned so that it is
-positive at the step's start), located on the same samples and by the same method, without
-the dip search (the force is 0 to the bit past an exit, where the search would only creep).
+error estimate reads it. A step that ends on the other side of the clamp from where the
+contact is (:func:`clamp_crossing`: the solver keeps which side that is) is cut there as at
+an event (functions ``CLAMP0 + 2 pair + rising``: the unclamped force, negated for a rising
+crossing), located on 9 samples by the same method, without the dip search (the force is 0
+to the bit past an exit, where the search would only creep).
 """
 
 from __future__ import annotations
@@ -111,7 +112,7 @@ def locate_clamp(
     """(theta, j): the earliest clamp event in the step (:func:`clamp_crossing`; its function
     sampled at the N_SUB + 1 points into GS[j], then located by :func:`locate_event`), or
     (2.0, -1). A call, made only where :func:`clamp_pending` says so: inlined, the loop of
-    every step grew and ran 2-4 % slower on paper-3.3, where no force is ever clamped; called
+    every step grew and ran 1-3 % slower on paper-3.3, where no force is ever clamped; called
     in every step with a contact, Taylor runs there were 3-15 % slower.
 
     ``theta_wall``, ``j_wall``: the earliest wall event of the step. Where it is the exit of
@@ -270,7 +271,7 @@ def sample_events_call(model, n_pairs, t0, h, RC, modes, n, ys, GS, f0, f1, INF0
 def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
     """Earliest theta in (0, 1] where event function j turns negative; 2.0 when none.
 
-    Uses the samples GS[j] (:func:`sample_events`, :func:`sample_clamp`); a sign change is
+    Uses the samples GS[j] (:func:`sample_events`, :func:`locate_clamp`); a sign change is
     refined by the Illinois method, an interior local minimum of the samples of a wall's
     function by golden section.
     """

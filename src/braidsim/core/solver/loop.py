@@ -1000,6 +1000,7 @@ def integrate(
                 y[i] = ye[i]
             kink = j_ev >= CLAMP0
             pair = (j_ev - CLAMP0) // 2 if kink else j_ev // 2
+            # (the wall and the rate into it: read at an onset or exit, not at a kink)
             side = -1 if j_ev % 2 == 0 else 1
             _, _, rate_in = gaps(model, pair, t_ev, y)
             rate = -rate_in if side < 0 else rate_in  # penetration rate into this wall
