@@ -139,6 +139,10 @@ class State:
         The step control's memory of the last error norm.
     onset_q : float
         Error exponent of a pending first contact step (0: none).
+    track_clamped, slot_clamped : int
+        Whether the contact's force is held at its law's clamp N = max(0, F_k + F_c) (1) or
+        not (0), as the solver's last crossing of it left it; -1: not known (read from the
+        force's sign when the run starts).
     """
 
     t: float
@@ -150,6 +154,8 @@ class State:
     step: float = 0.0
     err_old: float = 1e-4
     onset_q: float = 0.0
+    track_clamped: int = -1
+    slot_clamped: int = -1
 
 
 def _json_float(v: float) -> float | None:

@@ -244,6 +244,8 @@ def final_state(raw: RawRun) -> State:
         step=r.h,
         err_old=r.err_old,
         onset_q=r.onset_q,
+        track_clamped=int(r.clamped_0),
+        slot_clamped=int(r.clamped_1),
     )
 
 
@@ -321,6 +323,7 @@ def run_model(
         r["onset_q"] = start.onset_q
         r["mode_0"], r["mode_1"] = start.track_mode, start.slot_mode
         r["v0_0"], r["v0_1"] = start.track_v0, start.slot_v0
+        r["clamped_0"], r["clamped_1"] = start.track_clamped, start.slot_clamped
         opts = opts._replace(t_end=start.t + model.duration)
     try:
         raw = core_run(

@@ -207,6 +207,30 @@ def test_restart_continues_a_run_exactly() -> None:
     assert second.final["x"] == pytest.approx(whole.final["x"], abs=1e-9)
 
 
+def test_restart_inside_a_clamped_contact_keeps_the_clamp() -> None:
+    """Cut in the middle of a slot contact whose force is held at its clamp (Flores, e = 0.1:
+    the force is 0 from 7.98 ms while the pad is in the wall until 8.78 ms): the state says
+    so, and the continued run gives the whole run's impacts and end."""
+    over = {
+        "simulation.dof": "xy",
+        "contact.slot.model": "flores",
+        "contact.slot.restitution": 0.1,
+    }
+    whole = braidsim.simulate("paper-3.1", duration=0.02, overrides=over, sample_interval=0)
+    first = braidsim.simulate("paper-3.1", duration=0.0085, overrides=over, sample_interval=0)
+    state = first.final_state
+    assert state.slot_mode != 0 and state.slot_clamped == 1
+    second = braidsim.simulate(
+        "paper-3.1", duration=0.0115, overrides=over, sample_interval=0, start=state
+    )
+    later = second.impacts[~second.impacts["initial"]]
+    t_joined = np.concatenate([first.impacts["t"].to_numpy(), later["t"].to_numpy()])
+    # (the halves step differently after the cut: measured 3.4e-14 s and 7e-13 of vy)
+    np.testing.assert_allclose(t_joined, whole.impacts["t"].to_numpy(), atol=1e-12)
+    for key in ("x", "vx", "y", "vy"):
+        assert second.final[key] == pytest.approx(whole.final[key], rel=1e-10, abs=1e-15)
+
+
 def test_a_start_state_without_a_step_chooses_one() -> None:
     """``State.step = 0`` (a state made by hand, or from another tool) means "choose the
     first step afresh": the continued run starts as a new one would, and ends where the
