@@ -130,6 +130,14 @@ def onset_error_ratio(q):
     return ratio
 
 
+@inline_helper
+def embedded_error(h, K, i):
+    """The embedded error estimate of component i over the step: h sum_s E_s k_s."""
+    return h * (
+        E1 * K[0, i] + E3 * K[2, i] + E4 * K[3, i] + E5 * K[4, i] + E6 * K[5, i] + E7 * K[6, i]
+    )
+
+
 @helper
 def error_norm(y, y1, h, K, n_dof2, rtol, atol_x, atol_v):
     """RMS of the embedded error estimate, each component scaled by
@@ -139,12 +147,21 @@ def error_norm(y, y1, h, K, n_dof2, rtol, atol_x, atol_v):
     acc = 0.0
     for i in range(n_dof2):
         atol = atol_x if i % 2 == 0 else atol_v
-        err = h * (
-            E1 * K[0, i] + E3 * K[2, i] + E4 * K[3, i] + E5 * K[4, i] + E6 * K[5, i] + E7 * K[6, i]
-        )
+        err = embedded_error(h, K, i)
         sc = atol + rtol * max(abs(y[i]), abs(y1[i]))
         acc += (err / sc) ** 2
     return math.sqrt(acc / n_dof2)
+
+
+@helper
+def quadrature_error(y, y1, h, K, i, rtol):
+    """The embedded error estimate of component i over rtol max(|y0_i|, |y1_i|), for an
+    energy quadrature whose error the step must bound where it is not the motion's (no
+    absolute part: the quadratures that need it are positive; 0 where the estimate is)."""
+    err = embedded_error(h, K, i)
+    if err == 0.0:
+        return 0.0
+    return abs(err) / (rtol * max(abs(y[i]), abs(y1[i])) + 1e-300)
 
 
 @helper
