@@ -128,7 +128,7 @@ def test_xy_carrier_through_clamped_contacts_matches_finite_differences() -> Non
     before the pad leaves the wall: the solver cuts its steps at those kinks (the tangents
     do not jump there, the field being continuous). Stepped over, the kinks made the runs
     themselves err: the central differences of the final y and vy were 4e-4 to 3.5e-2 from
-    these same tangents; cut, 1.2e-8 to 4.7e-5 (measured at rtol 1e-12, atol 1e-17 m)."""
+    these same tangents; cut, 1.1e-7 to 2.1e-6 (measured at rtol 1e-12, atol 1e-17 m)."""
     sc = braidsim.load_scenario(
         "paper-3.1",
         overrides={
