@@ -156,8 +156,8 @@ def error_norm(y, y1, h, K, n_dof2, rtol, atol_x, atol_v):
 @helper
 def quadrature_error(y, y1, h, K, i, rtol):
     """The embedded error estimate of component i over rtol max(|y0_i|, |y1_i|), for an
-    energy quadrature whose error the step must bound where it is not the motion's (no
-    absolute part: the quadratures that need it are positive; 0 where the estimate is)."""
+    energy quadrature whose error the step must bound where the motion's does not (no
+    absolute part: the quadratures that need it are positive; 0 where the estimate is 0)."""
     err = embedded_error(h, K, i)
     if err == 0.0:
         return 0.0
