@@ -111,10 +111,8 @@ class _Equations:
     def unclamped_force(self, t: float, y: np.ndarray, pair: int, mode: int, v0: float) -> float:
         """F_k + F_c [N] of ``pair`` in contact mode ``mode``: the force before the law's
         clamp at 0."""
-        u, ud = self.pair_state(t, y, pair)
-        p, pd = (-u, -ud) if mode < 0 else (u - self.eps[pair], ud)
-        fk, fc, _ = self._law(self.record, pair, max(p, 0.0), pd, v0)
-        return float(fk + fc)
+        _, _, fk, fc, _ = self.pair_arrays(np.array([t]), y, pair, mode, v0)
+        return float(fk[0] + fc[0])
 
     def law_clamps(self, pair: int) -> bool:
         """Whether ``pair``'s law holds its force at 0 where the damping term outpulls the
