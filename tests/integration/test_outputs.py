@@ -498,9 +498,12 @@ def test_sigterm_stops_the_worker_processes(tmp_path) -> None:
     finally:
         if p.poll() is None:
             p.kill()
-            # (reaped and its pipes closed here: left to the garbage collector, they failed
-            # the next test on this worker with a ResourceWarning)
-            p.communicate()
+            p.wait()
+        # (the pipes closed here, not left to the garbage collector, which failed the next
+        # test on this worker with a ResourceWarning; not read: a worker may hold them open)
+        for pipe in (p.stdout, p.stderr):
+            if pipe is not None:
+                pipe.close()
     # 128 + 15: the exit code of a command stopped by SIGTERM (docs/guarantees.md)
     assert p.returncode == 143 and "interrupted by SIGTERM" in err and "Traceback" not in err
     time.sleep(0.5)
