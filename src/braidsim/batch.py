@@ -720,6 +720,54 @@ def start_resource_tracker() -> None:
         signal.signal(hup, old)
 
 
+def die_with_parent() -> None:
+    """Worker-pool initializer: end this worker when the process that made the pool ends.
+
+    Without it, a worker outlives a command that dies without ending it: one killed with
+    SIGKILL (which no handler sees), or one interrupted while its pool was still forking,
+    whose newest worker the pool did not know yet when the command killed the workers. The
+    worker then waits forever for tasks (it holds the write end of its own task queue), and
+    holds the command's stdout and stderr open. Two ways, for the two start methods:
+
+    - ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (Linux): the kernel kills the worker when the
+      process that forked it ends. That is the command for a ``fork`` worker, but the fork
+      server for a ``forkserver`` worker, and the fork server outlives the command as long as
+      its workers live (they hold its liveness pipe).
+    - a daemon thread waits on the parent's sentinel (a connection to the process that
+      started the worker, which reads as closed once that process ends) and ends the worker
+      with ``os._exit``: every start method, every platform; it runs when the worker's
+      compiled code lets go of the interpreter lock.
+
+    A worker whose parent ended before this ran ends at once.
+    """
+    import ctypes
+    import multiprocessing
+    import signal
+    import threading
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
+    except (OSError, AttributeError):  # pragma: no cover - not Linux
+        pass
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+    if not parent.is_alive():
+        os._exit(1)
+    threading.Thread(
+        target=_exit_when_closed, args=(parent.sentinel,), name="parent-watch", daemon=True
+    ).start()
+
+
+def _exit_when_closed(sentinel: int) -> None:
+    """Block until ``sentinel`` reads as closed, then end this process at once."""
+    from multiprocessing.connection import wait
+
+    wait([sentinel])
+    os._exit(1)
+
+
 def process_context() -> Any:
     """The multiprocessing context of the worker processes.
 
@@ -758,7 +806,9 @@ def _run_in_processes(
     values = np.empty((n, len(METRICS)))
     series = np.empty((n, len(opts.series), opts.series_times.size)) if opts.series else None
     failures = [""] * n
-    with ProcessPoolExecutor(max_workers=workers, mp_context=process_context()) as pool:
+    with ProcessPoolExecutor(
+        max_workers=workers, mp_context=process_context(), initializer=die_with_parent
+    ) as pool:
         futs = [pool.submit(_run_payload, payload, sets[j::k], duration, opts) for j in range(k)]
         for j, fut in enumerate(futs):
             v, s, f = fut.result()

@@ -4,7 +4,12 @@ version, compact and tidy output files, and the steady-state windows of the anal
 from __future__ import annotations
 
 import json
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -438,8 +443,6 @@ def test_progress_is_off_under_json_and_without_a_terminal(capsys) -> None:
 def test_first_compile_is_detected() -> None:
     """With an empty numba cache the integrator's first call compiles (and the progress note
     says so); here, after runs, it does not."""
-    import subprocess
-    import sys
     import tempfile
 
     from braidsim.cli.progress import kernel_needs_compile
@@ -448,66 +451,126 @@ def test_first_compile_is_detected() -> None:
     assert not kernel_needs_compile()
     with tempfile.TemporaryDirectory() as cache:
         code = "from braidsim.cli.progress import kernel_needs_compile as k; print(k())"
-        env = {**__import__("os").environ, "NUMBA_CACHE_DIR": cache}
+        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
         out = subprocess.run(
             [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
         )
     assert out.stdout.strip() == "True"
 
 
-def _descendants(pid: int) -> set[int]:
-    """Process ids below ``pid`` (Linux /proc)."""
-    children: dict[int, list[int]] = {}
+def _session_members(sid: int) -> dict[int, str]:
+    """Process id -> state letter of every process in session ``sid`` (Linux /proc).
+
+    A command started with ``start_new_session`` leads a session of its own, and every
+    process it starts stays in it, including one orphaned by the command's end (which
+    /proc's parent links no longer lead to)."""
+    out: dict[int, str] = {}
     for d in Path("/proc").iterdir():
         if d.name.isdigit():
             try:
-                stat = (d / "stat").read_text()
+                fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
             except OSError:
                 continue
-            ppid = int(stat.rsplit(")", 1)[1].split()[1])
-            children.setdefault(ppid, []).append(int(d.name))
-    out, todo = set(), [pid]
-    while todo:
-        for c in children.get(todo.pop(), []):
-            out.add(c)
-            todo.append(c)
+            if int(fields[3]) == sid:  # state, ppid, pgrp, session
+                out[int(d.name)] = fields[0]
     return out
+
+
+def _survivors(sid: int, wait: float) -> dict[int, str]:
+    """The session's processes other than zombies once ``wait`` seconds have passed (or
+    none are left), each with its command line."""
+    deadline = time.monotonic() + wait
+    while True:
+        alive = {k: v for k, v in _session_members(sid).items() if v != "Z"}
+        if not alive or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    out = {}
+    for pid, state in alive.items():
+        try:
+            cmdline = Path(f"/proc/{pid}/cmdline").read_text().replace("\0", " ")[:120]
+        except OSError:
+            continue
+        out[pid] = f"{state} {cmdline}"
+    return out
+
+
+def _kill_session(p: subprocess.Popen) -> None:
+    """Clean up after a test: the command (reaped) and whatever is left of its session."""
+    if p.poll() is None:
+        p.kill()
+        p.wait()
+    for pid in _session_members(p.pid):
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
 def test_sigterm_stops_the_worker_processes(tmp_path) -> None:
-    import subprocess
-    import sys
-    import time
+    """SIGTERM to the command alone (as ``kill PID`` sends it) while its workers compute:
+    the command ends with 143 and its one line, and no process it started outlives it.
 
+    The outputs go to files, not pipes: a process that outlives the command and holds them
+    is then found by the session scan and named, instead of hanging a read."""
     cmd = [
         sys.executable, "-m", "braidsim", "bifurcation", "paper-3.3", "--param",
         "track.vibration_amplitude", "--from", "0.1 mm", "--to", "0.2 mm", "--points", "4",
         "--transient-cycles", "5000", "--cycles", "50", "--workers", "2", "--json",
     ]  # fmt: skip
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    with (tmp_path / "out").open("w") as out, (tmp_path / "err").open("w") as err:
+        p = subprocess.Popen(cmd, stdout=out, stderr=err, start_new_session=True)
     try:
         deadline = time.monotonic() + 60
-        kids: set[int] = set()
-        while time.monotonic() < deadline and len(kids) < 2:
+        # the command, the resource tracker and the two workers
+        while time.monotonic() < deadline and len(_session_members(p.pid)) < 4:
             time.sleep(0.2)
-            kids = _descendants(p.pid)
-        assert len(kids) >= 2, "the workers did not start"
-        p.terminate()  # SIGTERM to the parent only, as `kill PID` does
-        _, err = p.communicate(timeout=30)
+        assert len(_session_members(p.pid)) >= 4, "the workers did not start"
+        p.terminate()
+        p.wait(timeout=30)
+        survivors = _survivors(p.pid, 5.0)
     finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-        # (the pipes closed here, not left to the garbage collector, which failed the next
-        # test on this worker with a ResourceWarning; not read: a worker may hold them open)
-        for pipe in (p.stdout, p.stderr):
-            if pipe is not None:
-                pipe.close()
+        _kill_session(p)
+    text = (tmp_path / "err").read_text()
     # 128 + 15: the exit code of a command stopped by SIGTERM (docs/guarantees.md)
-    assert p.returncode == 143 and "interrupted by SIGTERM" in err and "Traceback" not in err
+    assert p.returncode == 143 and "interrupted by SIGTERM" in text, text
+    assert "Traceback" not in text, text
+    assert not survivors, survivors
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+@pytest.mark.parametrize("method", ["fork", "forkserver"])
+def test_pool_workers_die_with_a_killed_parent(tmp_path, method: str) -> None:
+    """A process killed with SIGKILL runs no handler: its pool's workers, set up by
+    ``die_with_parent``, end with it instead of waiting for tasks forever (here a task of
+    60 s); with ``forkserver``, so does the fork server."""
+    code = f"""
+import multiprocessing, os, sys, time
+from concurrent.futures import ProcessPoolExecutor
+from braidsim.batch import die_with_parent
+if __name__ == "__main__":
+    ctx = multiprocessing.get_context({method!r})
+    pool = ProcessPoolExecutor(2, mp_context=ctx, initializer=die_with_parent)
+    futs = [pool.submit(time.sleep, 60) for _ in range(2)]
     time.sleep(0.5)
-    alive = {k for k in kids if Path(f"/proc/{k}").exists()}
-    # a killed worker may linger as a zombie for a moment only if nobody reaps it
-    states = {k: Path(f"/proc/{k}/stat").read_text().split(") ")[1][0] for k in alive}
-    assert all(s == "Z" for s in states.values()), states
+    print(" ".join(str(pid) for pid in pool._processes), flush=True)
+    time.sleep(60)
+"""
+    script = tmp_path / "pool.py"
+    script.write_text(code)
+    p = subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, start_new_session=True, text=True
+    )
+    try:
+        assert p.stdout is not None
+        workers = [int(w) for w in p.stdout.readline().split()]
+        assert len(workers) == 2 and all(Path(f"/proc/{w}").exists() for w in workers)
+        p.kill()
+        p.wait(timeout=30)
+        survivors = _survivors(p.pid, 10.0)
+    finally:
+        _kill_session(p)
+        if p.stdout is not None:
+            p.stdout.close()
+    assert not survivors, survivors

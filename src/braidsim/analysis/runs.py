@@ -132,13 +132,15 @@ def run_steady_states(
         return res
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from braidsim.batch import process_context, scenario_payload
+    from braidsim.batch import die_with_parent, process_context, scenario_payload
 
     n = len(sets)
     k = min(n, 4 * nw)  # interleaved slices balance costs that vary along the sets
     payload = scenario_payload(base)
     out: list[SteadyState | None] = [None] * n
-    pool = ProcessPoolExecutor(max_workers=nw, mp_context=process_context())
+    pool = ProcessPoolExecutor(
+        max_workers=nw, mp_context=process_context(), initializer=die_with_parent
+    )
     try:
         futs = {pool.submit(_run_chunk, payload, sets[j::k], opts): j for j in range(k)}
         for fut in as_completed(futs):

@@ -357,8 +357,12 @@ def optimise_profile(
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
+        from braidsim.batch import die_with_parent
+
         pool = ProcessPoolExecutor(
-            max_workers=opt.workers, mp_context=multiprocessing.get_context("forkserver")
+            max_workers=opt.workers,
+            mp_context=multiprocessing.get_context("forkserver"),
+            initializer=die_with_parent,
         )
         mapper = pool.map
     try:

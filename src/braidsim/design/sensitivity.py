@@ -177,8 +177,12 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int = 1) -> list[T]:
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
+    from braidsim.batch import die_with_parent
+
     with ProcessPoolExecutor(
-        max_workers=workers, mp_context=multiprocessing.get_context("forkserver")
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("forkserver"),
+        initializer=die_with_parent,
     ) as pool:
         return list(pool.map(_call, tasks))
 

@@ -193,8 +193,10 @@ def _pool(
     n = len(jobs)
     k = min(n, 2 * nw)  # interleaved slices balance carriers of different cost
     out: list[Any] = [None] * n
+    from braidsim.batch import die_with_parent
+
     ctx = multiprocessing.get_context("forkserver")
-    with ProcessPoolExecutor(max_workers=nw, mp_context=ctx) as pool:
+    with ProcessPoolExecutor(max_workers=nw, mp_context=ctx, initializer=die_with_parent) as pool:
         futs = [pool.submit(_run_chunk, payload, list(jobs[j::k]), duration) for j in range(k)]
         for j, fut in enumerate(futs):
             for i, r in zip(range(j, n, k), fut.result(), strict=True):

@@ -39,6 +39,7 @@ from braidsim.batch import (
     REGIME_FAILED,
     REGIMES,
     RunOptions,
+    die_with_parent,
     run_metrics,
     scenario_from_payload,
     scenario_payload,
@@ -57,26 +58,6 @@ from braidsim.sweep.store import (
     remove_partial_files,
     store_attrs,
 )
-
-
-def die_with_parent() -> None:
-    """Worker initializer: ask Linux to kill this process when its parent dies.
-
-    Without it, a sweep process killed with SIGKILL (which no handler sees) leaves its worker
-    processes waiting forever for tasks. ``prctl(PR_SET_PDEATHSIG, SIGKILL)``; a no-op where
-    prctl does not exist.
-    """
-    import ctypes
-    import signal
-
-    parent = os.getppid()
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)  # 1 = PR_SET_PDEATHSIG
-    except (OSError, AttributeError):  # pragma: no cover - not Linux
-        return
-    if os.getppid() != parent:  # the parent died before the request took effect
-        os._exit(1)
 
 
 class SweepError(BraidsimError, RuntimeError):
