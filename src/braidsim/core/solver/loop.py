@@ -354,8 +354,12 @@ def integrate(
     isamp = int(r.next_sample)
     itr = int(r.next_transfer)
     t = r.t
+    # a new run's start time: a contact that starts within a picosecond of it, from rest on
+    # its wall, started with the run (tangent.contact_event); -inf in a continued call
+    t_begin = -math.inf
     if r.started != STARTED:
         if r.started == NEW_RUN:
+            t_begin = t
             nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, n_pairs, n, SENS)
             # a first step of 1 us (the shortest contacts last ~0.1 ms), which the controller
             # grows by up to 5x a step: a few cheap steps, and no start-step heuristic whose
@@ -1070,8 +1074,9 @@ def integrate(
             st.rhs_evaluations += 1
             if SENS is not None:
                 # (at a clamp the field is continuous: the tangents do not jump)
+                at_start = ev_onset and t - t_begin <= 1e-12 * max(1.0, abs(t_begin))
                 if not kink and not contact_event(
-                    model, SENS, pair, side, ev_onset, t, y, Ke6, K0, n_dof2, ev_ie, KS
+                    model, SENS, pair, side, ev_onset, at_start, t, y, Ke6, K0, n_dof2, ev_ie, KS
                 ):
                     status = ST_GRAZING
                     break

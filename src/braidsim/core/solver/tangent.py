@@ -229,16 +229,34 @@ def onset_correction(SENS, ie, which, slope_depth, slope_force):
 
 
 @tangent_helper
-def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2, ie, KS):
+def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plus, n_dof2, ie, KS):
     """Tangents at a contact event of ``pair`` with wall ``side`` at t: (2), (3) and, at
     onset, (4). ``f_minus``, ``f_plus``: dy/dt before and after the mode change; ``ie``:
     the episode opened (onset) or closed (exit), -1 for none. Returns False when the
     event is grazing (its normal speed too small for the event time to be differentiable).
+
+    ``at_start``: an onset within a picosecond of the run's start. A body that starts on a
+    wall at rest relative to it and is pressed into it (the xy carrier on the rear slot
+    wall, carried by the horn gear) touches from the first instant, and its onset found a
+    few 1e-20 s later has no normal speed: grazing by the test above. But where no direction
+    moves that wall's gap or its rate at the start (each tangent below the direction's
+    absolute tolerance), the contact starts at the run's start whatever the parameters: the
+    onset time's derivative is 0 and the tangents do not jump; the approach speed is held at
+    its floor. A direction that moves the gap or its rate there (the initial y, say) does
+    make the contact appear or not: grazing.
     """
     _, _, rate_in = gaps(model, pair, t, y)
     gdot = rate_in if side < 0 else -rate_in  # d(gap to this wall)/dt
+    pinned = False
     if abs(gdot) < 1e-3 * model.min_impact_velocity:
-        return False
+        if not (onset and at_start):
+            return False
+        for d in range(SENS.S.shape[0]):
+            dg_in, dg_out, drate_in = pair_gaps_jvp(model, SENS.tangents[d], pair, t, y, SENS.S[d])
+            dg = dg_in if side < 0 else dg_out
+            if abs(dg) > SENS.ATOL[d, 0] or abs(drate_in) > SENS.ATOL[d, 1]:
+                return False
+        pinned = True
     acc_in = pair_gap_accel(model, pair, t, f_minus)
     pen_acc = -acc_in if side < 0 else acc_in
     pen_rate = -gdot
@@ -249,7 +267,7 @@ def contact_event(model, SENS, pair, side, onset, t, y, f_minus, f_plus, n_dof2,
         dg_in, dg_out, drate_in = pair_gaps_jvp(model, dm, pair, t, y, s)
         dg = dg_in if side < 0 else dg_out
         dpen_rate = -drate_in if side < 0 else drate_in
-        dt_e = -dg / gdot
+        dt_e = 0.0 if pinned else -dg / gdot
         for i in range(n_dof2):
             s[i] += (f_minus[i] - f_plus[i]) * dt_e
         if onset:
