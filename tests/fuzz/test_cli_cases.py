@@ -732,8 +732,8 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         ("design_deep.toml",),
     ),
     (
-        "design-workers-0",
-        ["design", "examples/design16.toml", "--out", "{o}/d", "--workers", "0"],
+        "design-workers-negative",
+        ["design", "examples/design16.toml", "--out", "{o}/d", "--workers", "-1"],
         BAD,
         ("--workers",),
     ),

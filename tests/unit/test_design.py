@@ -5,6 +5,7 @@ speed-limit formulas, the spec parser."""
 from __future__ import annotations
 
 import math
+import os
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -367,7 +368,10 @@ def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
     assert s.sensitivity.levers[0].key == "track.clearance"
     s = parse_design_spec(spec_table(limits={"max_acceleration": "2 krad/s^2"}))
     assert s.limits.max_acceleration == pytest.approx(2000.0)
+    # 0 workers: all cores, as for the other commands with local workers
+    assert parse_design_spec(spec_table(workers=0)).workers == (os.cpu_count() or 1)
     cases = [
+        (spec_table(workers=-1), "design.workers"),
         (spec_table(objectiv="peak_force"), "design.objectiv: unknown key"),
         (spec_table(objective="loudness"), "design.objective"),
         (spec_table(pair="carrier"), "design.pair"),

@@ -20,7 +20,10 @@ def design(
     out: Annotated[Path, typer.Option("--out", help="Report directory to write.")],
     workers: Annotated[
         int | None,
-        typer.Option(help="Processes (default: the spec's design.workers; results do not change)."),
+        typer.Option(
+            help="Local processes: 1 runs here, 0 all cores (default: the spec's "
+            "design.workers; results do not change)."
+        ),
     ] = None,
     json_: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
 ) -> None:
@@ -29,6 +32,7 @@ def design(
     within the drive's limits (same mean speed), its improvement distribution, the other
     levers compared on the same samples; writes a report into --out."""
     import dataclasses
+    import os
     import sys
 
     from braidsim.design import load_design_spec, run_design, write_report
@@ -38,8 +42,9 @@ def design(
 
     s = load_design_spec(spec)
     if workers is not None:
-        if workers < 1:
-            raise InputError(f"--workers: {workers} is out of range; allowed >= 1")
+        if workers < 0:
+            raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
+        workers = workers or (os.cpu_count() or 1)  # as for bifurcation, basins and machine
         s = dataclasses.replace(
             s, workers=workers, optimizer=dataclasses.replace(s.optimizer, workers=workers)
         )

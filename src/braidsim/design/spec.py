@@ -12,7 +12,7 @@ and says what to study. Every quantity is a number in SI or a string with units:
     [design]
     objective = "score"                # score | peak_force | impact_energy | impacts | noise
     pair = "both"                      # both | track | slot
-    workers = 1                        # processes (the results do not depend on it)
+    workers = 1                        # processes, 0: all cores (the results do not depend on it)
 
     [design.profile]                   # the speed-profile family (braidsim.design.profiles)
     family = "dip"                     # dip | fourier | dip+fourier
@@ -92,6 +92,7 @@ slot walls, so the slot contact belongs in every figure.
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -380,7 +381,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     check_keys("design.", d, DESIGN_KEYS)
     objective = check_objective(str(d.get("objective", "score")))
     pair = check_pair(str(d.get("pair", "both")))
-    workers = _int("design.workers", d.get("workers", 1), 1, 256)
+    workers = _int("design.workers", d.get("workers", 1), 0, 256) or (os.cpu_count() or 1)
 
     p = expect_table("design.profile", d.get("profile", {}))
     check_keys("design.profile.", p, PROFILE_KEYS)
