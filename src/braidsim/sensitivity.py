@@ -69,8 +69,40 @@ def _leaves_equal(a: Any, b: Any) -> bool:
     return True
 
 
+#: stencil values within this many rounding units of the primal value are its value
+ROUNDING_UNITS = 8.0
+
+
+def _stencil_derivative(
+    values: Sequence[Any], weights: Sequence[float], h: float, primal: Any
+) -> np.ndarray:
+    """sum_i w_i f(p + o_i h) / h, elementwise, and exactly 0 where every stencil value is
+    within :data:`ROUNDING_UNITS` rounding units of f(p).
+
+    A field that does not depend on the key still differs between the stencil's records by
+    the rounding of the algebra that builds it (an ulp or two), and divided by h that
+    rounding became a derivative: with h = 1e-8 (a key whose value is 0) about 1e-8
+    relative, more than a run's tolerance (the initial speed of the xy carrier along
+    ``initial.x``, whose true derivative is 0, was 1.4e-9 m/s). A true derivative D that
+    moves f by no more than that over the stencil (|D| h <= 8 eps |f|) is below what the
+    stencil resolves anyway.
+    """
+    f0 = np.asarray(primal, dtype=float)
+    acc = np.zeros_like(f0)
+    spread = np.zeros_like(f0)
+    for r, w in zip(values, weights, strict=True):
+        v = np.asarray(r, dtype=float)
+        acc = acc + w * v
+        with np.errstate(invalid="ignore"):
+            spread = np.maximum(spread, np.abs(v - f0))
+    out = np.array(acc / h, dtype=float)  # (0-d for a scalar field)
+    out[spread <= ROUNDING_UNITS * np.finfo(float).eps * np.abs(f0)] = 0.0
+    return out
+
+
 def _tangent(records: Sequence[Any], weights: Sequence[float], h: float, primal: Any) -> Any:
-    """The derivative of a record tree from its values at stencil points (weights / h);
+    """The derivative of a record tree from its values at stencil points (weights / h, 0
+    where they differ from the primal's by rounding only: :func:`_stencil_derivative`);
     integer and boolean fields are copied from the primal, infinite fields get 0."""
     if isinstance(primal, tuple) and hasattr(primal, "_fields"):
         return type(primal)(
@@ -82,10 +114,7 @@ def _tangent(records: Sequence[Any], weights: Sequence[float], h: float, primal:
     if isinstance(primal, np.ndarray):
         if primal.dtype.kind != "f":
             return primal
-        acc = np.zeros_like(primal, dtype=float)
-        for r, w in zip(records, weights, strict=True):
-            acc = acc + w * np.asarray(r, dtype=float)
-        out = acc / h
+        out = _stencil_derivative(records, weights, h, primal)
         out[~np.isfinite(primal)] = 0.0
         return np.ascontiguousarray(out)
     if isinstance(primal, (bool, np.bool_, int, np.integer)):
@@ -94,7 +123,7 @@ def _tangent(records: Sequence[Any], weights: Sequence[float], h: float, primal:
         return primal
     if not math.isfinite(primal):
         return 0.0
-    return float(sum(w * float(r) for r, w in zip(records, weights, strict=True)) / h)
+    return float(_stencil_derivative(records, weights, h, primal))
 
 
 def zero_tangent(primal: Any) -> Any:
@@ -206,9 +235,11 @@ def directions(model: Model, keys: Sequence[str]) -> Directions:
                 f"sensitivity: {key} switches a discrete setting of the model; it has no "
                 "derivative here"
             ) from None
-        S0[i] = sum(w * m.y0[:n2] for m, w in zip(models, weights, strict=True)) / h
+        S0[i] = _stencil_derivative([m.y0[:n2] for m in models], weights, h, base.y0[:n2])
         if DTR.shape[1]:
-            DTR[i] = sum(w * m.transfer_times for m, w in zip(models, weights, strict=True)) / h
+            DTR[i] = _stencil_derivative(
+                [m.transfer_times for m in models], weights, h, base.transfer_times
+            )
     return Directions(tuple(keys), out_records, S0, DTR, scale)
 
 

@@ -369,7 +369,7 @@ def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
     s = parse_design_spec(spec_table(limits={"max_acceleration": "2 krad/s^2"}))
     assert s.limits.max_acceleration == pytest.approx(2000.0)
     # 0 workers: all cores, as for the other commands with local workers
-    assert parse_design_spec(spec_table(workers=0)).workers == (os.cpu_count() or 1)
+    assert parse_design_spec(spec_table(workers=0)).workers == min(os.cpu_count() or 1, 256)
     cases = [
         (spec_table(workers=-1), "design.workers"),
         (spec_table(objectiv="peak_force"), "design.objectiv: unknown key"),

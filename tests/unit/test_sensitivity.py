@@ -158,7 +158,14 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
     plain = braidsim.simulate(sc, duration=0.01, series=False)
     first_slot = plain.impacts[plain.impacts["pair"] == "slot"].iloc[0]
     assert first_slot["t"] < 1e-15 and first_slot["velocity"] == pytest.approx(0.0, abs=1e-15)
-    keys = ["contact.slot.restitution", "carrier.mass", "horn_gear.angular_velocity"]
+    # (the phase's value is 0: its record tangent is exactly 0 where the stencil's records
+    # differ by rounding only; that rounding over h = 1e-8 made it grazing at this atol)
+    keys = [
+        "contact.slot.restitution",
+        "carrier.mass",
+        "horn_gear.angular_velocity",
+        "track.vibration_phase",
+    ]
     res = braidsim.simulate(sc, duration=0.01, series=False, sensitivities=keys)
     n_imp = len(res.impacts)
     i_slot = int(np.flatnonzero(res.impacts["pair"].to_numpy() == "slot")[0])
@@ -166,7 +173,8 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
     # This run chatters: the difference quotients at h, h/2 and 2h differ by up to 1e-2
     # of their value (the horn gear's speed moves the slot wall under every later slot
     # impact), so each tangent is held to the quotients' own spread (plus 1e-5), and their
-    # median agreement to 1e-4 (measured 9.2e-6, 6.3e-6 and 4.6e-5 for the three keys).
+    # median agreement to 5e-4 (measured 9.2e-6, 6.4e-6, 4.6e-5 and 2.0e-4: the phase's
+    # quotients spread most).
     values = _quantities(res, n_imp)
     per_impact = np.abs(values[4:]).reshape(n_imp, 5).max(axis=0)  # t, speed, peak, ...
     magnitude = np.concatenate([np.abs(values[:4]), np.tile(per_impact, n_imp)])
@@ -174,9 +182,10 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
     counted = total = 0
     for i, key in enumerate(keys):
         p = res.model.scenario[key]
+        h1 = 1e-5 * abs(p) or 1e-5  # (1e-5 rad for the phase)
         q = {}
         for f in (0.5, 1.0, 2.0):
-            h = f * 1e-5 * abs(p)
+            h = f * h1
             plus = braidsim.simulate(sc, duration=0.01, overrides={key: p + h}, series=False)
             minus = braidsim.simulate(sc, duration=0.01, overrides={key: p - h}, series=False)
             assert len(plus.impacts) == len(minus.impacts) == n_imp
@@ -186,7 +195,7 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
         tan = _tangent_quantities(res, i, n_imp)
         # entries the differences cannot resolve (below the runs' own error over h, 1e-9 of
         # the largest value of their kind) left out
-        floor = 1e-9 * magnitude / (0.5e-5 * abs(p))
+        floor = 1e-9 * magnitude / (0.5 * h1)
         ok = np.isfinite(fd) & (np.abs(fd) > floor)
         counted += int(ok.sum())
         total += tan.size
@@ -194,7 +203,7 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
         bound = 1e-5 * np.abs(fd[ok]) + 2 * spread[ok]
         assert np.all(err <= bound), (key, np.flatnonzero(ok)[np.argmax(err / bound)])
         errs.append(np.median(err / np.abs(fd[ok])))
-    assert max(errs) < 1e-4, errs
+    assert max(errs) < 5e-4, errs
     # (the track's impacts hardly depend on the slot's restitution: those are the most of
     # what is left out)
     assert counted > 0.6 * total, (counted, total)
@@ -202,6 +211,8 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
     np.testing.assert_allclose(res.impacts["t"], plain.impacts["t"], rtol=0, atol=1e-9)
     with pytest.raises(SensitivityError, match="grazing"):
         braidsim.simulate(sc, duration=0.01, series=False, sensitivities=["initial.y"])
+    # the initial x moves the slot's gap by rounding only (it was refused at this atol)
+    braidsim.simulate(sc, duration=0.01, series=False, sensitivities=["initial.x"])
 
 
 def _zero_oscillator_tangent(law: object) -> ImpactOscillator:

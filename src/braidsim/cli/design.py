@@ -44,7 +44,8 @@ def design(
     if workers is not None:
         if workers < 0:
             raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
-        workers = workers or (os.cpu_count() or 1)  # as for bifurcation, basins and machine
+        # as for bifurcation, basins and machine (at most the optimiser's 256)
+        workers = workers or min(os.cpu_count() or 1, 256)
         s = dataclasses.replace(
             s, workers=workers, optimizer=dataclasses.replace(s.optimizer, workers=workers)
         )

@@ -381,7 +381,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     check_keys("design.", d, DESIGN_KEYS)
     objective = check_objective(str(d.get("objective", "score")))
     pair = check_pair(str(d.get("pair", "both")))
-    workers = _int("design.workers", d.get("workers", 1), 0, 256) or (os.cpu_count() or 1)
+    workers = _int("design.workers", d.get("workers", 1), 0, 256) or min(os.cpu_count() or 1, 256)
 
     p = expect_table("design.profile", d.get("profile", {}))
     check_keys("design.profile.", p, PROFILE_KEYS)
