@@ -215,6 +215,25 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
     braidsim.simulate(sc, duration=0.01, series=False, sensitivities=["initial.x"])
 
 
+def test_stencil_rounding_is_no_derivative() -> None:
+    """Stencil values that differ from the value by rounding only give the derivative 0;
+    a slope, even a small one, is kept (the fourth-order stencil is exact on cubics)."""
+    from braidsim.sensitivity import _CENTRAL, _stencil_derivative
+
+    eps = np.finfo(float).eps
+    offsets = [o for o, _ in _CENTRAL]
+    weights = [w for _, w in _CENTRAL]
+    h = 1e-8
+    noisy = [np.array([0.8 + 2 * o * eps, 5.0]) for o in offsets]  # ulps, and a constant
+    assert np.all(_stencil_derivative(noisy, weights, h, np.array([0.8, 5.0])) == 0.0)
+    cubic = [0.8 + 1e-3 * (o * h) + (o * h) ** 3 for o in offsets]
+    # (kept, to the rounding of 0.8 over 1e-8: 1.3e-6 relative here)
+    assert _stencil_derivative(cubic, weights, h, 0.8) == pytest.approx(1e-3, rel=1e-5)
+    big_h = 1e-4
+    cubic = [2.0 + 3.0 * (o * big_h) - (o * big_h) ** 3 for o in offsets]
+    assert _stencil_derivative(cubic, weights, big_h, 2.0) == pytest.approx(3.0, rel=1e-10)
+
+
 def _zero_oscillator_tangent(law: object) -> ImpactOscillator:
     return zero_tangent(ImpactOscillator(1.0, 1.0, 1.0, 1.0, 1.0, 0.0, math.inf, 1.0, law))
 
