@@ -73,6 +73,8 @@ from braidsim.regimes import CONTACT_PATTERNS, FAILED, contact_pattern
 from braidsim.result import UNITS as SERIES_UNITS
 
 if TYPE_CHECKING:
+    from concurrent.futures import ProcessPoolExecutor
+
     import pandas as pd
     import xarray as xr
 
@@ -662,8 +664,7 @@ def simulate_batch(
         d_min = min(m.duration for m in models)
         window = (0.5 * d_min, d_min)
     opts = check_options([m.duration for m in models], window, series, series_times)
-    nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)
-    nw = max(1, min(nw, len(models)))
+    nw = max(1, min(local_processes(workers), len(models)))
     if executor == "processes" and nw > 1:
         values, ser, failures = _run_in_processes(base, sets, duration, opts, nw)
     else:
@@ -768,6 +769,25 @@ def _exit_when_closed(sentinel: int) -> None:
     os._exit(1)
 
 
+def local_processes(workers: int) -> int:
+    """The number of local worker processes ``workers`` asks for: itself, or every core for
+    0 or less (the meaning of ``--workers 0`` in every command with local workers)."""
+    return (os.cpu_count() or 1) if workers <= 0 else int(workers)
+
+
+def process_pool(workers: int, context: Any = None) -> ProcessPoolExecutor:
+    """A ``ProcessPoolExecutor`` of ``workers`` processes whose workers end with this
+    process (:func:`die_with_parent`); ``context``: its multiprocessing context (default
+    :func:`process_context`). Every worker pool of braidsim is made here."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    return ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=process_context() if context is None else context,
+        initializer=die_with_parent,
+    )
+
+
 def process_context() -> Any:
     """The multiprocessing context of the worker processes.
 
@@ -798,17 +818,13 @@ def _run_in_processes(
     Interleaving (run i goes to slice i mod k) balances slices whose cost varies along the
     parameter sets. The results are put back in the original order.
     """
-    from concurrent.futures import ProcessPoolExecutor
-
     n = len(sets)
     k = min(n, 4 * workers)
     payload = scenario_payload(base)
     values = np.empty((n, len(METRICS)))
     series = np.empty((n, len(opts.series), opts.series_times.size)) if opts.series else None
     failures = [""] * n
-    with ProcessPoolExecutor(
-        max_workers=workers, mp_context=process_context(), initializer=die_with_parent
-    ) as pool:
+    with process_pool(workers) as pool:
         futs = [pool.submit(_run_payload, payload, sets[j::k], duration, opts) for j in range(k)]
         for j, fut in enumerate(futs):
             v, s, f = fut.result()

@@ -13,7 +13,6 @@ deterministic: the same set gives the same bits in any process, order or chunk.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -108,7 +107,7 @@ def run_steady_states(
     InputError
         A bad set (with its index) or option.
     """
-    from braidsim.batch import check_parameter_sets, check_workers
+    from braidsim.batch import check_parameter_sets, check_workers, local_processes
 
     check_window_options(transient_cycles, cycles, period_tol, max_period)
     check_workers(workers)
@@ -121,8 +120,7 @@ def run_steady_states(
         except InputError as exc:
             raise InputError(f"parameter set {i}: {exc}") from None
     opts = _options(transient_cycles, cycles, strobe_phase, period_tol, max_period)
-    nw = (os.cpu_count() or 1) if workers <= 0 else int(workers)
-    nw = max(1, min(nw, len(sets)))
+    nw = max(1, min(local_processes(workers), len(sets)))
     done = on_done or (lambda n: None)
     if nw == 1:
         res = []
@@ -130,17 +128,15 @@ def run_steady_states(
             res.append(_run_one(base, ov, opts))
             done(1)
         return res
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import as_completed
 
-    from braidsim.batch import die_with_parent, process_context, scenario_payload
+    from braidsim.batch import process_pool, scenario_payload
 
     n = len(sets)
     k = min(n, 4 * nw)  # interleaved slices balance costs that vary along the sets
     payload = scenario_payload(base)
     out: list[SteadyState | None] = [None] * n
-    pool = ProcessPoolExecutor(
-        max_workers=nw, mp_context=process_context(), initializer=die_with_parent
-    )
+    pool = process_pool(nw)
     try:
         futs = {pool.submit(_run_chunk, payload, sets[j::k], opts): j for j in range(k)}
         for fut in as_completed(futs):

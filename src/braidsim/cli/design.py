@@ -32,9 +32,9 @@ def design(
     within the drive's limits (same mean speed), its improvement distribution, the other
     levers compared on the same samples; writes a report into --out."""
     import dataclasses
-    import os
     import sys
 
+    from braidsim.batch import local_processes
     from braidsim.design import load_design_spec, run_design, write_report
     from braidsim.design.report import REPORT_KIND
     from braidsim.errors import InputError
@@ -45,7 +45,7 @@ def design(
         if workers < 0:
             raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
         # as for bifurcation, basins and machine (at most the optimiser's 256)
-        workers = workers or min(os.cpu_count() or 1, 256)
+        workers = min(local_processes(workers), 256)
         s = dataclasses.replace(
             s, workers=workers, optimizer=dataclasses.replace(s.optimizer, workers=workers)
         )

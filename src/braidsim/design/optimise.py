@@ -355,15 +355,10 @@ def optimise_profile(
     mapper: Any = 1
     if opt.workers > 1:
         import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
 
-        from braidsim.batch import die_with_parent
+        from braidsim.batch import process_pool
 
-        pool = ProcessPoolExecutor(
-            max_workers=opt.workers,
-            mp_context=multiprocessing.get_context("forkserver"),
-            initializer=die_with_parent,
-        )
+        pool = process_pool(opt.workers, multiprocessing.get_context("forkserver"))
         mapper = pool.map
     try:
         res = differential_evolution(

@@ -175,15 +175,10 @@ def run_tasks(tasks: Sequence[Callable[[], T]], workers: int = 1) -> list[T]:
     if workers <= 1 or len(tasks) < 2:
         return [t() for t in tasks]
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
-    from braidsim.batch import die_with_parent
+    from braidsim.batch import process_pool
 
-    with ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=multiprocessing.get_context("forkserver"),
-        initializer=die_with_parent,
-    ) as pool:
+    with process_pool(workers, multiprocessing.get_context("forkserver")) as pool:
         return list(pool.map(_call, tasks))
 
 

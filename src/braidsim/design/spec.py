@@ -92,12 +92,12 @@ slot walls, so the slot contact belongs in every figure.
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from braidsim.batch import local_processes
 from braidsim.design.drive import Drive
 from braidsim.design.evaluate import OBJECTIVES, check_objective, check_pair, machine_for
 from braidsim.design.optimise import OptimizerOptions
@@ -381,7 +381,8 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     check_keys("design.", d, DESIGN_KEYS)
     objective = check_objective(str(d.get("objective", "score")))
     pair = check_pair(str(d.get("pair", "both")))
-    workers = _int("design.workers", d.get("workers", 1), 0, 256) or min(os.cpu_count() or 1, 256)
+    # 0: all cores, as for the other commands with local workers (at most the optimiser's 256)
+    workers = min(local_processes(_int("design.workers", d.get("workers", 1), 0, 256)), 256)
 
     p = expect_table("design.profile", d.get("profile", {}))
     check_keys("design.profile.", p, PROFILE_KEYS)

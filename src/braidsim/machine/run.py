@@ -188,15 +188,13 @@ def _pool(
     nw: int,
 ) -> list[tuple[np.ndarray, np.ndarray, int, int]]:
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
 
     n = len(jobs)
     k = min(n, 2 * nw)  # interleaved slices balance carriers of different cost
     out: list[Any] = [None] * n
-    from braidsim.batch import die_with_parent
+    from braidsim.batch import process_pool
 
-    ctx = multiprocessing.get_context("forkserver")
-    with ProcessPoolExecutor(max_workers=nw, mp_context=ctx, initializer=die_with_parent) as pool:
+    with process_pool(nw, multiprocessing.get_context("forkserver")) as pool:
         futs = [pool.submit(_run_chunk, payload, list(jobs[j::k]), duration) for j in range(k)]
         for j, fut in enumerate(futs):
             for i, r in zip(range(j, n, k), fut.result(), strict=True):

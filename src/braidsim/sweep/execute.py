@@ -39,7 +39,6 @@ from braidsim.batch import (
     REGIME_FAILED,
     REGIMES,
     RunOptions,
-    die_with_parent,
     run_metrics,
     scenario_from_payload,
     scenario_payload,
@@ -177,18 +176,11 @@ class LocalProcesses:
 
     def _new_pool(self) -> Any:
         import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
 
-        from braidsim.batch import process_context
+        from braidsim.batch import process_pool
 
-        ctx = (
-            process_context()
-            if self.mp_context is None
-            else multiprocessing.get_context(self.mp_context)
-        )
-        return ProcessPoolExecutor(
-            max_workers=self.processes, mp_context=ctx, initializer=die_with_parent
-        )
+        ctx = None if self.mp_context is None else multiprocessing.get_context(self.mp_context)
+        return process_pool(self.processes, ctx)
 
     def start(self) -> None:
         """Start the worker processes now.
