@@ -73,7 +73,27 @@ def test_run_window_and_set(capsys) -> None:
         (["run", "paper-3.1", "--set", "track.clearance=nan"], "not a finite number"),
         (["run", "paper-3.1", "--set", "contact.track.model=hunt"], "contact.track.model"),
         (["run", "no-such-scenario"], "scenario"),
-        (["run", "paper-3.1", "--duration", "-1"], "duration"),
+        # an option's value refused by the API is named as the option typed
+        (["run", "paper-3.1", "--duration", "-1"], "error: --duration: -1 s is out of range"),
+        (
+            [
+                "bifurcation",
+                "paper-3.3",
+                "--param",
+                "track.vibration_amplitude",
+                "--from",
+                "0.1 mm",
+                "--to",
+                "0.2 mm",
+                "--cycles",
+                "0",
+            ],
+            "error: --cycles: 0 is out of range; allowed an integer >= 2",
+        ),
+        (
+            ["lyapunov", "paper-3.3", "--transient-cycles", "-1"],
+            "error: --transient-cycles: -1.0 is out of range",
+        ),
         (["impact", "--restitution", "0"], "--restitution: 0 is out of range"),
         (["impact", "--velocity", "-1"], "velocity"),
         (["impact", "--model", "hertzz"], "--model: 'hertzz' is not allowed (did you mean"),

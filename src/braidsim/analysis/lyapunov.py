@@ -349,7 +349,9 @@ def carrier_lyapunov(
     if rtol is not None:
         sc = sc.with_overrides({"simulation.rtol": rtol})
     if not (math.isfinite(transient_cycles) and transient_cycles >= 0):
-        raise InputError(f"transient: {transient_cycles!r} cycles is out of range; allowed >= 0")
+        raise InputError(
+            f"transient_cycles: {transient_cycles!r} is out of range; allowed >= 0 (cycles)"
+        )
     if not (math.isfinite(cycles) and cycles > 0):
         raise InputError(f"cycles: {cycles!r} is out of range; allowed > 0")
     if not (math.isfinite(d0) and d0 > 0):

@@ -595,7 +595,9 @@ def check_window_options(
 ) -> None:
     """InputError naming the option when a transient/window option is out of range."""
     if not (math.isfinite(transient_cycles) and transient_cycles >= 0):
-        raise InputError(f"transient: {transient_cycles!r} cycles is out of range; allowed >= 0")
+        raise InputError(
+            f"transient_cycles: {transient_cycles!r} is out of range; allowed >= 0 (cycles)"
+        )
     if int(cycles) != cycles or cycles < 2:
         raise InputError(f"cycles: {cycles!r} is out of range; allowed an integer >= 2")
     if not (math.isfinite(period_tol) and period_tol > 0):

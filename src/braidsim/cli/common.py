@@ -238,6 +238,35 @@ def _written_since(first: int) -> str:
     return f"the output {done[-1]!r}{more} had been written whole before it"
 
 
+def option_names(func: Any) -> dict[str, str]:
+    """The command-line option of each option parameter of a verb function (``cycles`` ->
+    ``--cycles``, ``json_`` -> ``--json``): its declared long name, else Typer's default."""
+    import typing
+
+    from typer.models import OptionInfo
+
+    out = {}
+    for name, hint in typing.get_type_hints(func, include_extras=True).items():
+        for info in typing.get_args(hint)[1:]:
+            if isinstance(info, OptionInfo):
+                decls = [d for d in info.param_decls or () if d.startswith("--")]
+                out[name] = max(decls, key=len) if decls else "--" + name.replace("_", "-")
+    return out
+
+
+def option_named(text: str, names: dict[str, str], given: dict[str, Any]) -> str:
+    """An input error's leading parameter name as the command's option: the API says
+    ``cycles: 0 is out of range ...``, the command line ``--cycles: 0 is out of range
+    ...``, so that the line names what was typed. Only for an option that has a value
+    (``given``: the verb's arguments): a spec file's ``duration`` with ``--duration``
+    absent stays ``duration: ...``, and a scenario key, ``track.clearance: ...``, is no
+    option."""
+    head, sep, rest = text.partition(": ")
+    if sep and head in names and given.get(head) is not None:
+        return f"{names[head]}: {rest}"
+    return text
+
+
 def guarded(func: F) -> F:
     """Turn braidsim's errors into one-line messages and exit codes (2 input, 1 failures)."""
 
@@ -252,7 +281,7 @@ def guarded(func: F) -> F:
             return out
         except InputError as exc:
             _NOTICES.clear()  # the error line names the value and its unit
-            fail(str(exc), 2)
+            fail(option_named(str(exc), option_names(func), kwargs), 2)
         except SimulationError as exc:
             flush_notices()
             fail(f"simulation failed: {exc}", 1)
