@@ -337,6 +337,24 @@ def test_unknown_option_is_one_line_exit_2(capsys) -> None:
     assert len(err.strip().splitlines()) == 1 and "--bogus" in err
 
 
+def test_every_verb_names_its_options() -> None:
+    """The options an input error is reported under are read from each verb's declarations
+    (an unreadable annotation would leave the library's names)."""
+    from braidsim.cli import VERBS, _register
+    from braidsim.cli.common import app, option_names
+
+    _register()
+    verbs = {
+        c.name or c.callback.__name__: option_names(c.callback.__wrapped__)
+        for c in app.registered_commands
+        if c.callback is not None and hasattr(c.callback, "__wrapped__")
+    }
+    assert set(VERBS) <= set(verbs), sorted(set(VERBS) - set(verbs))
+    assert verbs["run"]["duration"] == "--duration" and verbs["run"]["json_"] == "--json"
+    assert verbs["bifurcation"]["transient_cycles"] == "--transient-cycles"
+    assert verbs["design"]["workers"] == "--workers"
+
+
 def test_the_package_imports_no_click_of_its_own() -> None:
     """typer vendors click (``typer._click``) and does not install it: a direct ``import
     click`` works where something else installed click (dask, mkdocs) and breaks a plain

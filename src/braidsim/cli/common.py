@@ -245,11 +245,17 @@ def option_names(func: Any) -> dict[str, str]:
 
     from typer.models import OptionInfo
 
-    out = {}
-    for name, hint in typing.get_type_hints(func, include_extras=True).items():
+    out: dict[str, str] = {}
+    try:
+        hints = typing.get_type_hints(func, include_extras=True)
+    except Exception:  # (an annotation only a type checker can read: the names stay the API's)
+        return out
+    for name, hint in hints.items():
         for info in typing.get_args(hint)[1:]:
             if isinstance(info, OptionInfo):
-                decls = [d for d in info.param_decls or () if d.startswith("--")]
+                # (in ``Annotated``, Typer reads a first argument "--name" as a declaration)
+                first = [info.default] if isinstance(info.default, str) else []
+                decls = [d for d in [*first, *(info.param_decls or ())] if d.startswith("--")]
                 out[name] = max(decls, key=len) if decls else "--" + name.replace("_", "-")
     return out
 
