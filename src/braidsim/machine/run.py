@@ -224,7 +224,7 @@ def run_carriers(
     workers : int
         Processes that ran carriers (1: this one only).
     """
-    from braidsim.batch import scenario_payload
+    from braidsim.batch import local_processes, scenario_payload
 
     payload = scenario_payload(spec.scenario)
     n = len(jobs)
@@ -237,7 +237,7 @@ def run_carriers(
             nw = min(cores, n - 1)
             return first + _pool(payload, jobs[1:], duration, nw), nw
         return first + _run_chunk(payload, jobs[1:], duration), 1
-    nw = max(1, min(cores if workers <= 0 else int(workers), n))
+    nw = max(1, min(local_processes(workers), n))
     if nw == 1:
         return _run_chunk(payload, jobs, duration), 1
     return _pool(payload, jobs, duration, nw), nw
