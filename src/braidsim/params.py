@@ -296,7 +296,7 @@ SCHEMA_LIST: list[ParamSpec] = [
         "explicit",
         "integrator of a contact at rest (its fast mode holding the explicit step): explicit "
         "(Dormand-Prince throughout) or implicit (L-stable Radau IIA until its next event; "
-        "compiled on first use)",
+        "compiled on first use; a run with sensitivities is explicit)",
         choices=("explicit", "implicit"),
     ),
     ParamSpec(
@@ -306,7 +306,8 @@ SCHEMA_LIST: list[ParamSpec] = [
         "dormand-prince",
         "step of the motion: dormand-prince (Runge-Kutta 5(4) throughout) or taylor (Taylor "
         "series of order 12 wherever they step farther than Dormand-Prince, which keeps the "
-        "rest: contact onsets, exits, clamped forces; compiled on first use)",
+        "rest: contact onsets, exits, clamped forces; compiled on first use; a run with "
+        "sensitivities takes Dormand-Prince steps)",
         choices=("dormand-prince", "taylor"),
     ),
     ParamSpec(

@@ -136,7 +136,7 @@ def run_windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
     return np.array(W, dtype=float)
 
 
-def failure_message(status: int, t: float, model: Model, stats: Mapping[str, float]) -> str:
+def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any]) -> str:
     """What failed, when, and what to change, for a solver status code."""
     sc = model.scenario
     rec = model.record
@@ -214,9 +214,13 @@ def stats_dict(raw: RawRun) -> dict[str, Any]:
     """The solver's statistics by name (``steps``, ``rejected_steps``, ``events``,
     ``rhs_evaluations``, ``implicit_steps``, ``taylor_steps`` (of them ``onset_steps``),
     ``transfers``, ``min_step``, ``max_step``; a Taylor step counts one evaluation, at its
-    end)."""
+    end), and the steps that ran: ``integrator`` (``"taylor"`` or ``"dormand-prince"``) and
+    ``resting_contacts`` (``"implicit"`` or ``"explicit"``). A run with sensitivities takes
+    Dormand-Prince steps, explicit at rest, whatever the scenario asks."""
     rec = L.record_view(raw.stats)
     return {
+        "integrator": raw.integrator,
+        "resting_contacts": raw.resting_contacts,
         "steps": int(rec.steps),
         "rejected_steps": int(rec.rejected_steps),
         "events": int(rec.events),

@@ -404,3 +404,25 @@ def test_a_record_without_series_is_named() -> None:
         run(m, _into_wall(), np.array([0.0, 0.5, 0.0, 0.0, 0.0]), taylor=ORDER)
     ok = ImpactOscillator(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, PowerLawContact(1, 1.5, 0))
     assert taylor_capable(ok) == ""
+
+
+def test_a_run_with_sensitivities_says_it_took_dormand_prince_steps() -> None:
+    """Tangents are carried by Dormand-Prince steps only: a scenario that asks for Taylor
+    steps (or implicit steps at rest) gets them in a plain run, and a run with sensitivities
+    says in its statistics that it took neither. (Each run is of a kind other tests
+    compile as well.)"""
+    sc = load_scenario("paper-3.3")
+    taylor = sc.with_overrides({"simulation.integrator": "taylor"})
+    plain = run_model(build_model(taylor, 0.01), series=False, energy=True)
+    assert (plain.integrator, plain.resting_contacts) == ("taylor", "explicit")
+    assert plain.stats[0]["taylor_steps"] > 0
+    implicit = braidsim_simulate(
+        sc.with_overrides({"simulation.resting_contacts": "implicit"}), 0.01, series=False
+    )
+    assert implicit.stats["integrator"] == "dormand-prince"
+    assert implicit.stats["resting_contacts"] == "implicit"
+    both = taylor.with_overrides({"simulation.resting_contacts": "implicit"})
+    sens = braidsim_simulate(both, 0.01, sensitivities=["track.clearance"])
+    assert sens.stats["integrator"] == "dormand-prince"
+    assert sens.stats["resting_contacts"] == "explicit"
+    assert sens.stats["taylor_steps"] == 0 and sens.stats["implicit_steps"] == 0

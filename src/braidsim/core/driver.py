@@ -125,6 +125,13 @@ class RawRun:
         Series rows produced in all (kept or streamed).
     sensitivity : SensitivityRun or None
         The forward sensitivities, when the run carried them.
+    integrator : str
+        The step that ran: ``"taylor"`` (Taylor-series steps where they step farther,
+        Dormand-Prince for the rest) or ``"dormand-prince"``; a run with tangents takes
+        Dormand-Prince steps whatever was asked.
+    resting_contacts : str
+        ``"implicit"`` (Radau IIA steps for contacts at rest) or ``"explicit"``; a run with
+        tangents is explicit whatever was asked.
     """
 
     status: int
@@ -137,6 +144,8 @@ class RawRun:
     restart: np.ndarray
     rows_written: int
     sensitivity: SensitivityRun | None = None
+    integrator: str = "dormand-prince"
+    resting_contacts: str = "explicit"
 
     @property
     def t(self) -> float:
@@ -563,7 +572,20 @@ def run(
             if SENS.RSENS is not None
             else None,
         )
-    return RawRun(status, series_rows, episodes, RANGES, XSQ, STATS, y, RS, written, sens)
+    return RawRun(
+        status,
+        series_rows,
+        episodes,
+        RANGES,
+        XSQ,
+        STATS,
+        y,
+        RS,
+        written,
+        sens,
+        integrator="dormand-prince" if TAY is None else "taylor",
+        resting_contacts="explicit" if IMP is None else "implicit",
+    )
 
 
 def _fingerprint(value: Any) -> Any:
