@@ -178,6 +178,7 @@ def test_cli_json_and_restart(tmp_path) -> None:
     assert buf.getvalue().count("\n") == 1  # one JSON object, nothing else on stdout
     data = json.loads(buf.getvalue())
     assert data["braidsim_version"] == braidsim.__version__
+    assert data["cross_branch"] is None  # (no `cross` in the spec)
     (b,) = data["branches"]
     assert b["parameter"] == HA and b["period"] == 1
     pt = b["points"][0]

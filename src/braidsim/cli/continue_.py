@@ -53,7 +53,8 @@ def continue_(
     with atomic_directory(out, REPORT_KIND) as tmp:
         data = write_outputs(res, tmp, fmt)
     if json_:
-        print_json({k: data[k] for k in ("scenario", "branches", "boundaries", "timings", "files")})
+        keys = ("scenario", "branches", "boundaries", "cross_branch", "timings", "files")
+        print_json({k: data[k] for k in keys})
         return
     for i, b in enumerate(res.branches):
         n_st = int(sum(o.stable for o in b.points))
