@@ -172,7 +172,7 @@ def test_lyapunov_exponent_of_irregular_motion_is_positive_and_robust() -> None:
     every T_h/16 or every T_h and with d0 = 1e-8 m or 1e-10 m (a method artefact would not
     be). Over 1,000 periods the estimate's own statistical error is 1.4-1.8 1/s (3 %), and
     runs that differ in the last bits of their arithmetic gave 52-58 1/s; over 4,000 periods
-    it is 0.6-1.1 1/s and the three estimates lie within 4 % (52.7, 54.8, 54.8)."""
+    it is 0.8-0.9 1/s and the three estimates lie within 3 % (54.5, 53.4, 53.1)."""
     over = {"track.vibration_amplitude": "0.18 mm"}
     T = 1 / 60
     a = carrier_lyapunov("paper-3.3", over, cycles=4000, interval=T / 16).estimate

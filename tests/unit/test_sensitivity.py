@@ -41,7 +41,7 @@ def _tangent_quantities(res: braidsim.Result, i: int, n_impacts: int) -> np.ndar
 def _check_against_fd(sc, keys, duration, rel=5e-6, min_checked=0.5):
     """Tangents against central differences at three steps; entries whose three quotients
     agree to 1e-6 (well conditioned: more than half of them) must agree with the tangent to
-    ``rel`` (measured: 3.2e-6 at most, median 3e-7). Two steps are not enough: a depth
+    ``rel`` (measured: 1.2e-6 at most, median 2e-8). Two steps are not enough: a depth
     located on the same step in the runs at p +- h and p +- h/2 gave two equal quotients,
     both 1.4e-3 off (the third, at 2h, and the tangent at two tolerances agreed)."""
     res = braidsim.simulate(sc, duration=duration, sensitivities=keys, series=False)
@@ -128,7 +128,8 @@ def test_xy_carrier_through_clamped_contacts_matches_finite_differences() -> Non
     before the pad leaves the wall: the solver cuts its steps at those kinks (the tangents
     do not jump there, the field being continuous). Stepped over, the kinks made the runs
     themselves err: the central differences of the final y and vy were 4e-4 to 3.5e-2 from
-    these same tangents; cut, 1.1e-7 to 2.1e-6 (measured at rtol 1e-12, atol 1e-17 m)."""
+    these same tangents; cut, 1.2e-6 to 3.5e-5 where the differences at two steps agree
+    (measured at rtol 1e-12, atol 1e-17 m; docs/sensitivities.md)."""
     sc = braidsim.load_scenario(
         "paper-3.1",
         overrides={
