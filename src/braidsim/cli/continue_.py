@@ -53,8 +53,7 @@ def continue_(
     with atomic_directory(out, REPORT_KIND) as tmp:
         data = write_outputs(res, tmp, fmt)
     if json_:
-        keys = ("scenario", "branches", "boundaries", "cross_branch", "timings", "files")
-        print_json({k: data[k] for k in keys})
+        print_json(data)  # (summary.json's object: every key of the result, and the files)
         return
     for i, b in enumerate(res.branches):
         n_st = int(sum(o.stable for o in b.points))
