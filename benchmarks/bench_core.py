@@ -843,15 +843,45 @@ print(c, len(r.impacts), r.stats["steps"], rss, kernel[0])
 """
 
 
+# Prepended to a Python child's code: at exit it writes /proc/self/status, whose VmHWM is the
+# peak resident set of the child's own address space. The rusage of a child (os.wait4) is not:
+# Linux carries the forking process's peak into the child's ru_maxrss at exec, so a child of
+# this process, which has compiled and run the other parts (about 390 MB), reported at least
+# that whatever it used itself.
+PEAK_HOOK = (
+    "import atexit, os\n"
+    "def _peak():\n"
+    "    if os.path.exists('/proc/self/status'):\n"
+    "        with open(os.environ['BENCH_PEAK_FILE'], 'w') as f:\n"
+    "            f.write(open('/proc/self/status').read())\n"
+    "atexit.register(_peak)\n"
+)
+
+
+def _own_peak_mb(status: str) -> float | None:
+    """VmHWM of a /proc/PID/status text [MB]; None where it has none."""
+    for line in status.splitlines():
+        if line.startswith("VmHWM:"):
+            return float(line.split()[1]) / 1024.0
+    return None
+
+
 def child(
     cmd: list[str], env: dict[str, str] | None, timeout: float, mem_gb: float | None
 ) -> tuple[str, float, float, float, str]:
     """Run ``cmd``; returns (stdout, CPU s of the child, peak RSS MB, wall s, failure or "").
 
-    The child caches its bytecode as an installed package has it (``bench_startup.py``):
-    without PYTHONDONTWRITEBYTECODE."""
+    A Python child (``python -c CODE ...``) reports its own peak RSS (``PEAK_HOOK``); for
+    another, or one that did not exit normally, it is the child's ``ru_maxrss``, which
+    includes this process's at the fork. The child caches its bytecode as an installed
+    package has it (``bench_startup.py``): without PYTHONDONTWRITEBYTECODE."""
     env = dict(os.environ if env is None else env)
     env.pop("PYTHONDONTWRITEBYTECODE", None)
+    peak_fd, peak_file = tempfile.mkstemp(prefix="braidsim-peak-")
+    os.close(peak_fd)
+    env["BENCH_PEAK_FILE"] = peak_file
+    if len(cmd) >= 3 and cmd[1] == "-c":
+        cmd = [cmd[0], "-c", PEAK_HOOK + cmd[2], *cmd[3:]]
 
     def limit() -> None:
         if mem_gb:
@@ -876,6 +906,10 @@ def child(
         out.seek(0)
         err.seek(0)
         text, etext = out.read().decode(), err.read().decode()
+    with open(peak_file) as f:
+        own_peak = _own_peak_mb(f.read())
+    os.unlink(peak_file)
+    peak = ru.ru_maxrss / 1024.0 if own_peak is None else own_peak
     fail = ""
     if wall > timeout:
         fail = f"did not finish within {timeout:g} s"
@@ -884,7 +918,7 @@ def child(
         fail = f"failed (exit {proc.returncode}): {last[:160]}"
         if "MemoryError" in etext or proc.returncode < 0:
             fail = f"did not finish within {mem_gb:g} GB of address space: {last[:120]}"
-    return text, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0, wall, fail
+    return text, ru.ru_utime + ru.ru_stime, peak, wall, fail
 
 
 def part_memory(sc: Scenario, args: argparse.Namespace) -> None:
