@@ -51,6 +51,8 @@ class ParamSpec:
         Allowed values of a ``choice``.
     doc : str
         What it is, with the paper's symbol.
+    allow_inf : bool
+        Whether infinity is allowed (``"inf"``: a flat surface's radius of curvature).
     """
 
     key: str
@@ -532,6 +534,9 @@ class Scenario:
         Every key of :data:`SCHEMA` with its SI value (None where absent).
     description, source : str
         What it is and where it comes from (section and figures of the paper).
+    explicit : frozenset of str
+        The keys set explicitly (by the file, the overrides or the built-in scenario), as
+        opposed to those left at their defaults.
     """
 
     name: str
@@ -604,16 +609,18 @@ class Scenario:
         )
 
     def to_dict(self) -> dict[str, Any]:
-        """Every parameter in SI, JSON-ready (tuples become lists, absent values None)."""
+        """Every parameter in SI, JSON-ready (:func:`json_value`)."""
+        return {k: json_value(v) for k, v in self.values.items()}
 
-        def plain(v: Any) -> Any:
-            if isinstance(v, tuple):
-                return [plain(x) for x in v]
-            if isinstance(v, float) and math.isinf(v):
-                return "inf"
-            return v
 
-        return {k: plain(v) for k, v in self.values.items()}
+def json_value(v: Any) -> Any:
+    """A parameter's value as JSON data: tuples become lists, an infinite value the string
+    ``"inf"`` (which the scenario files read back), an absent value None."""
+    if isinstance(v, tuple):
+        return [json_value(x) for x in v]
+    if isinstance(v, float) and math.isinf(v):
+        return "inf"
+    return v
 
 
 def _resolve_stiffness(values: dict[str, Any]) -> None:

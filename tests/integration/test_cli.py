@@ -256,7 +256,11 @@ def test_models_and_scenarios(capsys) -> None:
     assert code == 0
     assert "paper-3.4b" in {s["name"] for s in json.loads(out)["scenarios"]}
     code, out, _ = run_cli(capsys, "scenarios", "--keys", "--json")
-    assert "contact.track.restitution" in {k["key"] for k in json.loads(out)["keys"]}
+    keys = {k["key"]: k for k in json.loads(out)["keys"]}
+    assert "contact.track.restitution" in keys
+    # an infinite default reads as the scenario files write it ("inf"), not as null (absent)
+    assert keys["materials.horn_gear.radius"]["default"] == "inf"
+    assert keys["contact.track.exponent"]["default"] is None
 
 
 def test_run_out_writes_plots_and_series(capsys, tmp_path) -> None:

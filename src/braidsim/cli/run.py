@@ -321,14 +321,14 @@ def scenarios(
 ) -> None:
     """List the built-in scenarios (or, with --keys, every parameter key)."""
     import braidsim
-    from braidsim.params import SCHEMA
+    from braidsim.params import SCHEMA, json_value
 
     if keys:
         rows = [
             {
                 "key": s.key,
                 "unit": s.unit,
-                "default": s.default,
+                "default": json_value(s.default),
                 "allowed": s.range_text(),
                 "doc": s.doc,
             }
