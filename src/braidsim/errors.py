@@ -1,6 +1,6 @@
 """Exceptions of braidsim.
 
-Two kinds of failure reach a user, and the command line maps them to exit codes:
+Three kinds of failure reach a user, and the command line maps them to exit codes:
 
 * :class:`InputError` (exit code 2): the input is wrong. The message is one line that
   names the parameter and the allowed range or the closest known name.

@@ -1,4 +1,5 @@
-"""Figures (matplotlib, imported lazily, Agg backend). Every function returns a Figure.
+"""Figures (matplotlib, imported lazily, Agg backend). The plotting functions return a Figure;
+``envelope`` returns a thinned series to plot, ``save`` and ``run_figures`` the paths written.
 
 The paper's quantities are plotted in its units: displacement and depth in mm, forces in N,
 time in s, signed as in the paper (negative on the inner wall).

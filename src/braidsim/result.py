@@ -180,8 +180,16 @@ class Result:
         (n, 2) windows of ``ranges``; window 0 is the whole run.
     ranges : np.ndarray
         (n, pair, quantity, min/max) extremes, exact (refined on the interpolant).
-    stats : Mapping[str, float]
-        Integrator statistics.
+    stats : Mapping[str, Any]
+        The run's statistics: the steps that ran, ``integrator`` (``"dormand-prince"`` or
+        ``"taylor"``) and ``resting_contacts`` (``"explicit"`` or ``"implicit"``; a run with
+        sensitivities takes Dormand-Prince steps, explicit, whatever the scenario asks);
+        the solver's counts ``steps``, ``rejected_steps``, ``events``, ``rhs_evaluations``,
+        ``implicit_steps``, ``taylor_steps``, ``onset_steps``, ``transfers``; ``min_step``
+        (None where no step was taken) and ``max_step`` [s]; the track contact's
+        ``track_stiffness`` [N/m^n], ``track_damping_factor`` and
+        ``track_effective_restitution``; ``sample_interval`` [s] (None with explicit sample
+        times) and ``series_rows``.
     final : Mapping[str, float]
         Final state.
     final_state : State
@@ -192,6 +200,8 @@ class Result:
         by a 4-point Gauss-Legendre rule on the interpolant of every step (exact up to the
         integrator's own error, whatever the samples). None where the run did not integrate
         it: the lean path (``simulate(..., series=False)``) unless asked with ``rms=True``.
+    backend : str
+        ``"compiled"`` (braidsim's own solver, what :func:`braidsim.simulate` runs).
     sensitivity : Sensitivities or None
         The forward sensitivities, when ``simulate(..., sensitivities=[...])`` asked for
         them (:class:`braidsim.sensitivity.Sensitivities`).
@@ -217,7 +227,9 @@ class Result:
 
         Columns: t, t_end, duration, pair, wall, velocity (approach speed at onset),
         latched_velocity (v0 used by the law), rebound_velocity (NaN while still in contact),
-        max_depth, peak_force, min/max_damping_force, dissipated_energy, ongoing, initial.
+        max_depth, t_max_depth, peak_force, t_peak_force, min/max_damping_force,
+        dissipated_energy, ongoing (still in contact at the end), cut_by_transfer (ended by
+        a transfer), initial (present at the start).
         """
         if "impacts" not in self._cache:
             self._cache["impacts"] = impacts_frame(self.episodes)
@@ -249,7 +261,8 @@ class Result:
         first call (kept, so that every output of one result carries the same one); the
         scenario's name; the start time and the simulated time actually used [s] (the
         ``duration`` argument of :func:`braidsim.simulate` when given, not the scenario's
-        default); the integrator; and the resolved scenario, every parameter in SI, with
+        default); the backend (``Result.backend``; the steps a run took are in
+        ``Result.stats``); and the resolved scenario, every parameter in SI, with
         ``simulation.duration`` set to the duration actually used.
         """
         if "provenance" not in self._cache:

@@ -321,6 +321,9 @@ class SteadyState:
         The final state of the run (to continue it).
     failure : str
         "" for a run that finished, else why it failed (``regime.label`` is ``failed``).
+    omega_h : float
+        The track vibration's angular frequency [rad/s] that scales the speeds of the
+        stroboscopic points (0: none; ``2 pi / period`` is used then).
     """
 
     parameters: dict[str, Any]

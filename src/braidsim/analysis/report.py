@@ -160,6 +160,10 @@ def analyze(
     transient : float or str, optional
         Start of the steady-state window [s] (or a string with a unit), before ``duration``;
         default :func:`default_transient`.
+    per_cycle : int
+        Samples per excitation period (>= 16).
+    period_tol, max_period
+        Regime rule 4 (:mod:`braidsim.analysis.regimes`).
 
     Steady-state rule
     -----------------
@@ -171,10 +175,6 @@ def analyze(
     default transient max(D / 2, min(100 T, D - 50 T)) for a run of D seconds: 100 periods
     when the run holds 150, never less than its first half. The window used is reported
     (``window`` and ``window_rule`` of :meth:`RunAnalysis.to_dict`).
-    per_cycle : int
-        Samples per excitation period (>= 16).
-    period_tol, max_period
-        Regime rule 4 (:mod:`braidsim.analysis.regimes`).
     """
     from braidsim.simulate import simulate, time_value
 

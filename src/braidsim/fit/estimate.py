@@ -753,7 +753,8 @@ def fit(
     Parameters
     ----------
     scenario : Scenario, str or mapping
-        A loaded scenario, a built-in name or a scenario TOML path.
+        A loaded scenario, a built-in name, a scenario TOML path, or ``{dotted key:
+        value}``.
     data : path, xarray.Dataset, DataFrame, dict of arrays, Record or ImpactList, or a list
         The record (see :mod:`braidsim.fit.data`): samples or an impact list, told by its
         columns. A list fits several records together (stacked residuals, one covariance);
@@ -767,6 +768,8 @@ def fit(
         (``peak_force``, ``velocity``, ``rebound_velocity``).
     overrides : mapping, optional
         Applied to the scenario first.
+    progress : callable, optional
+        Called with a line of text at each stage of the fit (the command line's status).
     **options
         Any other key of the spec's ``[fit]`` table (``noise``, ``start``, ``jacobian``,
         ``global_method`` for ``global``, ``starts``, ``events``, ``profile``,
