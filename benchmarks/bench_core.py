@@ -888,27 +888,29 @@ def child(
             lim = int(mem_gb * 2**30)
             resource.setrlimit(resource.RLIMIT_AS, (lim, lim))
 
-    t0 = time.perf_counter()
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        proc = subprocess.Popen(cmd, stdout=out, stderr=err, env=env, preexec_fn=limit)
-        deadline = t0 + timeout
-        while True:
-            pid, status, ru = os.wait4(proc.pid, os.WNOHANG)
-            if pid:
-                break
-            if time.perf_counter() > deadline:
-                proc.kill()
-                pid, status, ru = os.wait4(proc.pid, 0)
-                break
-            time.sleep(0.05)
-        wall = time.perf_counter() - t0
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        text, etext = out.read().decode(), err.read().decode()
-    with open(peak_file) as f:
-        own_peak = _own_peak_mb(f.read())
-    os.unlink(peak_file)
+    try:
+        t0 = time.perf_counter()
+        with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+            proc = subprocess.Popen(cmd, stdout=out, stderr=err, env=env, preexec_fn=limit)
+            deadline = t0 + timeout
+            while True:
+                pid, status, ru = os.wait4(proc.pid, os.WNOHANG)
+                if pid:
+                    break
+                if time.perf_counter() > deadline:
+                    proc.kill()
+                    pid, status, ru = os.wait4(proc.pid, 0)
+                    break
+                time.sleep(0.05)
+            wall = time.perf_counter() - t0
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            out.seek(0)
+            err.seek(0)
+            text, etext = out.read().decode(), err.read().decode()
+        with open(peak_file) as f:
+            own_peak = _own_peak_mb(f.read())
+    finally:
+        os.unlink(peak_file)
     peak = ru.ru_maxrss / 1024.0 if own_peak is None else own_peak
     fail = ""
     if wall > timeout:
