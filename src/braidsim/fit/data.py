@@ -48,8 +48,8 @@ import numpy as np
 
 from braidsim.errors import InputError
 
-#: measured quantities and their SI units (pint expressions)
 QUANTITY_UNITS: dict[str, str] = {"x": "m", "acceleration": "m/s**2", "contact_force": "N"}
+"""The quantities a measured record may hold, and their SI units (pint expressions)."""
 #: quantities of an impact list and their SI units
 IMPACT_UNITS: dict[str, str] = {
     "peak_force": "N",

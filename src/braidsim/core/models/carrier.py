@@ -114,6 +114,12 @@ CARRIER_COLUMNS = (
     "transfer_work",
     "kind",
 )
+"""The columns of a carrier's sampled series and event rows, in order: time [s], the
+coordinates [m] and speeds [m/s], each pair's depth [m] and stiffness, damping and total
+contact forces [N], the friction forces [N], the energy quadratures [J] (NaN where the run
+did not integrate them), the walls' positions [m], the horn gear's speed omega [rad/s], and
+the row's kind (``core.layout.KIND_NAMES``: sample, onset, exit, peak, transfer, start,
+end)."""
 # Energy quadratures of the xy carrier in state order (after x, vx, y, vy); the x-only
 # carrier integrates the five of them that concern x (transfers included), in this order.
 XY_QUADS = (
