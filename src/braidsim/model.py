@@ -85,6 +85,10 @@ class Model:
         Integrate resting contacts with the implicit step (``simulation.resting_contacts``).
     taylor_order : int
         Order of the Taylor-series steps (``simulation.integrator = "taylor"``); 0: none.
+    t_start : float
+        Where the run starts [s]: 0, or the time of the state a continued run starts from.
+    continued : bool
+        The run continues an earlier one (it makes a transfer at ``t_start`` too).
     """
 
     scenario: Scenario
@@ -97,6 +101,8 @@ class Model:
     duration: float
     implicit_rest: bool = False
     taylor_order: int = 0
+    t_start: float = 0.0
+    continued: bool = False
 
     def __repr__(self) -> str:
         laws = ", ".join(
@@ -177,9 +183,17 @@ def default_max_step(sc: Scenario) -> float:
     return hmax
 
 
-def _transfer_times(sc: Scenario, t_start: float, dur: float) -> np.ndarray:
+def _transfer_times(
+    sc: Scenario, t_start: float, dur: float, continued: bool = False
+) -> np.ndarray:
     """The transfers in (t_start, t_start + dur) [s], sorted and distinct: those of
     ``transfer.times`` and every ``transfer.first + k transfer.period`` (k = 0, 1, ...).
+
+    A continued run (``continued``) also makes a transfer at its start, t_start: the run it
+    continues stopped there before making it (a run makes those strictly inside its span).
+    A transfer within rounding after the start (``first + k period`` computed as
+    0.15000000000000002 for a cut at 0.15) is made at the start: the step of 3e-17 s that
+    would reach it leaves the step control too short a step to grow from.
 
     Raises
     ------
@@ -187,7 +201,11 @@ def _transfer_times(sc: Scenario, t_start: float, dur: float) -> np.ndarray:
         The period would make more transfers than the ``transfers`` limit allows.
     """
     end = t_start + dur
-    times = [t for t in sc["transfer.times"] if t_start < t < end]
+
+    def inside(t: Any) -> Any:
+        return ((t >= t_start) if continued else (t > t_start)) & (t < end)
+
+    times = [t for t in sc["transfer.times"] if inside(t)]
     period = sc["transfer.period"]
     if not times and not period > 0.0:
         return np.zeros(0)
@@ -203,9 +221,19 @@ def _transfer_times(sc: Scenario, t_start: float, dur: float) -> np.ndarray:
         k0 = max(0, math.floor((t_start - first) / period))
         k1 = math.ceil((end - first) / period) + 1
         periodic = first + np.arange(k0, k1, dtype=float) * period
-        times.extend(periodic[(periodic > t_start) & (periodic < end)].tolist())
-    return np.unique(np.asarray(times, dtype=float))
+        times.extend(periodic[inside(periodic)].tolist())
+    tr = np.unique(np.asarray(times, dtype=float))
+    if continued and tr.size:
+        # those within rounding after the start are made at the start (the run before
+        # made those before it)
+        near = tr - t_start <= TRANSFER_SNAP_ULPS * math.ulp(t_start)
+        tr = np.unique(np.where(near, t_start, tr))
+    return tr
 
+
+# a transfer this many units in the last place of a continued run's start time from it is
+# made at the start (_transfer_times)
+TRANSFER_SNAP_ULPS = 64
 
 STEPS_PER_SECOND = 50_000
 # the order of the Taylor-series steps (simulation.integrator = "taylor"): 12 took the fewest
@@ -330,6 +358,7 @@ def build_model(
     duration: float | None = None,
     t_start: float = 0.0,
     keep_zero_harmonics: bool = False,
+    continued: bool = False,
 ) -> Model:
     """Derive the core's records from a validated scenario.
 
@@ -346,6 +375,9 @@ def build_model(
         Keep the track's main harmonic in the record even at zero amplitude (the record
         then has the same shape whatever the amplitude, as the sensitivities need; a zero
         row adds exactly 0 to the motion).
+    continued : bool
+        The run continues an earlier one that stopped at ``t_start``: a transfer at
+        ``t_start`` is kept too (that run stopped before making it).
     """
     d = _derived(sc, keep_zero_harmonics)
     dur = float(duration if duration is not None else sc["simulation.duration"])
@@ -357,5 +389,18 @@ def build_model(
         max_steps=_step_budget(sc, dur),
         t_end=dur,
     )
-    tr = _transfer_times(sc, t_start, dur)
-    return Model(sc, d.record, options, d.y0.copy(), tr, d.track, d.slot, dur, d.implicit, d.taylor)
+    tr = _transfer_times(sc, t_start, dur, continued)
+    return Model(
+        sc,
+        d.record,
+        options,
+        d.y0.copy(),
+        tr,
+        d.track,
+        d.slot,
+        dur,
+        d.implicit,
+        d.taylor,
+        t_start,
+        continued,
+    )

@@ -475,7 +475,13 @@ def simulate(
         raise InputError("sensitivities: need series=True or False, not a series callable")
     if not (rms is None or isinstance(rms, bool | np.bool_)):
         raise InputError(f"rms: {_shown(rms)} is not allowed; allowed True, False or None")
-    model = build_model(sc, duration, t_start=t_start, keep_zero_harmonics=bool(keys))
+    model = build_model(
+        sc,
+        duration,
+        t_start=t_start,
+        keep_zero_harmonics=bool(keys),
+        continued=start is not None,
+    )
     tangents = None
     if keys:
         from braidsim.sensitivity import check_differentiable, directions

@@ -403,7 +403,9 @@ def integrate(
                         model, SENS, SENS.RSENS, nrow0, t, y, SENS.S, modes, v0s, n_pairs, sw
                     )
             isamp += 1
-        while itr < TR.shape[0] and TR[itr] <= t:
+        # a new run makes no transfer at its start time; a continued one does (the run it
+        # continues stopped there before making it), in the loop below
+        while itr < TR.shape[0] and (TR[itr] < t or (TR[itr] == t and r.started == NEW_RUN)):
             itr += 1
         r.started = STARTED
     h = r.h
@@ -447,6 +449,7 @@ def integrate(
     if SENS is not None:
         tangent_start(model, SENS, t, y, modes, v0s, KS)
     status = ST_OK
+    h_cut = 0.0
     while t < t_end:
         # room for what one step writes, else hand the buffers back to be flushed
         if rows is not None and nrow > rows.shape[0] - row_reserve:
@@ -514,8 +517,11 @@ def integrate(
         if itr < TR.shape[0] and TR[itr] < t_stop:
             t_stop = TR[itr]
         hits_stop = False
+        h_cut = 0.0
         if h >= (t_stop - t) * (1.0 - 1e-9):
             # reach the stop exactly (and never leave a sliver too small to step over)
+            if t_stop == t_end:
+                h_cut = h  # (the step the control wanted: where a continuation starts)
             h = t_stop - t
             hits_stop = True
         # (with Taylor steps h is here the Runge-Kutta step carried over them: the step taken
@@ -1110,6 +1116,11 @@ def integrate(
                 r.rest_run = 0
     # ---- where the run stands
     r.t = t
+    if t >= t_end and h_cut > h:
+        # the last step was cut short to land on the end: a run continued from here starts
+        # with the step the control wanted, not one grown from that sliver (a transfer
+        # 1e-17 s before the end left 5e-17 s, below what the step control can take at t)
+        h = h_cut
     r.h = h
     r.err_old = err_old
     r.onset_q = onset_q
