@@ -504,6 +504,7 @@ def simulate(
             raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
     else:
         dt, span = _sample_interval(sc, sample_interval, T - t_start)
+        dt0, k = dt, 1
         n = math.floor(span + 1e-9) + 1 if dt > 0 else 0
         row_bytes = 8 * len(CARRIER_COLUMNS)
         if series is True and max_series_bytes is not None and n * row_bytes > max_series_bytes:
@@ -514,7 +515,11 @@ def simulate(
         # a streamed series or one without a budget is not widened, but its sample times
         # are one array: refuse it before it is made
         limits.check("memory", 8.0 * n, f"sample_interval = {dt:g} s over {T - t_start:g} s")
-        st = t_start + np.arange(n, dtype=float) * dt if n else np.zeros(0)
+        # on the grid of the interval asked (every k-th point where widened), the last
+        # sample no later than the end: t_start + i dt may round past it (0.3 s / 1e-5 s)
+        st = t_start + np.arange(0, n * k, k, dtype=float) * dt0 if n else np.zeros(0)
+        if n and st[-1] > T:
+            st[-1] = T
         dt_used = dt
     W = run_windows(t_start, T, windows)
     # a series kept in memory is collected column by column from the solver's chunks, so
