@@ -435,7 +435,8 @@ def simulate(
         ``"initial.x"``, ...): carry the exact forward sensitivities of the run along each
         (``Result.sensitivity``, a :class:`braidsim.sensitivity.Sensitivities`; the summary
         and ``braidsim run --json`` carry them per impact and in ``final``). Not with a
-        series callable.
+        series callable. With ``start``, they are the continued run's own, its start state
+        held fixed (they do not carry the earlier run's; ``initial.*`` keys are refused).
     rms : bool, optional
         Integrate x^2 over each window for ``Result.rms_x`` (a 4-point Gauss-Legendre rule on
         the interpolant of every step). Default: with a series; the lean path
@@ -489,7 +490,13 @@ def simulate(
         check_differentiable(model.record)
         dirs = directions(model, keys)
         if start is not None:
-            # a continued run starts from the given state: its tangent is zero
+            # a continued run starts from the given state, held fixed: its tangent is zero
+            fixed = [k for k in keys if k.startswith("initial.")]
+            if fixed:
+                raise InputError(
+                    f"sensitivities: {fixed[0]} with start: a continued run starts from the "
+                    "given state, not the scenario's initial one; ask for it in the first run"
+                )
             dirs.S0[:] = 0.0
         tangents = dirs.tangents(series=series is True)
     T = t_start + model.duration
