@@ -194,7 +194,8 @@ def directions(model: Model, keys: Sequence[str]) -> Directions:
 
     sc = model.scenario
     n2 = 2 * (2 if model.two_dof else 1)
-    base = build_model(sc, model.duration, keep_zero_harmonics=True)
+    span = (model.duration, model.t_start, True, model.continued)  # (the run's transfers)
+    base = build_model(sc, *span)
     out_records: list[Any] = []
     S0 = np.zeros((len(keys), n2))
     DTR = np.zeros((len(keys), base.transfer_times.size))
@@ -211,8 +212,7 @@ def directions(model: Model, keys: Sequence[str]) -> Directions:
         for stencil in (_CENTRAL, _FORWARD, tuple((-o, -w) for o, w in _FORWARD)):
             try:
                 built = [
-                    (build_model(sc.with_overrides({key: p + o * h}), model.duration, 0.0, True), w)
-                    for o, w in stencil
+                    (build_model(sc.with_overrides({key: p + o * h}), *span), w) for o, w in stencil
                 ]
             except InputError:
                 continue
