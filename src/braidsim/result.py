@@ -139,6 +139,9 @@ class State:
         The step control's memory of the last error norm.
     onset_q : float
         Error exponent of a pending first contact step (0: none).
+    onset_pair : int
+        The pair whose contact that step starts (0 track, 1 slot; -1: none), for the onset
+        series of Taylor-series steps.
     track_clamped, slot_clamped : int
         Whether the contact's force is held at its law's clamp N = max(0, F_k + F_c) (1) or
         not (0), as the solver's last crossing of it left it; -1: not known (read from the
@@ -154,6 +157,7 @@ class State:
     step: float = 0.0
     err_old: float = 1e-4
     onset_q: float = 0.0
+    onset_pair: int = -1
     track_clamped: int = -1
     slot_clamped: int = -1
 

@@ -248,6 +248,7 @@ def final_state(raw: RawRun) -> State:
         step=r.h,
         err_old=r.err_old,
         onset_q=r.onset_q,
+        onset_pair=int(r.onset_pair),
         track_clamped=int(r.clamped_0),
         slot_clamped=int(r.clamped_1),
     )
@@ -325,6 +326,7 @@ def run_model(
         r["h"] = start.step
         r["err_old"] = start.err_old
         r["onset_q"] = start.onset_q
+        r["onset_pair"] = start.onset_pair if start.onset_q > 0.0 else -1
         r["mode_0"], r["mode_1"] = start.track_mode, start.slot_mode
         r["v0_0"], r["v0_1"] = start.track_v0, start.slot_v0
         r["clamped_0"], r["clamped_1"] = start.track_clamped, start.slot_clamped
