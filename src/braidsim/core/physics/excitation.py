@@ -24,6 +24,9 @@ from braidsim.core.generic import helper, inline_helper
 from braidsim.core.interfaces import wall_accel_bound, wall_motion, wall_motion_jvp, wall_series
 from braidsim.core.jets import jet_cos_linear
 
+# a knot of a horn-gear speed profile within this many units of rounding of t is at t
+KNOT_ROUNDING = 64.0 * 2.220446049250313e-16
+
 
 class TrackHarmonics(NamedTuple):
     """h(t) = sum a cos(w t + phi): rows (a [m], w [rad/s], phi [rad]) of ``table``."""
@@ -308,12 +311,19 @@ def _slot_series(ex, t, order, H):
         tp = t - pt[0]  # time in the profile, reduced to one period as _profile_piece does
         tp -= math.floor(tp / period) * period
         j = _profile_piece(t - pt[0], ex, period)
+        horizon = pt[j + 1] - pt[0] - tp
+        if horizon <= KNOT_ROUNDING * max(abs(t), period):
+            # t is a knot that the reduction to one period put a few ulps before it (0.03 s
+            # of a 0.02-s profile reduces to 0.009999999999999998): the series is that of
+            # the next piece, else the steps to the knot would be below the rounding of t
+            j = j + 1 if j + 1 < pt.shape[0] - 1 else 0
+            horizon = pt[j + 1] - pt[j]
         if order >= 1:
             H[1] = rc * om0
         if order >= 2:
             pw = ex.profile_speeds
             H[2] = rc * ((pw[j + 1] - pw[j]) / (pt[j + 1] - pt[j])) / 2.0
-        return max(pt[j + 1] - pt[0] - tp, 0.0)
+        return max(horizon, 0.0)
     if order >= 1:
         H[1] = ex.omega0
         om = H[1:]
