@@ -101,6 +101,7 @@ from braidsim.core.solver.tangent import (
 )
 from braidsim.core.solver.taylor import (
     RETEST,
+    depth_root_reach,
     onset_step,
     taylor_coefficients,
     taylor_dense,
@@ -600,6 +601,9 @@ def integrate(
                     ht = horizon  # (a piecewise motion: to the end of its piece)
                 # (and not past where a saturating law's series stops showing its change)
                 ht = model_series_reach(model, TC, ht)
+                ht_series = ht
+                # (and not near a contact's depth returning towards 0: taylor.py)
+                ht = depth_root_reach(model, n_pairs, modes, TW, ht)
                 if ht >= h:
                     took_taylor = True
                     # the Runge-Kutta step and its controller's memory are carried over the
@@ -624,8 +628,11 @@ def integrate(
                     # bounds both; a step carried from elsewhere may cross it, as an exit,
                     # in one step whose error estimate misses the p^n there)
                     r.taylor_wait = RETEST - 1.0
-                    h = ht
-                    hits_stop = False
+                    if ht_series < h:
+                        # (not cut to the depth's roots: where the depth nears 0 and turns,
+                        # as at a grazing return, a Runge-Kutta step passes as at any turn)
+                        h = ht_series
+                        hits_stop = False
             if took_taylor:
                 # the end of a series step (onset or Taylor): the state from its polynomial
                 # and f there; no error estimate, no rejection

@@ -58,6 +58,7 @@ from braidsim.core.interfaces import (
     model_series,
     model_series_reach,
     model_series_start,
+    pair_series_rows,
 )
 
 # In a run of Runge-Kutta steps the series is built again to test the rule only every
@@ -66,6 +67,9 @@ RETEST = 4
 # the lowest order at which the series may stop (:func:`taylor_coefficients`)
 MIN_ORDER = 3
 STOP_SAFETY = 1e-3
+# a Taylor step reaches at most this fraction of the way to the nearest root of a contact's
+# depth (depth_root_reach)
+DEPTH_REACH = 1.0
 # the order of the onset step in s (the prototype's: benchmarks/lean_taylor.py)
 ONSET_ORDER = 24
 
@@ -186,6 +190,37 @@ def taylor_deriv(theta, h, RT, out, n):
         for k in range(deg - 1, 0, -1):
             acc = acc * theta + k * RT[k, i]
         out[i] = acc / h
+
+
+@inline_helper
+def depth_root_reach(model, n_pairs, modes, W, h):
+    """The step no longer than DEPTH_REACH times the modulus of the nearest root of each
+    contact's depth p(tau) ~ p0 + p1 tau + p2 tau^2 (its coefficients in the work array,
+    :func:`~braidsim.core.interfaces.pair_series_rows`): where p returns towards 0 without
+    reaching it, a pair of complex roots tau_m +- i sqrt(p_min / p2) is the force's branch
+    point p^n = 0, a radius of convergence that the last terms of the series can hide."""
+    for pair in range(n_pairs):
+        if modes[pair] == 0:
+            continue
+        rp = pair_series_rows(model, pair)[0]
+        p0 = W[rp, 0]
+        p1 = W[rp, 1]
+        p2 = W[rp, 2]
+        if not p0 > 0.0:
+            continue
+        rho = math.inf
+        disc = p1 * p1 - 4.0 * p0 * p2
+        if p2 == 0.0:
+            if p1 != 0.0:
+                rho = abs(p0 / p1)
+        elif disc < 0.0:
+            rho = math.sqrt(p0 / p2)  # (|roots|^2 = p0 / p2 > 0)
+        else:
+            q = -0.5 * (p1 + math.copysign(math.sqrt(disc), p1))
+            if q != 0.0:
+                rho = min(abs(q / p2), abs(p0 / q))
+        h = min(h, DEPTH_REACH * rho)
+    return h
 
 
 # ---- the onset step --------------------------------------------------------------------------
