@@ -193,7 +193,7 @@ def _series_rows(model, pair):
 
 @model_series_reach.register(ImpactOscillator)
 def _series_reach(model, C, h):
-    return h  # (no friction: every force's series shows its singularities)
+    return h  # (no friction; the contact's branch points: taylor.depth_root_reach)
 
 
 @model_series_start.register(ImpactOscillator)
