@@ -546,10 +546,16 @@ class Scenario:
     explicit: frozenset[str] = field(default_factory=frozenset)
 
     def __getitem__(self, key: str) -> Any:
+        if not isinstance(key, str):
+            raise InputError(f"{key!r}: a scenario key is a dotted name, e.g. 'track.clearance'")
         try:
             return self.values[key]
         except KeyError:
             raise _unknown(key) from None
+
+    def __contains__(self, key: object) -> bool:
+        """Whether ``key`` is a parameter of the schema (every scenario has them all)."""
+        return key in self.values
 
     def __repr__(self) -> str:
         # the whole parameter set is ~70 entries: name the ones set explicitly, briefly

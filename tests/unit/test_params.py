@@ -232,3 +232,12 @@ def test_reprs_are_one_short_line() -> None:
         assert text.startswith("<braidsim.") and "\n" not in text and len(text) < 300, text
     assert "63 parameters" in repr(sc) or "parameters in SI" in repr(sc)
     assert "(425 runs)" in repr(spec)
+
+
+def test_a_scenario_answers_in_and_refuses_a_non_string_key() -> None:
+    sc = load_scenario("paper-3.3")
+    assert "track.clearance" in sc
+    assert "track.clearence" not in sc
+    assert 0 not in sc  # (it fell back to sc[0], and failed on int.isprintable)
+    with pytest.raises(InputError, match="dotted name"):
+        sc[0]  # type: ignore[index]
