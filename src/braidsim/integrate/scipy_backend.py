@@ -23,8 +23,12 @@ crosses zero downwards); the integration restarts after each event with the new 
 newly latched v0. A law that clamps its force (N = max(0, F_k + F_c)) has a kink where
 F_k + F_c crosses zero inside a contact: a terminal event as well, after which the
 integration restarts in the same mode (watching the crossing back). Steps are limited to
-the solver's ``max_step`` so that the event functions, which SciPy only checks at step ends,
-are sampled as often as in the compiled solver. Within
+``max_step / N_SUB`` in free flight so that the event functions, which SciPy checks only
+for a change of sign between step ends, are sampled as often as the compiled solver samples
+them (at ``N_SUB`` + 1 points of each of its steps): there the carrier's equations do not
+involve the walls, so the steps were as long as ``max_step`` allows, and a gap that dipped
+below 0 and back within one (a wall vibrating at 441 Hz sweeping past the carrier) was an
+impact missed. In contact the steps are ``max_step`` at most. Within
 each contact segment the maxima and minima of the penetration, the damping-related force and
 the normal force are found on a grid of the dense output (step ends plus ``N_SUB`` interior
 points per step) and refined by bounded Brent minimisation
@@ -520,7 +524,8 @@ class _Run:
                 method=self.method,
                 rtol=self.rtol,
                 atol=self.atol,
-                max_step=self.hmax,
+                # (in contact the steps are short anyway: the force holds them)
+                max_step=self.hmax if in_contact else self.hmax / N_SUB,
                 events=events,
                 dense_output=in_contact,
             )
