@@ -152,7 +152,17 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
     damp_rate = (
         model.constant_load * model.track.damping_factor / (sc["contact.min_impact_velocity"] * m)
     )
-    if fric_rate >= damp_rate:
+    if max(fric_rate, damp_rate) * model.options.max_step < 10.0:
+        # neither holds the explicit step below a tenth of the maximum step: not stiffness
+        other = (
+            ', or simulation.integrator = "dormand-prince"' if model.taylor_order > 0 else ""
+        )
+        hint = (
+            "neither the friction regularisation nor the contact damping is stiff here "
+            f"(rates ~ {fric_rate:.3g} and {damp_rate:.3g} 1/s); try another simulation.rtol"
+            f"{other}, and report the case if that does not help"
+        )
+    elif fric_rate >= damp_rate:
         hint = (
             "increase friction.regularization_velocity (the friction regularisation makes the "
             f"equations stiff: rate ~ {fric_rate:.3g} 1/s)"

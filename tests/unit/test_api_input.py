@@ -329,3 +329,27 @@ def test_a_duration_in_the_overrides_place_is_named(given):
 def test_a_wrong_overrides_object_gets_no_duration_hint():
     with pytest.raises(InputError, match=r"got list$"):
         braidsim.load_scenario("paper-3.3").with_overrides([("initial.x", 0.0)])  # type: ignore[arg-type]
+
+
+def test_a_collapse_without_stiffness_does_not_blame_friction_or_damping() -> None:
+    """The message's hint names the stiffer of the friction regularisation and the contact
+    damping; with no friction and an elastic contact both rates are 0, and it told the user
+    to raise the friction regularisation ("rate ~ 0 1/s")."""
+    from braidsim.core import layout as L
+    from braidsim.model import build_model
+    from braidsim.params import load_scenario
+    from braidsim.simulate import failure_message
+
+    sc = load_scenario("table1-hertz", overrides={"friction.law": "none"})
+    msg = failure_message(L.ST_STEP_COLLAPSE, 0.01, build_model(sc, 0.1), {})
+    assert "neither the friction regularisation nor the contact damping is stiff" in msg
+    assert "regularization_velocity" not in msg
+    taylor = build_model(sc.with_overrides({"simulation.integrator": "taylor"}), 0.1)
+    assert 'simulation.integrator = "dormand-prince"' in failure_message(
+        L.ST_STEP_COLLAPSE, 0.01, taylor, {}
+    )
+    # paper-3.3: the contact damping at the floor speed, 9.3e4 1/s, holds the step
+    stiff = failure_message(
+        L.ST_STEP_COLLAPSE, 0.01, build_model(load_scenario("paper-3.3"), 0.1), {}
+    )
+    assert "raise contact.min_impact_velocity" in stiff and "neither" not in stiff
