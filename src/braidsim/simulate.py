@@ -438,10 +438,10 @@ def simulate(
         runs of any length, streamed to a store or reduced on the fly.
     max_series_bytes : int or None
         Memory budget (> 0) of the samples kept in memory (default 64 MiB, about 300,000
-        rows). A
-        ``sample_interval`` that would exceed it is widened to a multiple of itself that
-        fits (``Result.stats["sample_interval"]`` says which); explicit ``sample_times`` are
-        never thinned. None: no budget.
+        rows). A ``sample_interval`` that would exceed it is widened to a multiple of itself
+        that fits (``Result.stats["sample_interval"]`` says which), keeping every k-th
+        sample of the grid asked for; the first sample is kept whatever the budget (a row
+        is 224 bytes). Explicit ``sample_times`` are never thinned. None: no budget.
     sensitivities : sequence of str, optional
         Numeric scenario keys (``"contact.track.restitution"``, ``"track.clearance"``,
         ``"initial.x"``, ...): carry the exact forward sensitivities of the run along each
