@@ -154,9 +154,7 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
     )
     if max(fric_rate, damp_rate) * model.options.max_step < 10.0:
         # neither holds the explicit step below a tenth of the maximum step: not stiffness
-        other = (
-            ', or simulation.integrator = "dormand-prince"' if model.taylor_order > 0 else ""
-        )
+        other = ', or simulation.integrator = "dormand-prince"' if model.taylor_order > 0 else ""
         hint = (
             "neither the friction regularisation nor the contact damping is stiff here "
             f"(rates ~ {fric_rate:.3g} and {damp_rate:.3g} 1/s); try another simulation.rtol"
