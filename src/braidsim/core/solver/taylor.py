@@ -195,11 +195,20 @@ def taylor_deriv(theta, h, RT, out, n):
 
 @inline_helper
 def depth_root_reach(model, n_pairs, modes, W, h):
-    """The step no longer than DEPTH_REACH times the modulus of the nearest root of each
-    contact's depth p(tau) ~ p0 + p1 tau + p2 tau^2 (its coefficients in the work array,
-    :func:`~braidsim.core.interfaces.pair_series_rows`): where p returns towards 0 without
-    reaching it, a pair of complex roots tau_m +- i sqrt(p_min / p2) is the force's branch
-    point p^n = 0, a radius of convergence that the last terms of the series can hide."""
+    """The step no longer than DEPTH_REACH times the distance to a contact's depth
+    returning towards 0, from its coefficients in the work array
+    (:func:`~braidsim.core.interfaces.pair_series_rows`), p(tau) ~ p0 + p1 tau + p2 tau^2:
+
+    * complex roots (p1^2 < 4 p0 p2): the depth turns short of 0, and the force's branch
+      point p^n = 0 is the pair tau_m +- i sqrt(p_min / p2) near the real axis, at distance
+      sqrt(p0 / p2) (the roots' product);
+    * two real roots ahead, closer together than the nearer is from here (p1 < 0 < p2): the
+      depth dips to 0 and back, a grazing return, at the nearer.
+
+    The last terms of the series need not show either (benchmarks/README.md, session 33).
+    A single crossing ahead (an exit) or a root behind (the onset) is left to the series'
+    own rule and the event location, which handle it: bounded there too, the steps crept
+    towards the exit until they collapsed at tight tolerances."""
     for pair in range(n_pairs):
         if modes[pair] == 0:
             continue
@@ -207,20 +216,17 @@ def depth_root_reach(model, n_pairs, modes, W, h):
         p0 = W[rp, 0]
         p1 = W[rp, 1]
         p2 = W[rp, 2]
-        if not p0 > 0.0:
+        if not (p0 > 0.0 and p2 > 0.0):
             continue
-        rho = math.inf
         disc = p1 * p1 - 4.0 * p0 * p2
-        if p2 == 0.0:
-            if p1 != 0.0:
-                rho = abs(p0 / p1)
-        elif disc < 0.0:
-            rho = math.sqrt(p0 / p2)  # (|roots|^2 = p0 / p2 > 0)
-        else:
-            q = -0.5 * (p1 + math.copysign(math.sqrt(disc), p1))
-            if q != 0.0:
-                rho = min(abs(q / p2), abs(p0 / q))
-        h = min(h, DEPTH_REACH * rho)
+        if disc < 0.0:
+            h = min(h, DEPTH_REACH * math.sqrt(p0 / p2))
+        elif p1 < 0.0:
+            # both roots ahead: tau1 = 2 p0 / (-p1 + sqrt(disc)) and tau2 = p0 / (p2 tau1)
+            tau1 = 2.0 * p0 / (math.sqrt(disc) - p1)
+            tau2 = p0 / (p2 * tau1)
+            if tau2 - tau1 < tau1:
+                h = min(h, DEPTH_REACH * tau1)
     return h
 
 
