@@ -194,8 +194,18 @@ def directions(model: Model, keys: Sequence[str]) -> Directions:
 
     sc = model.scenario
     n2 = 2 * (2 if model.two_dof else 1)
-    span = (model.duration, model.t_start, True, model.continued)  # (the run's transfers)
-    base = build_model(sc, *span)
+
+    def over_span(scenario: Any) -> Model:
+        # (over the run's own span: its transfers, whose times have tangents too)
+        return build_model(
+            scenario,
+            model.duration,
+            t_start=model.t_start,
+            keep_zero_harmonics=True,
+            continued=model.continued,
+        )
+
+    base = over_span(sc)
     out_records: list[Any] = []
     S0 = np.zeros((len(keys), n2))
     DTR = np.zeros((len(keys), base.transfer_times.size))
@@ -211,9 +221,7 @@ def directions(model: Model, keys: Sequence[str]) -> Directions:
         built = None
         for stencil in (_CENTRAL, _FORWARD, tuple((-o, -w) for o, w in _FORWARD)):
             try:
-                built = [
-                    (build_model(sc.with_overrides({key: p + o * h}), *span), w) for o, w in stencil
-                ]
+                built = [(over_span(sc.with_overrides({key: p + o * h})), w) for o, w in stencil]
             except InputError:
                 continue
             break

@@ -205,7 +205,8 @@ def depth_root_reach(model, n_pairs, modes, W, h):
     * two real roots ahead, closer together than the nearer is from here (p1 < 0 < p2): the
       depth dips to 0 and back, a grazing return, at the nearer.
 
-    The last terms of the series need not show either (benchmarks/README.md, session 33).
+    The last terms of the series need not show either (docs/core.md, "A depth that returns
+    towards 0").
     A single crossing ahead (an exit) or a root behind (the onset) is left to the series'
     own rule and the event location, which handle it: bounded there too, the steps crept
     towards the exit until they collapsed at tight tolerances."""
