@@ -174,24 +174,23 @@ def _event_at(model, j, t0, h, theta, RC, modes, v0s, n, ys):
 
 
 @helper
-def _golden(model, j, t0, h, a, b, RC, modes, v0s, n, ys, top):
-    """Golden-section search of event function j on [a, b]: for its smallest value, stopping
-    at the first negative one (``top`` False), or for its largest (``top`` True). Returns
-    (theta, value) of the point it stopped at, or of the best one found."""
-    sgn = -1.0 if top else 1.0
+def _golden_dip(model, j, t0, h, a, b, RC, modes, v0s, n, ys):
+    """Golden-section search of event function j on [a, b] for a value below zero.
+
+    Returns the first theta found with a negative value, or 2.0 when the minimum is >= 0.
+    """
     c = a + GOLD * (b - a)
     d = b - GOLD * (b - a)
     fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
     fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
     for _ in range(80):
-        if not top:
-            if fc < 0.0:
-                return c, fc
-            if fd < 0.0:
-                return d, fd
+        if fc < 0.0:
+            return c
+        if fd < 0.0:
+            return d
         if b - a < 1e-13:
             break
-        if sgn * fc < sgn * fd:
+        if fc < fd:
             b = d
             d = c
             fd = fc
@@ -203,17 +202,33 @@ def _golden(model, j, t0, h, a, b, RC, modes, v0s, n, ys, top):
             fc = fd
             d = b - GOLD * (b - a)
             fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
-    return (c, fc) if sgn * fc < sgn * fd else (d, fd)
+    return 2.0
 
 
 @helper
-def _golden_dip(model, j, t0, h, a, b, RC, modes, v0s, n, ys):
-    """Golden-section search of event function j on [a, b] for a value below zero.
-
-    Returns the first theta found with a negative value, or 2.0 when the minimum is >= 0.
-    """
-    theta, value = _golden(model, j, t0, h, a, b, RC, modes, v0s, n, ys, False)
-    return theta if value < 0.0 else 2.0
+def _golden_top(model, j, t0, h, a, b, RC, modes, v0s, n, ys):
+    """Golden-section search of event function j on [a, b] for its largest value: (theta,
+    value) of the best point found."""
+    c = a + GOLD * (b - a)
+    d = b - GOLD * (b - a)
+    fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
+    fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
+    for _ in range(80):
+        if b - a < 1e-13:
+            break
+        if fc > fd:
+            b = d
+            d = c
+            fd = fc
+            c = a + GOLD * (b - a)
+            fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
+        else:
+            a = c
+            c = d
+            fc = fd
+            d = b - GOLD * (b - a)
+            fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
+    return (c, fc) if fc > fd else (d, fd)
 
 
 @helper
@@ -330,7 +345,7 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
         # the function is clearly positive (from 0, the Illinois method's first points fell
         # within the gap's rounding, and it took the start itself, the leaving speed as an
         # onset's).
-        top, g_top = _golden(model, j, t0, h, 0.0, hi, RC, modes, v0s, n, ys, True)
+        top, g_top = _golden_top(model, j, t0, h, 0.0, hi, RC, modes, v0s, n, ys)
         if g_top > 0.0:
             lo = top
             glo = g_top
