@@ -206,32 +206,6 @@ def _golden_dip(model, j, t0, h, a, b, RC, modes, v0s, n, ys):
 
 
 @helper
-def _golden_top(model, j, t0, h, a, b, RC, modes, v0s, n, ys):
-    """Golden-section search of event function j on [a, b] for its largest value: (theta,
-    value) of the best point found."""
-    c = a + GOLD * (b - a)
-    d = b - GOLD * (b - a)
-    fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
-    fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
-    for _ in range(80):
-        if b - a < 1e-13:
-            break
-        if fc > fd:
-            b = d
-            d = c
-            fd = fc
-            c = a + GOLD * (b - a)
-            fc = _event_at(model, j, t0, h, c, RC, modes, v0s, n, ys)
-        else:
-            a = c
-            c = d
-            fc = fd
-            d = b - GOLD * (b - a)
-            fd = _event_at(model, j, t0, h, d, RC, modes, v0s, n, ys)
-    return (c, fc) if fc > fd else (d, fd)
-
-
-@helper
 def events_possible(model, pair, h, f0, f1, mode, i0, i1):
     """Screen: can an event of ``pair`` (onset when free, exit in contact) happen in the step?
 
@@ -304,7 +278,6 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
     if j < CLAMP0 and not event_active(j, modes):
         return 2.0
     gs = GS[j]
-    g_start = gs[0]
     gs[0] = max(gs[0], 0.0)
     lo = -1.0
     hi = -1.0
@@ -337,18 +310,6 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
                 break
     if hi < 0.0:
         return 2.0
-    if lo == 0.0 and g_start <= 1e-9 * abs(ghi) and j < CLAMP0:
-        # The step starts on the wall (an exit or an onset at its start left the function
-        # at 0, to a few ulps of either sign) and the function is below 0 again by the
-        # first sample: the carrier left the wall and came back within it (a grazing
-        # return). The event is the return: sought from the top of the bump between, where
-        # the function is clearly positive (from 0, the Illinois method's first points fell
-        # within the gap's rounding, and it took the start itself, the leaving speed as an
-        # onset's).
-        top, g_top = _golden_top(model, j, t0, h, 0.0, hi, RC, modes, v0s, n, ys)
-        if g_top > 0.0:
-            lo = top
-            glo = g_top
     # Illinois on [lo, hi] with g(lo) >= 0 > g(hi) (:func:`secant_point`; the value kept
     # at an end halved when the other end moves twice in a row)
     glo = max(glo, 0.0)
