@@ -601,10 +601,12 @@ def integrate(
                     ht = horizon  # (a piecewise motion: to the end of its piece)
                 # (and not past where a saturating law's series stops showing its change)
                 ht = model_series_reach(model, TC, ht)
-                ht_series = ht
-                # (and not near a contact's depth returning towards 0: taylor.py)
-                ht = depth_root_reach(model, n_pairs, modes, TW, ht)
-                if ht >= h:
+                # no Taylor step that would reach a contact's depth returning towards 0
+                # (taylor.depth_root_reach): the Runge-Kutta step passes such a turn as any
+                # other, where Taylor steps bounded short of it crept towards it until they
+                # collapsed
+                near_return = depth_root_reach(model, n_pairs, modes, TW, ht) < ht
+                if ht >= h and not near_return:
                     took_taylor = True
                     # the Runge-Kutta step and its controller's memory are carried over the
                     # Taylor steps; the step no shorter than RK_CARRY of the Taylor step, where
@@ -628,10 +630,8 @@ def integrate(
                     # bounds both; a step carried from elsewhere may cross it, as an exit,
                     # in one step whose error estimate misses the p^n there)
                     r.taylor_wait = RETEST - 1.0
-                    if ht_series < h:
-                        # (not cut to the depth's roots: where the depth nears 0 and turns,
-                        # as at a grazing return, a Runge-Kutta step passes as at any turn)
-                        h = ht_series
+                    if ht < h:
+                        h = ht
                         hits_stop = False
             if took_taylor:
                 # the end of a series step (onset or Taylor): the state from its polynomial

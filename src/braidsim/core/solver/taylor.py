@@ -195,8 +195,8 @@ def taylor_deriv(theta, h, RT, out, n):
 
 @inline_helper
 def depth_root_reach(model, n_pairs, modes, W, h):
-    """The step no longer than DEPTH_REACH times the distance to a contact's depth
-    returning towards 0, from its coefficients in the work array
+    """``h``, or less where a step of it would reach a contact's depth returning towards 0
+    (DEPTH_REACH times the distance to it), from its coefficients in the work array
     (:func:`~braidsim.core.interfaces.pair_series_rows`), p(tau) ~ p0 + p1 tau + p2 tau^2:
 
     * complex roots (p1^2 < 4 p0 p2): the depth turns short of 0, and the force's branch
@@ -206,10 +206,9 @@ def depth_root_reach(model, n_pairs, modes, W, h):
       depth dips to 0 and back, a grazing return, at the nearer.
 
     The last terms of the series need not show either (docs/core.md, "A depth that returns
-    towards 0").
-    A single crossing ahead (an exit) or a root behind (the onset) is left to the series'
-    own rule and the event location, which handle it: bounded there too, the steps crept
-    towards the exit until they collapsed at tight tolerances."""
+    towards 0"); the loop takes a Runge-Kutta step where this is shorter than ``h``. A
+    single crossing ahead (an exit) or a root behind (the onset) is left to the series' own
+    rule and the event location, which handle it."""
     for pair in range(n_pairs):
         if modes[pair] == 0:
             continue
