@@ -67,9 +67,9 @@ RETEST = 4
 # the lowest order at which the series may stop (:func:`taylor_coefficients`)
 MIN_ORDER = 3
 STOP_SAFETY = 1e-3
-# a Taylor step reaches at most this multiple of the distance to the nearest root of a
-# contact's depth (depth_root_reach): the root's modulus itself, the radius within which the
-# force's series converges
+# no Taylor step longer than this multiple of the distance to a contact's depth returning
+# towards 0 is taken (depth_root_reach): the roots' modulus itself, the radius within which
+# the force's series converges
 DEPTH_REACH = 1.0
 # the order of the onset step in s (the prototype's: benchmarks/lean_taylor.py)
 ONSET_ORDER = 24
