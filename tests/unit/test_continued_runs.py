@@ -147,3 +147,32 @@ def test_a_taylor_run_cut_at_an_onset_continues_with_its_onset_step() -> None:
     assert rest.episodes["peak_force"][0] == pytest.approx(
         whole.episodes["peak_force"][1], rel=1e-12
     )
+
+
+def test_a_contact_open_at_a_cut_that_is_a_transfer_joins_to_the_uninterrupted_row() -> None:
+    """A transfer at the cut ends the contact open there, in the continuation, at its start:
+    its row there is an `initial` row of zero duration marked `cut_by_transfer`, and joined
+    to the first part's `ongoing` row it gives the uninterrupted run's row (start, end,
+    wall, approach speed, and the cut)."""
+    probe = braidsim.simulate("paper-3.3", 0.02, series=False).impacts.iloc[3]
+    cut = float(probe.t + 0.4 * probe.duration)
+    sc = braidsim.load_scenario(
+        "paper-3.3", overrides={"transfer.period": "1 s", "transfer.first": f"{cut!r} s"}
+    )
+    whole = braidsim.simulate(sc, 0.03, series=False).impacts
+    first = braidsim.simulate(sc, cut, series=False)
+    rest = braidsim.simulate(sc, 0.03 - cut, start=first.final_state, series=False).impacts
+    before, after = first.impacts.iloc[-1], rest.iloc[0]
+    assert before.ongoing and not before.cut_by_transfer
+    assert after.initial and after.cut_by_transfer and after.duration == 0.0
+    assert after.t == cut and after.wall == before.wall
+    joined = whole.iloc[3]
+    assert joined.cut_by_transfer and joined.t_end == pytest.approx(cut, abs=1e-15)
+    assert before.t == pytest.approx(joined.t, abs=1e-12)
+    assert before.velocity == pytest.approx(joined.velocity, rel=1e-9)
+    assert max(before.peak_force, after.peak_force) == pytest.approx(joined.peak_force, rel=1e-9)
+    # the rows after the cut are the uninterrupted run's (the contact made by the transfer
+    # included, `initial` in both), to the integration error (measured: 6e-9 s by 0.028 s)
+    assert len(first.impacts) + len(rest) == len(whole) + 1
+    assert rest.initial.iloc[1] and whole.initial.iloc[4]
+    np.testing.assert_allclose(rest["t"].iloc[1:], whole["t"].iloc[4:], rtol=0, atol=1e-7)
