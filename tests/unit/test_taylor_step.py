@@ -351,6 +351,25 @@ def test_carrier_runs_agree_with_dormand_prince(scenario: str, dof: str, frictio
     np.testing.assert_allclose(tay.y, ref.y, rtol=2e-6, atol=1e-12)
 
 
+def test_a_step_from_an_exit_that_spans_the_next_contact_finds_that_contact() -> None:
+    """After an exit the state lies within the step's error on the wall's side (here 2.5e-15
+    m of depth at 1 mm/s out of it), and the next step, a Taylor step of 1 ms in free flight,
+    had its first sample past the carrier's next contact, 75 us later: the event was located
+    at the step's start, a contact of 2.6e-12 s at an approach speed of -9.6e-4 m/s
+    (paper-3.3, h_a = 0.13 mm, at 0.8107 s; in 2 of the batch benchmark's 64 sets). The
+    contact is now found where it starts, after the gap has opened."""
+    sc = load_scenario("paper-3.3").with_overrides(
+        {"track.vibration_amplitude": 0.13e-3, "simulation.integrator": "taylor"}
+    )
+    im = braidsim_simulate(sc, 0.812, series=False).impacts
+    later = im[~im["initial"]]
+    assert (later["velocity"] > 0.0).all()
+    assert later["duration"].min() > 1e-5
+    # the contact after the exit at 0.810749 s starts at 0.810824 s (measured)
+    after = later[(later["t"] > 0.8107) & (later["t"] < 0.8109)]
+    assert after["t"].tolist() == [pytest.approx(0.810824, abs=1e-6)]
+
+
 def test_a_depth_returning_towards_zero_in_taylor_steps() -> None:
     """An elastic contact from rest without friction (table1-hertz): the carrier rocks in
     its Hertz well and the depth returns almost to 0 every 1.26 ms (1.1e-12 m against 1.4e-6
