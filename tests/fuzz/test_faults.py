@@ -314,6 +314,33 @@ def test_flipped_bit_is_detected_on_read_and_recomputed_on_resume(spec_path, ref
     RECORD.add("flipped-bit", None)
 
 
+@pytest.mark.parametrize("coordinate", ["omega", "h_a", "t"])
+@pytest.mark.parametrize("damage", ["flip", "missing"])
+def test_a_damaged_coordinate_is_refused_on_read_and_written_again_on_resume(
+    coordinate, damage, spec_path, reference, tmp_path
+):
+    """The coordinates (the grid's axes, the series' times) carry checksums too: a flipped
+    bit was read back as another parameter value (0.00277 as 4.97e+305), and a missing file
+    as zeros, without error; --resume left them so."""
+    import shutil
+
+    store = tmp_path / "coord.zarr"
+    shutil.copytree(reference, store)
+    chunk = store / coordinate / "c" / "0"
+    if damage == "flip":
+        data = bytearray(chunk.read_bytes())
+        data[len(data) // 2] ^= 0x08
+        chunk.write_bytes(bytes(data))
+    else:
+        chunk.unlink()
+    with pytest.raises(StoreError, match=f"coordinate array '{coordinate}'"):
+        open_sweep(store)
+    summary = run_sweep(load_spec(spec_path), store, resume=True, processes=1, progress=False)
+    assert summary["chunks_computed"] == 0
+    assert files(store) == files(reference)
+    RECORD.add(f"coordinate-{damage}", None)
+
+
 def test_stale_temporaries_of_dead_processes_are_removed(spec_path, tmp_path):
     from braidsim.io import atomic_write_text
 

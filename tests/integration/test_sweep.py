@@ -292,6 +292,14 @@ def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path)
         ),
         (("num = 3", "num = 0"), "empty range"),
         (('stop = "0.18 mm"', 'stop = "0.06 mm"'), "empty range"),
+        (("num = 3", "num = 2.5"), "num: 2.5 is not a whole number"),
+        (
+            (
+                'start = "0.06 mm"\nstop = "0.18 mm"\nnum = 3',
+                'start = "0.06 mm"\nstop = "0.01 mm"\nnum = 1',
+            ),
+            "reversed range",
+        ),
         (
             ('start = "0.06 mm"', 'start = "0.06 s"'),
             r"start \(track.vibration_amplitude\).*wrong unit",

@@ -55,6 +55,8 @@ from braidsim.sweep.store import (
     done_chunks,
     mark_undone,
     remove_partial_files,
+    repair_coordinates,
+    set_complete,
     store_attrs,
 )
 
@@ -601,6 +603,12 @@ def _execute_locked(
             f"(first: chunk {next(iter(bad))}); computing them again\n"
         )
         mark_undone(path, sorted(bad))
+    fixed = repair_coordinates(path, spec)
+    if fixed:
+        sys.stderr.write(
+            f"braidsim: note: the coordinate array(s) {', '.join(map(repr, fixed))} of {path} "
+            "failed their checksum or differed from the spec; written again\n"
+        )
     done = done_chunks(path)
     todo = [int(c) for c in np.flatnonzero(~done)]
     n_before = int(done.sum())
@@ -623,10 +631,14 @@ def _execute_locked(
         bar.advance(len(out.failures))
 
     t0 = time.perf_counter()
+    if todo:
+        set_complete(path, False)
     try:
         executor.run(scenario_payload(spec.base), _tasks(spec, todo), on_result)
     finally:
         bar.stop()
+    if done_chunks(path).all():
+        set_complete(path, True)
     return t0, n_before, runs_before, todo, counts["failed"]
 
 

@@ -404,7 +404,9 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         if spec.kind not in ("float", "int"):
             raise InputError(f"{where}start: {key} takes {spec.range_text()}; give explicit values")
         num = t["num"]
-        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+        if isinstance(num, bool) or not isinstance(num, int):
+            raise InputError(f"{where}num: {num!r} is not a whole number; allowed an integer >= 1")
+        if num < 1:
             raise InputError(f"{where}num: {num!r} gives an empty range; allowed an integer >= 1")
         limits.check("values", num, f"{where}num")
         start = spec.check_number(to_si(f"{where}start ({key})", t["start"], spec.unit))
@@ -420,7 +422,7 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
             raise InputError(
                 f"{where}stop: equals start ({start:g}), an empty range; allowed stop != start"
             )
-        if num > 1 and stop < start:
+        if stop < start:  # (with num = 1 as well: stop would be ignored)
             raise InputError(
                 f"{where}stop: {stop:g} is below start ({start:g}), a reversed range; "
                 "allowed stop > start (list values = [...] for another order)"

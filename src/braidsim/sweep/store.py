@@ -2,7 +2,8 @@
 
 Layout (``STORE/``)::
 
-    zarr.json                 root attributes: spec text and hash, base parameters (SI), units
+    zarr.json                 root attributes: spec text and hash, base parameters (SI), units,
+                              ``complete`` (true once every chunk is written)
     <axis name>/              one coordinate array per grid axis (values in SI, ``units``)
     run/, <sampled key>/      with samples: the run index and each sampled parameter
     t/                        with series: the sample times
@@ -22,10 +23,11 @@ timestamps, so a resumed store equals an uninterrupted one.
 Integrity: every chunk file ends with a CRC-32C checksum (zarr's ``crc32c`` codec after the
 ``zstd`` compressor), so a file changed after it was written (a flipped bit, a truncated
 copy) is detected when it is read: :func:`open_sweep` checks every chunk marked done and
-``--resume`` recomputes the chunks that fail. One process writes a store at a time: the
-writer holds an exclusive lock (``flock``) on ``_sweep/.lock`` for as long as it runs, the
-operating system releases it when the process ends (also after SIGKILL), and a second writer
-is refused with a message instead of deleting the first one's files in flight.
+every coordinate array, ``--resume`` recomputes the chunks that fail and writes again the
+coordinate arrays that fail or differ from the spec's values. One process writes a store at
+a time: the writer holds an exclusive lock (``flock``) on ``_sweep/.lock`` for as long as it
+runs, the operating system releases it when the process ends (also after SIGKILL), and a
+second writer is refused with a message instead of deleting the first one's files in flight.
 """
 
 from __future__ import annotations
@@ -176,8 +178,47 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
         "chunk_shape": list(spec.chunk_shape),
         "n_runs": spec.n_runs,
         "n_chunks": spec.n_chunks,
+        # true once every chunk is written (for readers that do not look at _sweep/done)
+        "complete": False,
         "sign_convention": "parameters and metrics in SI; depths and forces are magnitudes",
     }
+
+
+def _coordinate_arrays(spec: SweepSpec) -> list[tuple[str, np.ndarray, str, dict[str, Any]]]:
+    """The store's coordinate arrays as ``spec`` gives them: (name, values, dimension,
+    attributes) for each grid axis, or the run index and each sampled key, and the series'
+    sample times. :func:`create_store` writes them, :func:`repair_coordinates` compares the
+    stored ones with them."""
+    out: list[tuple[str, np.ndarray, str, dict[str, Any]]] = []
+    for a in spec.axes:
+        attrs: dict[str, Any] = {
+            "units": a.unit,
+            "key": a.key,
+            "spacing": a.spacing,
+            "description": SCHEMA[a.key].doc,
+        }
+        out.append((a.name, np.array(a.values, dtype=_coord_dtype(a.values)), a.name, attrs))
+    if spec.samples is not None:
+        s = spec.samples
+        run_attrs = {"description": f"{s.method} sample number (seed {s.seed})"}
+        out.append((RUN_DIM, np.arange(s.n, dtype=np.int64), RUN_DIM, run_attrs))
+        for j, key in enumerate(s.keys):
+            attrs = {
+                "units": SCHEMA[key].unit,
+                "key": key,
+                "low": s.low[j],
+                "high": s.high[j],
+                "spacing": s.spacing[j],
+                "method": s.method,
+                "seed": s.seed,
+                "description": SCHEMA[key].doc,
+            }
+            out.append((key, np.asarray(s.values[:, j], dtype=np.float64), RUN_DIM, attrs))
+    if spec.options.series:
+        t_attrs = {"units": "s", "description": "sample times of the series"}
+        times = np.asarray(spec.options.series_times, dtype=np.float64)
+        out.append((TIME_DIM, times, TIME_DIM, t_attrs))
+    return out
 
 
 def create_store(spec: SweepSpec, path: str | Path) -> Path:
@@ -200,53 +241,18 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
     try:
         g = zarr.open_group(str(tmp), mode="w", zarr_format=3, attributes=_root_attrs(spec))
         dims = spec.dims
-        for a in spec.axes:
+        for name, values, dim, coord_attrs in _coordinate_arrays(spec):
             arr = g.create_array(
-                a.name,
-                shape=(len(a.values),),
-                chunks=(len(a.values),),
-                dtype=_coord_dtype(a.values),
-                dimension_names=[a.name],
-                attributes={
-                    "units": a.unit,
-                    "key": a.key,
-                    "spacing": a.spacing,
-                    "description": SCHEMA[a.key].doc,
-                },
+                name,
+                shape=values.shape,
+                chunks=values.shape,
+                dtype=str if values.dtype.kind == "U" else values.dtype,
+                dimension_names=[dim],
+                attributes=coord_attrs,
+                **_codecs(),
             )
-            arr[:] = np.array(a.values, dtype=_coord_dtype(a.values))
-        coords_attr = ""
-        if spec.samples is not None:
-            s = spec.samples
-            r = g.create_array(
-                RUN_DIM,
-                shape=(s.n,),
-                chunks=(s.n,),
-                dtype=np.int64,
-                dimension_names=[RUN_DIM],
-                attributes={"description": f"{s.method} sample number (seed {s.seed})"},
-            )
-            r[:] = np.arange(s.n)
-            for j, key in enumerate(s.keys):
-                arr = g.create_array(
-                    key,
-                    shape=(s.n,),
-                    chunks=(s.n,),
-                    dtype=np.float64,
-                    dimension_names=[RUN_DIM],
-                    attributes={
-                        "units": SCHEMA[key].unit,
-                        "key": key,
-                        "low": s.low[j],
-                        "high": s.high[j],
-                        "spacing": s.spacing[j],
-                        "method": s.method,
-                        "seed": s.seed,
-                        "description": SCHEMA[key].doc,
-                    },
-                )
-                arr[:] = s.values[:, j]
-            coords_attr = " ".join(s.keys)
+            arr[:] = values
+        coords_attr = " ".join(spec.samples.keys) if spec.samples is not None else ""
         extra = {"coordinates": coords_attr} if coords_attr else {}
         for name in spec.metrics:
             m = _METRIC[name]
@@ -277,15 +283,6 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
         o = spec.options
         if o.series:
             nt = o.series_times.size
-            t = g.create_array(
-                TIME_DIM,
-                shape=(nt,),
-                chunks=(nt,),
-                dtype=np.float64,
-                dimension_names=[TIME_DIM],
-                attributes={"units": "s", "description": "sample times of the series"},
-            )
-            t[:] = o.series_times
             for name in o.series:
                 g.create_array(
                     name,
@@ -353,6 +350,14 @@ def store_attrs(path: str | Path) -> Mapping[str, Any]:
             f"STORE: {p} is not a braidsim sweep store (format {attrs.get('format')!r})"
         )
     return attrs
+
+
+def set_complete(path: str | Path, complete: bool) -> None:
+    """Set the root attribute ``complete``: false while chunks are still to be written, true
+    once all are (zarr rewrites ``zarr.json`` through a temporary file and a rename)."""
+    g = _zarr().open_group(str(path), mode="r+")
+    if g.attrs.get("complete") is not complete:
+        g.attrs["complete"] = complete
 
 
 def remove_partial_files(path: str | Path) -> int:
@@ -488,6 +493,46 @@ def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
     return bad
 
 
+def damaged_coordinates(path: str | Path) -> list[str]:
+    """The coordinate arrays of a store (grid axes, run index and sampled keys, sample
+    times) whose file is missing or fails its checksum. (Stores made before these arrays
+    had checksums read as they are.)"""
+    g = check_store(path)
+    data = {*_data_arrays(g)}
+    bad = []
+    for name in sorted(str(k) for k in g.array_keys()):
+        if name in data:
+            continue
+        # (one chunk each; zarr reads a missing chunk file as fill values, without error)
+        if g[name].size and not (Path(path) / name / "c" / "0").is_file():
+            bad.append(name)
+            continue
+        try:
+            g[name][...]
+        except ValueError:
+            bad.append(name)
+    return bad
+
+
+def repair_coordinates(path: str | Path, spec: SweepSpec) -> list[str]:
+    """Write again every coordinate array of the store that cannot be read or whose values
+    are not the ones ``spec`` gives (to the bit); returns their names. They follow from the
+    spec alone, as the store's spec hash (checked before) says."""
+    zarr = _zarr()
+    g = zarr.open_group(str(path), mode="r+")
+    fixed = []
+    for name, values, _, _ in _coordinate_arrays(spec):
+        arr = g[name]
+        try:
+            same = np.array_equal(np.asarray(arr[...]), values)
+        except ValueError:  # (its checksum)
+            same = False
+        if not same:
+            arr[...] = values
+            fixed.append(name)
+    return fixed
+
+
 def mark_undone(path: str | Path, chunks: list[int]) -> None:
     """Clear the done flag of ``chunks`` and remove their (damaged) files: they are computed
     and written again."""
@@ -548,6 +593,12 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     results. A damaged chunk (missing, or failing its checksum) is refused."""
     import xarray as xr
 
+    coords = damaged_coordinates(path)
+    if coords:
+        raise StoreError(
+            f"STORE: {path}: the coordinate array {coords[0]!r} is missing or fails its "
+            f"checksum; write it again with `braidsim sweep SPEC --out {path} --resume`"
+        )
     bad = corrupt_chunks(path, strict=True)
     if bad:
         c, name = next(iter(bad.items()))
