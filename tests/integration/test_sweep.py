@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -189,8 +190,19 @@ def test_kill_and_resume_gives_the_same_store(tmp_path, local_store):
 
 def test_resume_refuses_another_spec(tmp_path, local_store):
     other = load_spec(write(tmp_path, SPEC.replace("num = 3", "num = 4")))
-    with pytest.raises(InputError, match="different spec"):
+    with pytest.raises(InputError, match=r"different spec \(it differs in axes\.2\.num\)"):
         run_sweep(other, local_store, resume=True, processes=1, progress=False)
+
+
+def test_resume_refuses_a_store_of_another_version(tmp_path, local_store, monkeypatch):
+    """Chunks of two versions of braidsim would mix two versions' results in one store."""
+    import braidsim
+
+    made_by = re.escape(braidsim.__version__)
+    monkeypatch.setattr(braidsim, "__version__", "0.0.9")
+    spec = load_spec(write(tmp_path, SPEC))
+    with pytest.raises(InputError, match=rf"made by braidsim {made_by} and this is 0\.0\.9"):
+        run_sweep(spec, local_store, resume=True, processes=1, progress=False)
 
 
 def test_dask_local_cluster_equals_local_run(tmp_path, local_store):

@@ -567,6 +567,32 @@ def run_sweep(
     }
 
 
+def _spec_differences(old_text: str, new_text: str) -> list[str]:
+    """The entries (dotted paths, axes by number) where two sweep specs' TOML texts differ;
+    empty when the old text cannot be read."""
+    import tomllib
+
+    try:
+        old, new = tomllib.loads(old_text), tomllib.loads(new_text)
+    except tomllib.TOMLDecodeError:
+        return []
+
+    def flat(d: Any, prefix: str = "") -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        if isinstance(d, dict):
+            for k, v in d.items():
+                out.update(flat(v, f"{prefix}{k}."))
+        elif isinstance(d, list) and d and all(isinstance(e, dict) for e in d):
+            for i, e in enumerate(d):
+                out.update(flat(e, f"{prefix}{i + 1}."))
+        else:
+            out[prefix[:-1]] = d
+        return out
+
+    a, b = flat(old), flat(new)
+    return sorted(k for k in a.keys() | b.keys() if a.get(k) != b.get(k))
+
+
 def _execute(
     spec: SweepSpec, path: Path, executor: Executor, progress: bool
 ) -> tuple[float, int, int, list[int], int]:
@@ -575,10 +601,21 @@ def _execute(
     Returns (start time, chunks done before, runs done before, chunks run now, failed runs).
     """
     if path.exists():
+        import braidsim
+
         attrs = store_attrs(path)
         if attrs.get("spec_sha256") != spec.digest():
+            differ = _spec_differences(str(attrs.get("spec", "")), spec.text)
+            where = f" (it differs in {', '.join(differ)})" if differ else ""
             raise InputError(
-                f"--resume: {path} was made from a different spec; allowed the same spec"
+                f"--resume: {path} was made from a different spec{where}; allowed the same spec"
+            )
+        made_by = attrs.get("braidsim_version")
+        if made_by is not None and made_by != braidsim.__version__:
+            raise InputError(
+                f"--resume: {path} was made by braidsim {made_by} and this is "
+                f"{braidsim.__version__}: its chunks would mix two versions' results; allowed "
+                "the same version (or run the sweep into a new store)"
             )
         lock = StoreLock(path)
     else:
