@@ -574,3 +574,55 @@ if __name__ == "__main__":
         if p.stdout is not None:
             p.stdout.close()
     assert not survivors, survivors
+
+
+_LONG_RUN = """
+import braidsim
+braidsim.simulate("paper-3.1", 0.01, series=False)  # compiled before the signal arrives
+print("ready", flush=True)
+braidsim.simulate("paper-3.1", 1e5, series=False)  # a carrier at rest: no buffer fills
+print("finished", flush=True)
+"""
+
+
+def test_ctrl_c_stops_a_long_run_of_the_compiled_solver() -> None:
+    """The compiled loop hands control back to Python every PAUSE_STEPS steps, so that a
+    signal is acted on. Before, it returned only when a buffer filled, which a carrier at
+    rest never does: paper-3.1 over 1e5 s (about 200 s of CPU) ran on after SIGINT and
+    SIGTERM until it was killed."""
+    p = subprocess.Popen(
+        [sys.executable, "-c", _LONG_RUN],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert p.stdout is not None and p.stdout.readline().strip() == "ready"
+        time.sleep(1.0)  # inside the long run's compiled loop by now
+        p.send_signal(signal.SIGINT)
+        p.wait(timeout=20)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    out, err = p.communicate()
+    assert "finished" not in out
+    assert p.returncode != 0 and "KeyboardInterrupt" in err, err[-500:]
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_sigterm_stops_a_long_run_command(tmp_path) -> None:
+    """`braidsim run` of a long resting run ends on SIGTERM with 143 and its one line."""
+    cmd = [sys.executable, "-m", "braidsim", "run", "paper-3.1", "--duration", "1e5 s", "--json"]
+    with (tmp_path / "err").open("w") as err:
+        p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err)
+    try:
+        time.sleep(4.0)  # (a warm cache: in the compiled loop; a cold one: compiling)
+        p.terminate()
+        p.wait(timeout=30)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    text = (tmp_path / "err").read_text()
+    assert p.returncode == 143 and "interrupted by SIGTERM" in text, text

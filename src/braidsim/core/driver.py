@@ -519,7 +519,8 @@ def run(
             model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
         )
         r = L.record_view(RS)  # (read once; the writes below go to RS itself)
-        final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL)
+        # (a pause returns to Python so that a pending signal is acted on, between steps)
+        final = status not in (L.ST_ROWS_FULL, L.ST_EPISODES_FULL, L.ST_PAUSED)
         nrow = int(r.rows)
         if rows is not None:
             if nrow > rows.shape[0]:
