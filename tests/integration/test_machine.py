@@ -230,6 +230,19 @@ def test_colliding_loading_exits_2_with_one_line(
     assert code == 2 and "carriers A0 and B2" in err
 
 
+def test_a_duration_beyond_the_transfer_limit_is_refused_up_front(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The transfers are counted before they are listed: 1e9 s of the 16-carrier example
+    listed them until memory ran out (180 MB/s)."""
+    code, out, err = run_cli(
+        capsys, "machine", str(EXAMPLE), "--out", str(tmp_path / "o"), "--duration", "1e9 s"
+    )
+    assert code == 2 and out == "" and err.count("\n") == 1
+    assert "transfers of each carrier" in err and "BRAIDSIM_MAX_TRANSFERS" in err
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.parametrize(
     ("text", "match"),
     [

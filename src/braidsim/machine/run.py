@@ -62,6 +62,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from braidsim import limits
 from braidsim.core import CARRIER_COLUMNS
 from braidsim.errors import InputError, SimulationError
 from braidsim.machine.geometry import TransferEvent
@@ -115,6 +116,13 @@ def plan_transfers(
     law = SpeedLaw.from_model(build_model(spec.scenario, T))
     _, ang = law.rotation([T])
     end = math.floor(float(ang[0]) / geom.quantum + 1e-9)
+    # a carrier passes its N crossings in a path period of N^2 S quanta: counted before
+    # they are listed (a duration of 1e9 s listed transfers until memory ran out)
+    limits.check(
+        "transfers",
+        end / (geom.N * geom.S) + 1.0,
+        f"duration: {T:g} s of the machine (transfers of each carrier)",
+    )
     plans = []
     for g, lane in spec.loading.carriers:
         ev = [e for e in geom.transfer_events(g, lane, end)]
