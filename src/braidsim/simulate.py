@@ -17,7 +17,7 @@ from braidsim.core import run as core_run
 from braidsim.core.driver import SeriesSink, Tangents, quadrature_prefix
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
-from braidsim.params import Scenario, load_scenario
+from braidsim.params import SCHEMA, Scenario, load_scenario
 from braidsim.result import Result, State
 from braidsim.units import is_number, to_si
 
@@ -136,6 +136,19 @@ def run_windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
     return np.array(W, dtype=float)
 
 
+def _extreme_parameters(sc: Scenario, bound: float = 1e15) -> str:
+    """The numeric parameters whose SI value lies beyond ``bound`` in magnitude (a
+    stiffness of 1e300 N/m^1.5, a speed of 1e100 m/s), as ``key = value unit``, for a run
+    whose state overflowed."""
+    out = []
+    for key, value in sc.values.items():
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            continue
+        if math.isfinite(value) and abs(value) > bound:
+            out.append(f"{key} = {value:.3g} {SCHEMA[key].unit}".rstrip())
+    return ", ".join(out)
+
+
 def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any]) -> str:
     """What failed, when, and what to change, for a solver status code."""
     sc = model.scenario
@@ -152,7 +165,11 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
     damp_rate = (
         model.constant_load * model.track.damping_factor / (sc["contact.min_impact_velocity"] * m)
     )
-    if max(fric_rate, damp_rate) * model.options.max_step < 10.0:
+    extreme = _extreme_parameters(sc)
+    if extreme:
+        # a value far outside any machine's (a typo in an exponent): named before any rate
+        hint = f"check the values of extreme magnitude ({extreme})"
+    elif max(fric_rate, damp_rate) * model.options.max_step < 10.0:
         # neither holds the explicit step below a tenth of the maximum step: not stiffness
         other = ', or simulation.integrator = "dormand-prince"' if model.taylor_order > 0 else ""
         hint = (
@@ -173,6 +190,11 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
     if status == L.ST_STEP_COLLAPSE:
         return f"step size collapsed to the rounding of t at t = {t:.9g} s; {hint}"
     if status == L.ST_NONFINITE:
+        if extreme:
+            return (
+                f"the state became NaN or infinite at t = {t:.9g} s: a force or the state "
+                f"overflowed; {hint}"
+            )
         return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
     if status == L.ST_MAX_STEPS:
         budget = model.options.max_steps
@@ -310,8 +332,8 @@ def run_model(
         "steps",
         model.duration / float(model.options.max_step),
         lambda: (
-            f"duration: {model.duration:g} s in steps of at most "
-            f"{float(model.options.max_step):.3g} s (simulation.max_step) needs at least"
+            f"duration: {model.duration:g} s at simulation.max_step = "
+            f"{float(model.options.max_step):.3g} s, at least"
         ),
     )
     nq = quadrature_prefix(model.record, energy) if isinstance(energy, str) else -1

@@ -353,3 +353,21 @@ def test_a_collapse_without_stiffness_does_not_blame_friction_or_damping() -> No
         L.ST_STEP_COLLAPSE, 0.01, build_model(load_scenario("paper-3.3"), 0.1), {}
     )
     assert "raise contact.min_impact_velocity" in stiff and "neither" not in stiff
+
+
+@pytest.mark.parametrize(
+    ("overrides", "named"),
+    [
+        ({"contact.track.stiffness": 1e300}, "contact.track.stiffness = 1e+300"),
+        ({"contact.track.exponent": 4.0, "initial.vx": 1e100}, "initial.vx = 1e+100 m/s"),
+    ],
+)
+def test_a_failure_names_the_values_of_extreme_magnitude(overrides, named) -> None:
+    """A stiffness of 1e300 N/m^1.5 overflowed the state at t = 0 and a speed of 1e100 m/s
+    collapsed the step; both messages told the user to raise contact.min_impact_velocity
+    (the hint read from paper-3.3's own contact damping)."""
+    with pytest.raises(braidsim.SimulationError) as info:
+        braidsim.simulate("paper-3.3", 0.01, overrides=overrides, series=False)
+    msg = str(info.value)
+    assert f"check the values of extreme magnitude ({named})" in msg
+    assert "min_impact_velocity" not in msg
