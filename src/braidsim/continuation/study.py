@@ -533,7 +533,10 @@ def write_outputs(res: ContinuationResult, directory: Path, fmt: str = "nc") -> 
         fig = plot_operating_map(res.curves, regimes=res.regimes, keys=keys)
         save(fig, directory / "operating_map.png")
         files += ["boundaries.csv", "operating_map.png"]
-    data = res.to_json()
+    from braidsim.provenance import version
+
+    # (the same object as `braidsim continue --json` prints, which starts with the version)
+    data = {"braidsim_version": version(), **res.to_json()}
     data["files"] = sorted(files)
     (directory / "summary.json").write_text(
         json.dumps(json_safe(data), allow_nan=False), encoding="utf-8"
