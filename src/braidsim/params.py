@@ -786,6 +786,8 @@ def parse_assignment(text: str) -> tuple[str, str]:
         raise InputError(f"--set: expected KEY=VALUE, got {text!r}")
     key, value = text.split("=", 1)
     key = key.strip()
+    if not key:
+        raise InputError(f"--set: {text!r} has no KEY before '='; expected KEY=VALUE")
     if key not in SCHEMA:
         raise _unknown(key)
     return key, value.strip()

@@ -402,6 +402,8 @@ def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
         (("lyapunov", "paper-3.3", "--d0", "0"), "d0"),
         (("analyze", "no-such-scenario"), "scenario"),
         (("analyze", "results/no-such-run"), "a folder written by `braidsim run --out`"),
+        (("restitution", "--law", "hertzz"), "--law: 'hertzz' is not a contact law (did you"),
+        (("run", "paper-3.1", "--set", "=3"), "--set: '=3' has no KEY before '='"),
     ],
 )
 def test_cli_bad_input_is_one_line_exit_2(capsys, argv, needle) -> None:

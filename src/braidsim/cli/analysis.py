@@ -139,7 +139,14 @@ def restitution(
         raise InputError(f"--points: {points!r} is out of range; allowed >= 1")
     from braidsim import limits
     from braidsim.contact import law_names
+    from braidsim.specfile import closest_hint
 
+    for name in law or ():
+        if name not in law_names():
+            raise InputError(
+                f"--law: {name!r} is not a contact law{closest_hint(name, law_names())}; "
+                f"allowed {', '.join(law_names())}"
+            )
     limits.check("runs", points * len(law or law_names()), "--points x --law (simulated impacts)")
     v = quantity_option("--velocity", velocity, "m/s")
     m = quantity_option("--mass", mass, "kg")
