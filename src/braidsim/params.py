@@ -381,10 +381,19 @@ def flatten(table: Mapping[str, Any], prefix: str = "", depth: int = 0) -> dict[
         if not isinstance(k, str):
             raise InputError(f"{prefix}{k!r}: a parameter key must be a string, got {k!r}")
         key = f"{prefix}{k}"
-        if isinstance(v, Mapping) and key not in _TABLE_KEYS:
-            out.update(flatten(v, key + ".", depth + 1))
-        else:
-            out[key] = v
+        sub = (
+            flatten(v, key + ".", depth + 1)
+            if isinstance(v, Mapping) and key not in _TABLE_KEYS
+            else {key: v}
+        )
+        for dotted in sub:
+            if dotted in out:
+                # a quoted dotted key and a table both give it ("track.clearance" = ... and
+                # [track] clearance = ...): the later one silently won
+                raise InputError(
+                    f"{dotted}: given twice (as a dotted key and in a table); allowed once"
+                )
+        out.update(sub)
     return out
 
 

@@ -306,6 +306,10 @@ def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path)
         (('stop = "0.18 mm"', 'stop = "0.06 mm"'), "empty range"),
         (("num = 3", "num = 2.5"), "num: 2.5 is not a whole number"),
         (
+            ("[metrics]", '[overrides]\n"track.vibration_amplitude" = "0.1 mm"\n\n[metrics]'),
+            "overrides.track.vibration_amplitude: also an axis",
+        ),
+        (
             (
                 'start = "0.06 mm"\nstop = "0.18 mm"\nnum = 3',
                 'start = "0.06 mm"\nstop = "0.01 mm"\nnum = 1',

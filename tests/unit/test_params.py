@@ -136,6 +136,15 @@ def test_unknown_key_in_file(tmp_path) -> None:
         load_scenario(f)
 
 
+def test_a_key_given_twice_in_a_file_is_refused(tmp_path) -> None:
+    """A quoted dotted key and a table both gave track.clearance; the later one silently
+    won (the run used 3 mm where the file also said 2 mm)."""
+    f = tmp_path / "s.toml"
+    f.write_text('extends = "paper-3.3"\n"track.clearance" = "2 mm"\n[track]\nclearance = "3 mm"\n')
+    with pytest.raises(InputError, match=r"^track.clearance: given twice"):
+        load_scenario(f)
+
+
 def test_simulate_reads_a_duration_with_its_unit_and_refuses_a_foreign_start() -> None:
     """The API takes unit strings where the scenario does (``duration="0.1 s"``), and a
     wrong type for ``start`` is one InputError naming it."""

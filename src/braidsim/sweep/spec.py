@@ -649,6 +649,13 @@ def parse_spec(data: Mapping[str, Any], text: str = "", path: Path | None = None
             raise InputError(
                 f"axes: {what} {sorted(dup)[0]!r} appears twice; allowed each {what} once"
             )
+    both = sorted(set(keys) & set(overrides))
+    if both:
+        # the axis's values replace the override in every run: the override was ignored
+        raise InputError(
+            f"overrides.{both[0]}: also an axis or a sampled key of the sweep, whose values "
+            "replace it in every run; allowed in one of the two"
+        )
     if duration is not None and "simulation.duration" in keys:
         raise InputError(
             "duration: set both at the top and as an axis/sample of simulation.duration; keep one"
