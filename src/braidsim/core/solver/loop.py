@@ -463,8 +463,10 @@ def integrate(
         if nep > EP.shape[0] - EPISODE_RESERVE:
             status = ST_EPISODES_FULL
             break
-        if nsteps - nsteps_entry >= PAUSE_STEPS:
-            status = ST_PAUSED  # (Python acts on pending signals, then resumes the run)
+        if nsteps - nsteps_entry >= PAUSE_STEPS and not force_rk and not jac_fresh:
+            # (Python acts on pending signals, then resumes the run; not right after a
+            # refused Taylor step or implicit attempt, whose retry the record does not keep)
+            status = ST_PAUSED
             break
         if nsteps >= opts.max_steps:
             status = ST_MAX_STEPS
