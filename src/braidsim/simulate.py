@@ -136,16 +136,24 @@ def run_windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
     return np.array(W, dtype=float)
 
 
-def _extreme_parameters(sc: Scenario, bound: float = 1e15) -> str:
-    """The numeric parameters whose SI value lies beyond ``bound`` in magnitude (a
-    stiffness of 1e300 N/m^1.5, a speed of 1e100 m/s), as ``key = value unit``, for a run
-    whose state overflowed."""
+def _extreme_parameters(model: Model, bound: float = 1e15) -> str:
+    """The parameters of a magnitude no machine has, as ``key = value unit``, for a run
+    whose state overflowed or whose step collapsed: a real-valued SI value beyond ``bound``
+    (a speed of 1e100 m/s), or a contact stiffness whose force at a depth of 1 mm does
+    (1e300 N/m^1.5; K is in N/m^n, so a stiff contact of exponent 3 legitimately has K ~
+    1e20). Counts (simulation.max_steps) are not physical magnitudes and are left out."""
+    sc = model.scenario
     out = []
     for key, value in sc.values.items():
-        if isinstance(value, bool) or not isinstance(value, int | float):
+        if not isinstance(value, float) or not math.isfinite(value):
             continue
-        if math.isfinite(value) and abs(value) > bound:
-            out.append(f"{key} = {value:.3g} {SCHEMA[key].unit}".rstrip())
+        unit = SCHEMA[key].unit
+        if key.endswith(".stiffness"):
+            n = (model.track if key.startswith("contact.track.") else model.slot).exponent
+            if abs(value) * 1e-3**n > bound:
+                out.append(f"{key} = {value:.3g} N/m^{n:g}")
+        elif abs(value) > bound:
+            out.append(f"{key} = {value:.3g} {unit}".rstrip())
     return ", ".join(out)
 
 
@@ -165,11 +173,7 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
     damp_rate = (
         model.constant_load * model.track.damping_factor / (sc["contact.min_impact_velocity"] * m)
     )
-    extreme = _extreme_parameters(sc)
-    if extreme:
-        # a value far outside any machine's (a typo in an exponent): named before any rate
-        hint = f"check the values of extreme magnitude ({extreme})"
-    elif max(fric_rate, damp_rate) * model.options.max_step < 10.0:
+    if max(fric_rate, damp_rate) * model.options.max_step < 10.0:
         # neither holds the explicit step below a tenth of the maximum step: not stiffness
         other = ', or simulation.integrator = "dormand-prince"' if model.taylor_order > 0 else ""
         hint = (
@@ -187,13 +191,17 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
             "raise contact.min_impact_velocity (tiny latched impact speeds make the damping "
             f"stiff: rate ~ {damp_rate:.3g} 1/s)"
         )
+    extreme = _extreme_parameters(model)
+    if extreme:
+        # a value far outside any machine's (a typo in an exponent): named first
+        hint = f"check the values of extreme magnitude ({extreme}); else {hint}"
     if status == L.ST_STEP_COLLAPSE:
         return f"step size collapsed to the rounding of t at t = {t:.9g} s; {hint}"
     if status == L.ST_NONFINITE:
         if extreme:
             return (
                 f"the state became NaN or infinite at t = {t:.9g} s: a force or the state "
-                f"overflowed; {hint}"
+                f"overflowed; check the values of extreme magnitude ({extreme})"
             )
         return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
     if status == L.ST_MAX_STEPS:

@@ -188,6 +188,12 @@ def test_kill_and_resume_gives_the_same_store(tmp_path, local_store):
         assert p.stat().st_mtime_ns == before[p]
 
 
+def test_a_whole_float_num_is_a_count(tmp_path):
+    """TOML's `num = 3.0` is the count 3 (it was refused as an empty range)."""
+    spec = load_spec(write(tmp_path, SPEC.replace("num = 3", "num = 3.0")))
+    assert spec.shape == load_spec(write(tmp_path, SPEC)).shape
+
+
 def test_resume_refuses_another_spec(tmp_path, local_store):
     other = load_spec(write(tmp_path, SPEC.replace("num = 3", "num = 4")))
     with pytest.raises(InputError, match=r"different spec \(it differs in axes\.2\.num\)"):

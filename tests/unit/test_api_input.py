@@ -356,18 +356,41 @@ def test_a_collapse_without_stiffness_does_not_blame_friction_or_damping() -> No
 
 
 @pytest.mark.parametrize(
-    ("overrides", "named"),
+    ("overrides", "named", "status"),
     [
-        ({"contact.track.stiffness": 1e300}, "contact.track.stiffness = 1e+300"),
-        ({"contact.track.exponent": 4.0, "initial.vx": 1e100}, "initial.vx = 1e+100 m/s"),
+        ({"contact.track.stiffness": 1e300}, "contact.track.stiffness = 1e+300 N/m^1.5", "NaN"),
+        (
+            {"contact.track.exponent": 4.0, "initial.vx": 1e100},
+            "initial.vx = 1e+100 m/s",
+            "collapsed",
+        ),
     ],
 )
-def test_a_failure_names_the_values_of_extreme_magnitude(overrides, named) -> None:
+def test_a_failure_names_the_values_of_extreme_magnitude(overrides, named, status) -> None:
     """A stiffness of 1e300 N/m^1.5 overflowed the state at t = 0 and a speed of 1e100 m/s
-    collapsed the step; both messages told the user to raise contact.min_impact_velocity
-    (the hint read from paper-3.3's own contact damping)."""
+    collapsed the step; both messages told the user only to raise
+    contact.min_impact_velocity (the hint read from paper-3.3's own contact damping)."""
     with pytest.raises(braidsim.SimulationError) as info:
         braidsim.simulate("paper-3.3", 0.01, overrides=overrides, series=False)
     msg = str(info.value)
-    assert f"check the values of extreme magnitude ({named})" in msg
-    assert "min_impact_velocity" not in msg
+    assert status in msg and f"check the values of extreme magnitude ({named})" in msg
+
+
+def test_a_stiff_contact_of_a_high_exponent_is_not_called_extreme() -> None:
+    """K is in N/m^n: exponent 3 with K = 1e20 is 1e11 N at a depth of 1 mm, a stiff but
+    real contact; a count (simulation.max_steps) is no magnitude either."""
+    from braidsim.core import layout as L
+    from braidsim.model import build_model
+    from braidsim.params import load_scenario
+    from braidsim.simulate import failure_message
+
+    sc = load_scenario(
+        "paper-3.1",
+        overrides={
+            "contact.track.exponent": 3.0,
+            "contact.track.stiffness": 1e20,
+            "simulation.max_steps": 2**40,
+        },
+    )
+    msg = failure_message(L.ST_STEP_COLLAPSE, 0.01, build_model(sc, 0.1), {})
+    assert "extreme" not in msg and "raise contact.min_impact_velocity" in msg

@@ -404,6 +404,8 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         if spec.kind not in ("float", "int"):
             raise InputError(f"{where}start: {key} takes {spec.range_text()}; give explicit values")
         num = t["num"]
+        if isinstance(num, float) and num.is_integer():
+            num = int(num)  # (TOML's 3.0)
         if isinstance(num, bool) or not isinstance(num, int):
             raise InputError(f"{where}num: {num!r} is not a whole number; allowed an integer >= 1")
         if num < 1:
