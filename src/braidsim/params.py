@@ -320,7 +320,9 @@ SCHEMA_LIST: list[ParamSpec] = [
         "budget of integration steps before a run is declared stuck (unless set: this or "
         "50,000 per simulated second, whichever is larger)",
         low=1,
-        high=2**62,  # a 64-bit step counter
+        # (the step counter of a run's record is a float: exact to 2^53, and the driver's
+        # pauses shift it by the budget)
+        high=2**52,
     ),
     ParamSpec("transfer.times", "floats", "s", (), "times of transfers to the next horn gear [s]"),
     _nonneg(

@@ -31,11 +31,13 @@ ST_ZENO = 6  # more than 50 contact events at one instant
 ST_STIFF = 7  # steps held by stability for STIFF_LIMIT steps
 ST_BAD_ARRAYS = 8  # an array of the wrong size was passed (a caller bug, never user input)
 ST_GRAZING = 9  # sensitivities asked of a run with a grazing contact (event sequence not smooth)
-ST_PAUSED = 10  # PAUSE_STEPS steps done in this call: resume (not a failure)
-# The compiled loop hands control back to Python after this many step attempts, so that a
-# signal (Ctrl-C, SIGTERM) is acted on during a long run whose buffers never fill (a carrier
+ST_PAUSED = 10  # the driver's: a call's share of steps done, resume (not a failure)
+# The driver has the compiled loop hand control back to Python after this many step attempts
+# (it shifts the record's count of attempts so that the loop meets its budget there), so that
+# a signal (Ctrl-C, SIGTERM) is acted on during a long run whose buffers never fill (a carrier
 # at rest writes no impact rows): every 0.02 s of CPU on paper-3.1, 0.2 s with two
-# sensitivities; a pause costs a return to Python and one evaluation. Resuming changes no bit.
+# sensitivities. Resuming changes no bit. (Keep it far above 1: a pause right after a refused
+# Taylor step has the resumed loop take that step again.)
 PAUSE_STEPS = 50_000
 STIFF_LIMIT = 100_000  # accepted steps held by stability (few breaks) before giving up
 # A step held by stability counts towards STIFF_LIMIT only below this fraction of the maximum

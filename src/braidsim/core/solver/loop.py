@@ -32,14 +32,12 @@ from braidsim.core.layout import (
     KIND_START,
     KIND_TRANSFER,
     NEW_RUN,
-    PAUSE_STEPS,
     ST_BAD_ARRAYS,
     ST_EPISODES_FULL,
     ST_GRAZING,
     ST_MAX_STEPS,
     ST_NONFINITE,
     ST_OK,
-    ST_PAUSED,
     ST_ROWS_FULL,
     ST_STEP_COLLAPSE,
     ST_STIFF,
@@ -263,8 +261,7 @@ def integrate(
         before a step when fewer are free.
     EP : array of EPISODE_DTYPE
         The impact table; ST_EPISODES_FULL before a step when fewer than EPISODE_RESERVE rows
-        are free. (And ST_PAUSED after PAUSE_STEPS step attempts in one call: the caller
-        resumes the run as after a flush.)
+        are free.
     RANGES : array (n_windows, 2, 4, 2)
         Window extremes, accumulated (initialised by the caller to +inf / -inf).
     XSQ : array (n_windows,) or None
@@ -414,7 +411,6 @@ def integrate(
         r.started = STARTED
     h = r.h
     nsteps = int(r.steps)
-    nsteps_entry = nsteps
     same_time_events = int(r.same_time_events)
     last_event_t = r.last_event_t
     stiff_run = int(r.stiff_run)
@@ -462,11 +458,6 @@ def integrate(
             break
         if nep > EP.shape[0] - EPISODE_RESERVE:
             status = ST_EPISODES_FULL
-            break
-        if nsteps - nsteps_entry >= PAUSE_STEPS and not force_rk and not jac_fresh:
-            # (Python acts on pending signals, then resumes the run; not right after a
-            # refused Taylor step or implicit attempt, whose retry the record does not keep)
-            status = ST_PAUSED
             break
         if nsteps >= opts.max_steps:
             status = ST_MAX_STEPS
