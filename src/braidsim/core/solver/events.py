@@ -278,7 +278,6 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
     if j < CLAMP0 and not event_active(j, modes):
         return 2.0
     gs = GS[j]
-    tol = 1e-15 * max(1.0, abs(t0) / max(h, 1e-300))
     # where the wall's function is below 0 at the step's start, the pair has just left its
     # wall (or met it) and the state there, recomputed on the step to that event, lies within
     # rounding or the step's error on the other side (measured: 2.5e-15 m of depth after an
@@ -288,7 +287,7 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
     # The rise is looked for at doubling distances from the start, up to the first sample.
     lo0 = 0.0
     if j < CLAMP0 and gs[0] < 0.0 and gs[1] < 0.0:
-        th = 2.0 * tol
+        th = 2e-15 * max(1.0, abs(t0) / max(h, 1e-300))  # (twice the tolerance below)
         while th < 1.0 / N_SUB:
             g = _event_at(model, j, t0, h, th, RC, modes, v0s, n, ys)
             if g >= 0.0:
@@ -331,6 +330,7 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
     # Illinois on [lo, hi] with g(lo) >= 0 > g(hi) (:func:`secant_point`; the value kept
     # at an end halved when the other end moves twice in a row)
     glo = max(glo, 0.0)
+    tol = 1e-15 * max(1.0, abs(t0) / max(h, 1e-300))
     side = 0
     zstep = 0.5 * tol  # the step past an lo where g = 0 exactly (doubled while it stays 0)
     for _ in range(200):
