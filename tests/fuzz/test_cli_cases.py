@@ -419,12 +419,6 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         ("different spec",),
     ),
     (
-        "sweep-processes-0",
-        ["sweep", "{fx}/good_sweep.toml", "--out", "{o}/s", "--processes", "0"],
-        BAD,
-        ("--processes",),
-    ),
-    (
         "sweep-processes-neg",
         ["sweep", "{fx}/good_sweep.toml", "--out", "{o}/s", "--processes", "-3"],
         BAD,

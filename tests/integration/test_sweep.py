@@ -194,6 +194,15 @@ def test_a_whole_float_num_is_a_count(tmp_path):
     assert spec.shape == load_spec(write(tmp_path, SPEC)).shape
 
 
+def test_processes_0_is_all_cores():
+    """`--processes 0` is all cores, as `--workers 0` of the other verbs (it was refused)."""
+    from braidsim.sweep.execute import LocalProcesses
+
+    assert LocalProcesses(0).processes == (os.cpu_count() or 1)
+    with pytest.raises(InputError, match=r"--processes: -3 is out of range; allowed >= 0"):
+        LocalProcesses(-3)
+
+
 def test_resume_refuses_another_spec(tmp_path, local_store):
     other = load_spec(write(tmp_path, SPEC.replace("num = 3", "num = 4")))
     with pytest.raises(InputError, match=r"different spec \(it differs in axes\.2\.num\)"):

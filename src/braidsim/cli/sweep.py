@@ -16,7 +16,7 @@ def sweep(
     spec: Annotated[Path, typer.Argument(help="Sweep spec TOML (docs/sweeps.md).", metavar="SPEC")],
     out: Annotated[Path, typer.Option("--out", help="The zarr store to write (a folder).")],
     processes: Annotated[
-        int | None, typer.Option(help="Local worker processes (default: all cores).")
+        int | None, typer.Option(help="Local worker processes (default or 0: all cores).")
     ] = None,
     workers: Annotated[
         int | None, typer.Option(help="Start a local Dask cluster of N workers and run on it.")

@@ -167,8 +167,10 @@ class LocalProcesses:
         task: Callable[[tuple[Any, ...], ChunkTask], ChunkOutput] | None = None,
     ) -> None:
         n = (os.cpu_count() or 1) if processes is None else int(processes)
+        if processes is not None and n == 0:
+            n = os.cpu_count() or 1  # (0: all cores, as the other verbs' --workers 0)
         if n < 1:
-            raise InputError(f"--processes: {n} is out of range; allowed >= 1")
+            raise InputError(f"--processes: {n} is out of range; allowed >= 0 (0: all cores)")
         self.processes = n
         self.retries = retries
         self.mp_context = mp_context
