@@ -9,12 +9,14 @@ once the mass has left the wall.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from braidsim import contact
 from braidsim.errors import InputError, SimulationError
 from braidsim.params import load_scenario
 from braidsim.simulate import simulate
+from braidsim.units import to_si
 
 #: Overrides that turn a scenario's carrier into a free mass: no yarn tension, no centrifugal
 #: load, no gravity (so no friction), no track vibration, and a far wall 1 m away.
@@ -85,9 +87,9 @@ def single_impact(
     if exponent is not None:
         overrides["contact.track.exponent"] = exponent
     sc = load_scenario("paper-3.1", overrides=overrides)
-    v = sc.with_overrides({"initial.vx": velocity})["initial.vx"]
-    if not v > 0:
-        raise InputError(f"velocity: {v:g} m/s is out of range; allowed > 0 m/s")
+    v = to_si("velocity", velocity, "m/s")
+    if not (v > 0 and math.isfinite(v)):
+        raise InputError(f"velocity: {v:g} m/s is out of range; allowed > 0 m/s, finite")
     # the damping term is latched at the approach speed, floored at
     # contact.min_impact_velocity (a regularisation of resting contacts): here the speed is
     # the measure's own, so the floor goes below it (at 1e-5 m/s, under paper-3.1's floor of

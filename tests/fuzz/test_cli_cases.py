@@ -165,6 +165,12 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("impact-restitution-str", ["impact", "--restitution", "high"], BAD, ("restitution",)),
     ("impact-velocity-neg", ["impact", "--velocity", "-1"], BAD, ("velocity",)),
     ("impact-velocity-unit", ["impact", "--velocity", "1 kg"], BAD, ("velocity",)),
+    (
+        "impact-velocity-inf",
+        ["impact", "--velocity", "inf m/s"],
+        BAD,
+        ("--velocity: inf m/s is out of range; allowed > 0 m/s",),
+    ),
     ("impact-velocity-pow", ["impact", "--velocity", "9**9**9 m/s"], BAD, ("velocity",)),
     ("impact-mass-0", ["impact", "--mass", "0"], BAD, ("mass",)),
     ("impact-mass-nan", ["impact", "--mass", "nan"], BAD, ("mass",)),

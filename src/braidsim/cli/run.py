@@ -199,6 +199,7 @@ _IMPACT_OPTIONS = {
     "contact.track.stiffness": "--stiffness",
     "carrier.mass": "--mass",
     "initial.vx": "--velocity",
+    "velocity": "--velocity",
 }
 
 
