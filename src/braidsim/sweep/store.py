@@ -482,15 +482,22 @@ def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
             f = p / name / "c" / key
             if g[name].ndim > len(chunk_shape):
                 f = f / "0"  # the series' time dimension is one chunk
-            if not f.is_file():
-                bad[c] = name
-                break
-            try:
-                g[name][region]
-            except ValueError:
+            if _damaged_chunk(g[name], f, region):
                 bad[c] = name
                 break
     return bad
+
+
+def _damaged_chunk(arr: Any, f: Path, region: Any) -> bool:
+    """Whether the chunk of ``arr`` in file ``f`` (holding ``region``) is missing or fails
+    its checksum. (zarr reads a missing chunk file as fill values, without error.)"""
+    if not f.is_file():
+        return True
+    try:
+        arr[region]
+    except ValueError:
+        return True
+    return False
 
 
 def damaged_coordinates(path: str | Path) -> list[str]:
@@ -501,16 +508,10 @@ def damaged_coordinates(path: str | Path) -> list[str]:
     data = {*_data_arrays(g)}
     bad = []
     for name in sorted(str(k) for k in g.array_keys()):
-        if name in data:
-            continue
-        # (one chunk each; zarr reads a missing chunk file as fill values, without error)
-        if g[name].size and not (Path(path) / name / "c" / "0").is_file():
-            bad.append(name)
-            continue
-        try:
-            g[name][...]
-        except ValueError:
-            bad.append(name)
+        # (one chunk each)
+        if name not in data and g[name].size:
+            if _damaged_chunk(g[name], Path(path) / name / "c" / "0", ...):
+                bad.append(name)
     return bad
 
 
