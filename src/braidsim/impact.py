@@ -102,11 +102,11 @@ def single_impact(
     elastic = contact.hertz_impact_closed_form(sc["carrier.mass"], pm.stiffness, pm.exponent, v)
     # below the reference speed the absolute tolerances shrink with the impact's own depth
     # and speed (fixed ones left 1e-6 of the restitution at 1e-5 m/s, 2.5e-9 at 0.5 m/s)
-    ref = contact.hertz_impact_closed_form(
-        sc["carrier.mass"], pm.stiffness, pm.exponent, TOLERANCE_SPEED
-    )
-    depth_scale = min(1.0, elastic["max_depth"] / ref["max_depth"])
     if v < TOLERANCE_SPEED:
+        ref = contact.hertz_impact_closed_form(
+            sc["carrier.mass"], pm.stiffness, pm.exponent, TOLERANCE_SPEED
+        )
+        depth_scale = min(1.0, elastic["max_depth"] / ref["max_depth"])
         sc = sc.with_overrides(
             {
                 "simulation.atol_position": ATOL_POSITION * depth_scale,
