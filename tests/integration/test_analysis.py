@@ -261,6 +261,18 @@ def test_cli_restitution(capsys, tmp_path) -> None:
     assert json.loads((tmp_path / "r" / "restitution.json").read_text())["nominal"] == d["nominal"]
 
 
+def test_cli_restitution_table_is_whole_when_piped(capsys) -> None:
+    """Piped output counts as 80 columns for rich, which cut every cell of the 11-column
+    table to '1.0…'; tables are printed at their own width instead."""
+    code, out, err = run_cli(capsys, "restitution", "--points", "10")
+    assert code == 0, err
+    assert "…" not in out
+    assert "lankarani_nikravesh" in out
+    rows = [line for line in out.splitlines() if line.startswith("│ hunt_crossley")]
+    assert len(rows) == 1 and len(rows[0].split("│")) == 13  # the law and ten values, whole
+    assert all(len(cell.strip()) == 6 for cell in rows[0].split("│")[2:-1])  # 0.5158
+
+
 def test_cli_analyze_scenario_and_run_folder(capsys, tmp_path) -> None:
     code, out, err = run_cli(capsys, "analyze", "paper-3.4b", "--duration", "0.3", "--json")
     assert code == 0, err

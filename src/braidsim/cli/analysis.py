@@ -14,7 +14,14 @@ from typing import Annotated, Any
 
 import typer
 
-from braidsim.cli.common import app, guarded, parse_sets, print_json, quantity_option
+from braidsim.cli.common import (
+    app,
+    guarded,
+    parse_sets,
+    print_json,
+    quantity_option,
+    result_console,
+)
 from braidsim.errors import InputError
 
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print one JSON object.")]
@@ -57,9 +64,7 @@ def _check_out(out: Path | None, kind: str) -> None:
 
 
 def _console() -> Any:
-    from rich.console import Console
-
-    return Console()
+    return result_console()
 
 
 def _with_provenance(

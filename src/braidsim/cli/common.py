@@ -70,6 +70,43 @@ def print_json(obj: Any) -> None:
     sys.stdout.flush()
 
 
+def result_console() -> Any:
+    """The console on which a command prints its results (stdout).
+
+    Its tables are printed whole. rich fits a table to the console by folding its text
+    cells and, where that is not enough, by cutting cells short (``1.0…`` for 1.0000); a
+    piped output counts as 80 columns, so a wide table of numbers sent to a file lost them.
+    A table that rich would cut is printed at the width that keeps every cell whole instead
+    (a terminal wraps its lines, a file keeps them); one that folds is left as it is.
+    """
+    import io
+
+    from rich.console import Console
+    from rich.measure import Measurement
+    from rich.table import Table
+
+    class _WholeTables(Console):
+        def _cut_at(self, table: Table, width: int) -> bool:
+            trial = Console(file=io.StringIO(), width=width, color_system=None)
+            trial.print(table)
+            return "…" in trial.file.getvalue()  # type: ignore[attr-defined]
+
+        def print(self, *objects: Any, **kwargs: Any) -> None:
+            tables = [o for o in objects if isinstance(o, Table)]
+            if not any(self._cut_at(t, self.width) for t in tables):
+                super().print(*objects, **kwargs)
+                return
+            unbounded = self.options.update_width(1 << 20)  # measured, not fitted
+            width = self.width
+            self.width = max(width, *(Measurement.get(self, unbounded, t).minimum for t in tables))
+            try:
+                super().print(*objects, **{**kwargs, "crop": False})
+            finally:
+                self.width = width
+
+    return _WholeTables()
+
+
 def fail(message: str, code: int) -> None:
     """One line on stderr and exit with ``code``."""
     line = " ".join(str(message).split())  # one line, whatever the message holds

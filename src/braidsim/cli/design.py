@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json
+from braidsim.cli.common import app, guarded, print_json, result_console
 
 
 @app.command()
@@ -81,9 +81,7 @@ def design(
         )
         print_json({k: data[k] for k in keep if k in data})
         return
-    from rich.console import Console
-
-    con = Console()
+    con = result_console()
     b, a = data["baseline"], data["optimised"]
     from rich.markup import escape
 

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json, quantity_option
+from braidsim.cli.common import app, guarded, print_json, quantity_option, result_console
 
 
 @app.command()
@@ -60,10 +60,8 @@ def machine(
     if json_:
         print_json(data)
         return
-    from rich.console import Console
-
     t = data["totals"]
-    con = Console()
+    con = result_console()
     con.print(
         f"[bold]{data['name']}[/bold]: {t['carriers']} carriers, {t['transfers']} transfers in "
         f"{run.duration:.4g} s simulated ({run.elapsed:.3g} s on {run.workers} process(es))"

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json
+from braidsim.cli.common import app, guarded, print_json, result_console
 
 
 @app.command()
@@ -59,7 +59,7 @@ def paper(
         return
     from rich.table import Table
 
-    con = Console()
+    con = result_console()
     counts = report.counts()
     tab = Table("status", "items")
     for k, v in counts.items():

@@ -7,7 +7,14 @@ from typing import Annotated, Any
 
 import typer
 
-from braidsim.cli.common import app, guarded, parse_sets, print_json, quantity_option
+from braidsim.cli.common import (
+    app,
+    guarded,
+    parse_sets,
+    print_json,
+    quantity_option,
+    result_console,
+)
 from braidsim.errors import InputError
 
 
@@ -109,11 +116,10 @@ def _write_run(res: Any, summary: dict[str, Any], out: Path, csv: bool) -> None:
 def _print_summary(summary: dict, out: Path | None) -> None:
     """The tables of ``run``: the ranges of the track pair (x), and of the slot pair (y) too
     when the scenario has both degrees of freedom (``simulation.dof = "xy"``)."""
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    con = Console()
+    con = result_console()
     sim = summary.get("simulation", {})
     con.print(
         f"[bold]{escape(summary['scenario'])}[/bold]  "
@@ -254,7 +260,6 @@ def impact(
     if json_:
         print_json(res)
         return
-    from rich.console import Console
     from rich.table import Table
 
     tab = Table("quantity", "value")
@@ -264,7 +269,7 @@ def impact(
                 tab.add_row(f"closed form {k2}", f"{v2:.8g}")
         else:
             tab.add_row(k, f"{v:.8g}" if isinstance(v, float) else str(v))
-    Console().print(tab)
+    result_console().print(tab)
 
 
 @app.command()
@@ -295,7 +300,6 @@ def models(
     if json_:
         print_json({"models": rows})
         return
-    from rich.console import Console
     from rich.table import Column, Table
 
     tab = Table(
@@ -311,7 +315,7 @@ def models(
             f"{r['effective_restitution_at_5_9']:.4f}",
             r["reference"],
         )
-    Console().print(tab)
+    result_console().print(tab)
 
 
 @app.command()
@@ -338,7 +342,6 @@ def scenarios(
         if json_:
             print_json({"keys": rows})
             return
-        from rich.console import Console
         from rich.markup import escape
         from rich.table import Column, Table
 
@@ -351,7 +354,7 @@ def scenarios(
                 *(escape(str(c)) for c in (r["key"], r["unit"], r["default"], r["allowed"])),
                 escape(r["doc"]),
             )
-        Console().print(tab)
+        result_console().print(tab)
         return
     rows = []
     for name in braidsim.builtin_names():
@@ -360,7 +363,6 @@ def scenarios(
     if json_:
         print_json({"scenarios": rows})
         return
-    from rich.console import Console
     from rich.table import Column, Table
 
     tab = Table(
@@ -369,7 +371,7 @@ def scenarios(
     )
     for r in rows:
         tab.add_row(r["name"], r["description"], r["source"])
-    Console().print(tab)
+    result_console().print(tab)
 
 
 def _whole(title: str, names: list[str]) -> Any:

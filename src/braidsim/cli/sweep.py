@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, fail, flush_notices, guarded, print_json
+from braidsim.cli.common import app, fail, flush_notices, guarded, print_json, result_console
 
 
 @app.command()
@@ -82,9 +82,7 @@ def sweep(
     if json_:
         print_json(summary)
         return
-    from rich.console import Console
-
-    con = Console()
+    con = result_console()
     con.print(
         f"[bold]{summary['store']}[/bold]: {summary['runs']} runs {summary['dims']}, "
         f"{summary['runs_computed']} computed now in {summary['elapsed_s']:.3g} s "
@@ -166,6 +164,5 @@ def sweep_plot(
     if json_:
         print_json({"figure": str(path), "metric": metric, "x": x, "y": y})
         return
-    from rich.console import Console
-
-    Console().print(f"{metric} over {x}" + (f" and {y}" if y else "") + f" written to {path}")
+    over = f"{x} and {y}" if y else x
+    result_console().print(f"{metric} over {over} written to {path}")
