@@ -91,14 +91,23 @@ def result_console() -> Any:
             trial.print(table)
             return "…" in trial.file.getvalue()  # type: ignore[attr-defined]
 
+        def _whole_width(self, table: Table) -> int:
+            """The narrowest width from the console's at which rich cuts no cell of
+            ``table`` short (a bisection: more width never cuts more)."""
+            unbounded = self.options.update_width(1 << 20)  # measured, not fitted
+            low, high = self.width, max(self.width, Measurement.get(self, unbounded, table).maximum)
+            while low < high:
+                mid = (low + high) // 2
+                low, high = (mid + 1, high) if self._cut_at(table, mid) else (low, mid)
+            return high
+
         def print(self, *objects: Any, **kwargs: Any) -> None:
             tables = [o for o in objects if isinstance(o, Table)]
             if not any(self._cut_at(t, self.width) for t in tables):
                 super().print(*objects, **kwargs)
                 return
-            unbounded = self.options.update_width(1 << 20)  # measured, not fitted
             width = self.width
-            self.width = max(width, *(Measurement.get(self, unbounded, t).minimum for t in tables))
+            self.width = max(self._whole_width(t) for t in tables)
             try:
                 super().print(*objects, **{**kwargs, "crop": False})
             finally:
