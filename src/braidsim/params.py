@@ -661,8 +661,31 @@ def _resolve_stiffness(values: dict[str, Any]) -> None:
         values[key] = float(value)
 
 
+def _check_start_between_walls(values: Mapping[str, Any]) -> None:
+    """The start may overlap a wall (the paper's sections 3.3-3.4 start 0.12 mm into the
+    track), but by no more than the pair's clearance: a deeper overlap is no state of a
+    machine, and a value in the wrong unit ("1 m" for "1 mm") gave a run with forces of
+    1e9 N rather than an error. The track's inner wall is at x = h(0) at the start, with
+    h(t) = h_a cos(omega_h t + phase) plus its harmonics; the slot's rear wall at y = 0."""
+    h0 = values["track.vibration_amplitude"] * math.cos(values["track.vibration_phase"])
+    h0 += sum(a * math.cos(phase) for a, _, phase in values["track.harmonics"])
+    checks = [("initial.x", h0, "track.clearance", "the inner track wall at x = h(0)")]
+    if values["simulation.dof"] == "xy":
+        checks.append(("initial.y", 0.0, "slot.clearance", "the rear slot wall at y = 0"))
+    for key, wall, gap_key, where in checks:
+        gap = values[gap_key]
+        low, high = wall - gap, wall + 2.0 * gap
+        if not low <= values[key] <= high:
+            raise InputError(
+                f"{key}: {values[key] * 1e3:g} mm is out of range; allowed {low * 1e3:g} to "
+                f"{high * 1e3:g} mm (at most {gap_key}, {gap * 1e3:g} mm, into either wall; "
+                f"{where})"
+            )
+
+
 def _check_consistency(values: Mapping[str, Any]) -> None:
     """Cross-key checks that a single range cannot express."""
+    _check_start_between_walls(values)
     for pair, (body, other) in {
         "track": ("guide_pad", "track"),
         "slot": ("carrier", "horn_gear"),

@@ -250,3 +250,31 @@ def test_a_scenario_answers_in_and_refuses_a_non_string_key() -> None:
     assert 0 not in sc  # (it fell back to sc[0], and failed on int.isprintable)
     with pytest.raises(InputError, match="dotted name"):
         sc[0]  # type: ignore[index]
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"initial.x": "1 m"}, "initial.x: 1000 mm is out of range; allowed -2.88 to 6.12 mm"),
+        ({"initial.x": "-2.9 mm"}, "initial.x: -2.9 mm is out of range"),
+        # the wall's start moves with the phase: h(0) = -0.12 mm at a phase of pi
+        ({"track.vibration_phase": math.pi, "initial.x": "6.1 mm"}, "allowed -3.12 to 5.88 mm"),
+        ({"simulation.dof": "xy", "initial.y": "0.25 mm"}, "allowed -0.1 to 0.2 mm"),
+    ],
+)
+def test_a_start_deeper_in_a_wall_than_its_clearance_is_refused(overrides, message) -> None:
+    """A start may overlap a wall (paper-3.3 starts 0.12 mm into it) by at most the pair's
+    clearance; "1 m" for "1 mm" ran with forces of 6e8 N instead of an error."""
+    with pytest.raises(InputError, match=message.replace("(", r"\(")):
+        load_scenario("paper-3.3", overrides=overrides)
+
+
+def test_a_start_within_a_clearance_of_the_walls_is_accepted() -> None:
+    for x in ("-2.88 mm", "0 mm", "6.12 mm"):
+        assert load_scenario("paper-3.3", overrides={"initial.x": x})["initial.x"] == to_si(
+            "x", x, "m"
+        )
+    xy = load_scenario("paper-3.3", overrides={"simulation.dof": "xy", "initial.y": "-0.1 mm"})
+    assert xy["initial.y"] == -1e-4
+    # the x-only carrier has no y: its initial.y is not checked
+    assert load_scenario("paper-3.3", overrides={"initial.y": "1 m"})["initial.y"] == 1.0
