@@ -336,6 +336,38 @@ def test_sweep_failing_before_its_store_does_not_offer_resume(capsys, tmp_path, 
     assert "--resume" not in err and "no store was written" in err
 
 
+def test_sweep_interrupted_after_its_last_chunk_says_every_run_is_written(
+    capsys, tmp_path, monkeypatch
+):
+    """A signal after the last chunk (before the store is marked complete) said "the chunks
+    done are kept; finish with --resume" as if runs were missing; it now says that every
+    run is written and what --resume still does."""
+    import braidsim.sweep.execute as execute
+
+    real = execute.set_complete
+
+    def interrupted_at_the_end(path, complete):
+        if complete:
+            raise KeyboardInterrupt
+        real(path, complete)
+
+    monkeypatch.setattr(execute, "set_complete", interrupted_at_the_end)
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        'scenario = "paper-3.1"\nduration = "0.004 s"\n[[axes]]\n'
+        'key = "track.vibration_amplitude"\nname = "h_a"\nvalues = ["0.05 mm", "0.06 mm"]\n'
+    )
+    out = tmp_path / "s.zarr"
+    argv = ["sweep", str(spec), "--out", str(out), "--processes", "1", "--no-progress"]
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 130 and "interrupted by SIGINT" in err
+    assert f"every run is written in {out}; --resume marks the store complete" in err, err
+    monkeypatch.setattr(execute, "set_complete", real)
+    code, _, err = run_cli(capsys, *argv, "--resume")
+    assert code == 0, err
+    assert braidsim.sweep.open_sweep(out).attrs["complete"] is True
+
+
 def test_lyapunov_json_is_short_unless_asked(capsys) -> None:
     argv = ["lyapunov", "paper-3.4b", "--transient-cycles", "2", "--cycles", "20", "--json"]
     code, short, err = run_cli(capsys, *argv)

@@ -48,9 +48,19 @@ def sweep(
 
     def resume_hint() -> str:
         # the store is created whole or not at all: without it there is nothing to resume
-        if out.exists():
-            return f"the chunks done are kept in {out}; finish with --resume"
-        return f"no store was written at {out}"
+        if not out.exists():
+            return f"no store was written at {out}"
+        from braidsim.errors import StoreError
+        from braidsim.sweep.store import done_chunks
+
+        try:
+            finished = bool(done_chunks(out).all())
+        except StoreError:
+            finished = False
+        if finished:  # a signal after the last chunk: its results are all there
+            rest = " and writes --netcdf" if netcdf is not None else ""
+            return f"every run is written in {out}; --resume marks the store complete{rest}"
+        return f"the chunks done are kept in {out}; finish with --resume"
 
     try:
         with signal_decides():
