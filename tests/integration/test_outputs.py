@@ -315,6 +315,17 @@ def test_out_creates_missing_folders_only_when_it_writes(capsys, tmp_path) -> No
     assert (d / "summary.json").is_file()
 
 
+def _tiny_sweep(tmp_path: Path, out: Path, amplitudes: list[str]) -> list[str]:
+    """The command line of a sweep of paper-3.1 (4 ms runs) over the track's amplitude."""
+    spec = tmp_path / "s.toml"
+    values = ", ".join(f'"{a}"' for a in amplitudes)
+    spec.write_text(
+        'scenario = "paper-3.1"\nduration = "0.004 s"\n[[axes]]\n'
+        f'key = "track.vibration_amplitude"\nname = "h_a"\nvalues = [{values}]\n'
+    )
+    return ["sweep", str(spec), "--out", str(out), "--processes", "1", "--no-progress"]
+
+
 def test_sweep_failing_before_its_store_does_not_offer_resume(capsys, tmp_path, monkeypatch):
     """A sweep whose store could not be created has nothing to resume: the hint says so."""
     import braidsim.sweep.execute as execute
@@ -323,15 +334,8 @@ def test_sweep_failing_before_its_store_does_not_offer_resume(capsys, tmp_path, 
         raise OSError(28, "No space left on device", str(path))
 
     monkeypatch.setattr(execute, "create_store", no_store)
-    spec = tmp_path / "s.toml"
-    spec.write_text(
-        'scenario = "paper-3.1"\nduration = "0.004 s"\n[[axes]]\n'
-        'key = "track.vibration_amplitude"\nname = "h_a"\nvalues = ["0.05 mm"]\n'
-    )
     out = tmp_path / "s.zarr"
-    code, _, err = run_cli(
-        capsys, "sweep", str(spec), "--out", str(out), "--processes", "1", "--no-progress"
-    )
+    code, _, err = run_cli(capsys, *_tiny_sweep(tmp_path, out, ["0.05 mm"]))
     assert code == 1 and "No space left" in err
     assert "--resume" not in err and "no store was written" in err
 
@@ -352,13 +356,8 @@ def test_sweep_interrupted_after_its_last_chunk_says_every_run_is_written(
         real(path, complete)
 
     monkeypatch.setattr(execute, "set_complete", interrupted_at_the_end)
-    spec = tmp_path / "s.toml"
-    spec.write_text(
-        'scenario = "paper-3.1"\nduration = "0.004 s"\n[[axes]]\n'
-        'key = "track.vibration_amplitude"\nname = "h_a"\nvalues = ["0.05 mm", "0.06 mm"]\n'
-    )
     out = tmp_path / "s.zarr"
-    argv = ["sweep", str(spec), "--out", str(out), "--processes", "1", "--no-progress"]
+    argv = _tiny_sweep(tmp_path, out, ["0.05 mm", "0.06 mm"])
     code, _, err = run_cli(capsys, *argv)
     assert code == 130 and "interrupted by SIGINT" in err
     assert f"every run is written in {out}; --resume marks the store complete" in err, err
