@@ -96,6 +96,38 @@ def test_x_carrier_sensitivities_match_finite_differences() -> None:
     _check_against_fd(sc, keys, 0.02)
 
 
+def test_contacts_that_transfers_cut_and_start_match_finite_differences() -> None:
+    """paper-3.4b rests on its inner wall from 0.077 s; each transfer cuts that contact and
+    starts one on the outer wall at the transfer time, which moves with transfer.first and
+    transfer.period. The started contact's onset time and approach speed took no account of
+    that move (d onset / d first was 0 for 1, d speed 27.7 for -0.407), nor did the cut
+    contact's end (NaN for 1), and the wrong latched speed moved the final state by 4e-3."""
+    sc = braidsim.load_scenario(
+        "paper-3.4b",
+        overrides={**TIGHT, "transfer.first": "0.1 s", "transfer.period": "0.03 s"},
+    )
+    keys = ["transfer.first", "transfer.period"]
+    res = braidsim.simulate(sc, duration=0.2, series=False, sensitivities=keys)
+    imp = res.impacts
+    (cut,) = np.flatnonzero(imp.cut_by_transfer.to_numpy()[:-1])  # the one at 0.1 s
+    assert imp.t.iloc[cut + 1] == imp.t_end.iloc[cut] == 0.1
+    for i, key in enumerate(keys):
+        h = 1e-6 * sc[key]
+        plus, minus = (
+            braidsim.simulate(sc, duration=0.2, series=False, overrides={key: sc[key] + s * h})
+            for s in (1, -1)
+        )
+        rows = [(cut + 1, "t"), (cut + 1, "velocity"), (cut + 1, "peak_force"), (cut, "t_end")]
+        for row, column in rows:
+            fd = (plus.impacts[column].iloc[row] - minus.impacts[column].iloc[row]) / (2 * h)
+            q = ["t", "velocity", "peak_force", "max_depth", "t_end"].index(column)
+            tangent = res.sensitivity.impacts[row, i, q]
+            assert tangent == pytest.approx(fd, rel=1e-5, abs=1e-6), (key, column)
+        for j, name in enumerate(("x", "vx")):
+            fd = (plus.final[name] - minus.final[name]) / (2 * h)
+            assert res.sensitivity.final[i, j] == pytest.approx(fd, rel=1e-3), (key, name)
+
+
 @pytest.mark.slow  # 100 s, most of it compiling the xy solver with tangents for this test alone
 def test_xy_carrier_with_transfers_matches_finite_differences() -> None:
     """The xy carrier hitting both slot walls and the track, with transfers to the next

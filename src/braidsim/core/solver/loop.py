@@ -97,6 +97,8 @@ from braidsim.core.solver.tangent import (
     tangent_scales,
     tangent_start,
     tangent_step,
+    transfer_contacts,
+    transfer_cut,
     transfer_jump,
 )
 from braidsim.core.solver.taylor import (
@@ -189,9 +191,10 @@ def _open(model, EP, nep, t, y, pair, mode, vel, v0, initial, n, open_ep, SENS):
 
 
 @_solver_call
-def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
-    """The contact policy at the start and right after a transfer, for the first ``npair``
-    pairs.
+def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS, itr, f_free):
+    """The contact policy at the start (``itr`` = -1) and right after the transfer ``itr``
+    (``f_free``: dy/dt after it, before the contacts start; read for the tangents only), for
+    the first ``npair`` pairs.
 
     A pair whose carrier overlaps a wall starts in contact. Such a contact has no approach
     speed: it is released elastically (v0 = inf, no damping term until the next onset) unless
@@ -226,7 +229,7 @@ def _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, npair, n, SENS):
         initial = 1.0 if p > 0.0 else 0.0
         nep = _open(model, EP, nep, t, y, pair, mode, pd, v0, initial, n, open_ep, SENS)
         if SENS is not None:
-            start_contact(model, SENS, pair, t, y, mode, nep - 1, p > 0.0)
+            start_contact(model, SENS, pair, t, y, mode, nep - 1, p > 0.0, itr, f_free)
     return nep
 
 
@@ -361,7 +364,9 @@ def integrate(
     if r.started != STARTED:
         if r.started == NEW_RUN:
             t_begin = t
-            nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, n_pairs, n, SENS)
+            nep = _start_contacts(
+                model, t, y, modes, v0s, open_ep, EP, nep, n_pairs, n, SENS, -1, K[0]
+            )
             # a first step of 1 us (the shortest contacts last ~0.1 ms), which the controller
             # grows by up to 5x a step: a few cheap steps, and no start-step heuristic whose
             # trial evaluations would have to be made contact-aware
@@ -488,6 +493,8 @@ def integrate(
                         _energy(y, dissipation_index(model, pair), n),
                         END_TRANSFER,
                     )
+                    if SENS is not None:
+                        transfer_cut(SENS, itr - 1, ie)
                     open_ep[pair] = -1
                 modes[pair] = 0
             nrow_tr = nrow
@@ -496,19 +503,27 @@ def integrate(
                 # the tangents jump with the state (the new contacts need them)
                 rhs(model, t, y, modes, v0s, n, K0)
                 transfer_jump(model, SENS, itr - 1, t, y_minus, f_minus, K0, n_dof2, ss, sw)
-            nep = _start_contacts(model, t, y, modes, v0s, open_ep, EP, nep, reset, n, SENS)
+                for i in range(n_dof2):
+                    f_minus[i] = K0[i]  # the flow after the transfer, before its contacts
+            nep = _start_contacts(
+                model, t, y, modes, v0s, open_ep, EP, nep, reset, n, SENS, itr - 1, K0
+            )
             rhs(model, t, y, modes, v0s, n, K0)
             pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
             st.rhs_evaluations += 1
             for pair in range(reset):
                 clamped[pair] = clamp_state(INF0, pair)
             if SENS is not None:
+                transfer_contacts(SENS, itr - 1, f_minus, K0, n_dof2)
                 for pair in range(reset):
                     ie = open_ep[pair]
                     if ie >= 0:
+                        # extremes at the contact's first instant, which moves with the
+                        # transfer (its onset time's tangent)
                         episode_extremes(
                             model, SENS, ie, pair, t, y, SENS.S, modes[pair], v0s[pair], 3
                         )
+                        onset_correction(SENS, ie, 3, INF0[pair, I_PD], INF0[pair, I_DN])
                 tangent_start(model, SENS, t, y, modes, v0s, KS)
                 if nrow > nrow_tr:
                     series_tangent_row(

@@ -282,23 +282,59 @@ def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plu
 
 
 @tangent_helper
-def start_contact(model, SENS, pair, t, y, mode, ie, initial):
+def start_contact(model, SENS, pair, t, y, mode, ie, initial, itr, f_free):
     """Tangents of the latched speed (and of the episode's first values) of a contact the
-    start policy opens at t (at the start of a run or right after a transfer)."""
+    start policy opens at t: at the start of a run (``itr`` = -1), or right after the
+    transfer ``itr``, whose time moves by dtau = ``SENS.DTR[d, itr]`` along direction d.
+
+    Such a contact starts at the transfer: its onset time's derivative is dtau, and its
+    approach speed, read on the flow ``f_free`` that follows the transfer before the
+    contact starts, changes by its fixed-time tangent plus its rate times dtau, as at an
+    onset (:func:`contact_event`).
+    """
     g_in, g_out, rate = gaps(model, pair, t, y)
     _, pd = penetration(mode, g_in, g_out, rate)
+    with_tau = itr >= 0 and itr < SENS.DTR.shape[1]
+    pen_acc = 0.0
+    if with_tau:
+        acc_in = pair_gap_accel(model, pair, t, f_free)
+        pen_acc = -acc_in if mode < 0 else acc_in
     for d in range(SENS.S.shape[0]):
         dm = SENS.tangents[d]
+        dtau = SENS.DTR[d, itr] if with_tau else 0.0
         dg_in, dg_out, drate = pair_gaps_jvp(model, dm, pair, t, y, SENS.S[d])
         _, dpd = penetration_jvp(mode, dg_in, dg_out, drate)
+        dvel = dpd + pen_acc * dtau if dtau != 0.0 else dpd
         if initial:
             vi = model.initial_impact_velocity
             SENS.DV0[d, pair] = dm.initial_impact_velocity if vi > 0.0 else 0.0
         else:
-            SENS.DV0[d, pair] = dpd if pd > model.min_impact_velocity else dm.min_impact_velocity
+            SENS.DV0[d, pair] = dvel if pd > model.min_impact_velocity else dm.min_impact_velocity
         if ie >= 0:
-            SENS.ESENS[ie, d, ES_T] = 0.0
-            SENS.ESENS[ie, d, ES_VELOCITY] = dpd
+            SENS.ESENS[ie, d, ES_T] = dtau
+            SENS.ESENS[ie, d, ES_VELOCITY] = dvel
+
+
+@tangent_helper
+def transfer_cut(SENS, itr, ie):
+    """The end time of episode ``ie``, cut by the transfer ``itr``, moves with it."""
+    if itr < SENS.DTR.shape[1]:
+        for d in range(SENS.S.shape[0]):
+            SENS.ESENS[ie, d, ES_T_END] = SENS.DTR[d, itr]
+
+
+@tangent_helper
+def transfer_contacts(SENS, itr, f_free, f_after, n_dof2):
+    """At the transfer ``itr`` the contacts it starts change the flow from ``f_free`` to
+    ``f_after`` at an instant that moves by dtau: the tangents jump by (f_free - f_after)
+    dtau, as at an onset (2) (nothing where the new contacts start without a force)."""
+    if itr >= SENS.DTR.shape[1]:
+        return
+    for d in range(SENS.S.shape[0]):
+        dtau = SENS.DTR[d, itr]
+        s = SENS.S[d]
+        for i in range(n_dof2):
+            s[i] += (f_free[i] - f_after[i]) * dtau
 
 
 @tangent_helper
