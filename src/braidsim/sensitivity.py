@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from braidsim.core import layout as L
-from braidsim.core.driver import RawRun, SensitivityRun, Tangents
+from braidsim.core.driver import RawRun, SensitivityRun, Tangents, as_declared
 from braidsim.errors import InputError, SimulationError
 
 if TYPE_CHECKING:
@@ -127,8 +127,15 @@ def _tangent(records: Sequence[Any], weights: Sequence[float], h: float, primal:
 
 
 def zero_tangent(primal: Any) -> Any:
-    """The tangent record of a direction that changes no parameter."""
+    """The tangent record of a direction that changes no parameter.
+
+    Integer fields (a law's code, a flag) are kept: they say what the record is, and have
+    no derivative. A field declared ``float`` but given as an integer (``mass=1``) is a
+    number like any other: its tangent is 0.0, not the integer itself (which made d mass
+    = 1 along every direction, and the monodromy of such a record wrong).
+    """
     if isinstance(primal, tuple) and hasattr(primal, "_fields"):
+        primal = as_declared(primal)
         return type(primal)(*[zero_tangent(getattr(primal, f)) for f in primal._fields])
     if isinstance(primal, np.ndarray):
         return primal if primal.dtype.kind != "f" else np.zeros_like(primal)

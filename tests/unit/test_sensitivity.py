@@ -17,7 +17,7 @@ from braidsim.core.models.oscillator import ImpactOscillator
 from braidsim.core.physics.contact_laws import PowerLawContact
 from braidsim.core.physics.kelvin_voigt import KelvinVoigtContact
 from braidsim.errors import InputError
-from braidsim.sensitivity import SensitivityError, flow_map, zero_tangent
+from braidsim.sensitivity import SensitivityError, flow_map, record_flow_map, zero_tangent
 
 TIGHT = {
     "simulation.rtol": 1e-12,
@@ -269,6 +269,25 @@ def test_stencil_rounding_is_no_derivative() -> None:
 
 def _zero_oscillator_tangent(law: object) -> ImpactOscillator:
     return zero_tangent(ImpactOscillator(1.0, 1.0, 1.0, 1.0, 1.0, 0.0, math.inf, 1.0, law))
+
+
+def test_a_float_field_given_as_an_integer_has_a_zero_tangent() -> None:
+    """ImpactOscillator(mass=1, ...): the zero tangent kept the integer 1 as d mass, so
+    every direction moved the mass and the continuation's monodromy came out -2.18 for
+    -0.843. The flow map of the integer record is now that of the float one, bit for bit."""
+    law = KelvinVoigtContact.for_restitution(1e8, 0.8, 1.0, allow_tension=True)
+    fields = dict(stiffness=1.0, damping=0.05, force_amplitude=1.0, force_frequency=1.1)
+    fields.update(force_phase=0.0, gap_inner=math.inf, gap_outer=0.5, law=law)
+    assert zero_tangent(ImpactOscillator(mass=1, **fields)).mass == 0.0
+    opts = L.SolverOptions(1e-10, 1e-14, 1e-11, 1e-2, 10**6, 3.0)
+    maps = [
+        record_flow_map(
+            ImpactOscillator(mass=m, **fields), opts, 0.0, 3.0, [0.3, 0.0], keys=["law.damping"]
+        )
+        for m in (1, 1.0)
+    ]
+    for name in ("y1", "jac_y", "jac_p", "impact_sens"):
+        assert np.array_equal(getattr(maps[0], name), getattr(maps[1], name)), name
 
 
 def _free_response(t, m, c, k, F, W, x0, v0):
