@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 
 import numpy as np
 import pytest
@@ -328,3 +329,42 @@ def test_resting_orbit_does_not_remember_its_seed(system) -> None:
     c = seed_orbit(other, vals, 1, method="fd")
     assert c.cuts[0].v0_fixed[0] == 2e-3
     assert abs(c.profile.approach - a.profile.approach) > 1e-3 * a.profile.approach
+
+
+_BASE_CONT = {"parameter": HA, "from": "0.05 mm", "to": "0.06 mm"}
+
+
+@pytest.mark.parametrize(
+    ("continuation", "operating_map", "message"),
+    [
+        # each was accepted, or failed later without naming the entry (a sceptical audit)
+        ({"restart": "b.nc", "restart_point": "last"}, {}, "continuation.restart_point: 'last'"),
+        ({"restart": "spec.toml"}, {}, "continuation.restart: 'spec.toml' is not a saved branch"),
+        ({"transient_cycles": 0.5}, {}, "continuation.transient_cycles: 0.5 is out of range"),
+        ({"transient_cycles": -0.5}, {}, "allowed an integer 0 <= value <= 1e6"),
+        ({"min_step": 1e-3, "max_step": 1e-9}, {}, "min_step 0.001 <= step 0.02 <= max_step"),
+        ({}, {"parameter": "foo.bar", "to": 1.0}, "operating_map.parameter: unknown key"),
+        (
+            {},
+            {"parameter": "horn_gear.angular_velocity", "to": "4 pi rad/s"},
+            "operating_map.to: equals the scenario's horn_gear.angular_velocity",
+        ),
+    ],
+)
+def test_spec_entries_are_refused_where_they_are_given(continuation, operating_map, message):
+    from braidsim.continuation.study import parse_spec
+
+    table = {"scenario": "paper-3.3", "continuation": {**_BASE_CONT, **continuation}}
+    if operating_map:
+        table["operating_map"] = operating_map
+    with pytest.raises(InputError, match=re.escape(message)):
+        parse_spec(table)
+
+
+def test_spec_accepts_a_transient_of_whole_periods_and_a_restart_point_from_the_end() -> None:
+    from braidsim.continuation.study import parse_spec
+
+    cont = {**_BASE_CONT, "transient_cycles": 0, "restart": "b.zarr", "restart_point": -2}
+    spec = parse_spec({"scenario": "paper-3.3", "continuation": cont})
+    assert spec.transient_cycles == 0.0 and spec.restart_point == -2
+    assert spec.restart is not None and spec.restart.endswith("b.zarr")

@@ -18,7 +18,7 @@ Spec (SI numbers or unit strings)::
     switch = true                       # follow the period-2k branch at period doublings
     max_doublings = 2
     both_directions = false
-    transient_cycles = 300              # of the simulated steady state that seeds the orbit
+    transient_cycles = 300              # periods simulated to the steady state that seeds the orbit
     resting_speed = "0.1 mm/s"          # latched speed of a contact open all along an orbit
                                         # (default contact.min_impact_velocity)
     seed = ["0.05 mm", "0 m/s"]         # optional (x, vx) at forcing phase 0 instead
@@ -222,8 +222,40 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
                 "allowed a speed > 0 m/s"
             )
     restart = cont.get("restart")
-    if restart is not None and not isinstance(restart, str):
-        raise InputError("continuation.restart: expected the path of a saved branch (.nc or .zarr)")
+    if restart is not None and (
+        not isinstance(restart, str) or Path(restart).suffix not in (".nc", ".zarr")
+    ):
+        raise InputError(
+            f"continuation.restart: {restart!r} is not a saved branch; allowed the path of a "
+            "branch_*.nc or branch_*.zarr that braidsim continue wrote"
+        )
+    restart_point = cont.get("restart_point", -1)
+    if isinstance(restart_point, bool) or not isinstance(restart_point, int):
+        raise InputError(
+            f"continuation.restart_point: {restart_point!r} is not an integer; allowed a "
+            "point of the saved branch, from 0 (negative: from the end, -1 the last)"
+        )
+    steps = {
+        name: _float(f"continuation.{name}", cont.get(name, default), 0.0, 1.0)
+        for name, default in (("step", 0.02), ("max_step", 0.1), ("min_step", 1e-6))
+    }
+    if not steps["min_step"] <= steps["step"] <= steps["max_step"]:
+        raise InputError(
+            f"continuation.step: min_step {steps['min_step']:g} <= step {steps['step']:g} <= "
+            f"max_step {steps['max_step']:g} does not hold; allowed steps in that order"
+        )
+    transient = cont.get("transient_cycles", 300)
+    if isinstance(transient, bool) or not isinstance(transient, int | float):
+        raise InputError(
+            f"continuation.transient_cycles: {transient!r} is not a number; allowed an "
+            "integer 0 <= value <= 1e6"
+        )
+    if not (math.isfinite(transient) and transient == int(transient) and 0 <= transient <= 1e6):
+        raise InputError(
+            f"continuation.transient_cycles: {transient!r} is out of range; allowed an "
+            "integer 0 <= value <= 1e6 (whole periods simulated before the orbit is sought; "
+            "0: from the scenario's initial state)"
+        )
     mp = expect_table("operating_map", table.get("operating_map", {}))
     check_keys("operating_map.", mp, MAP_KEYS)
     map_key = None
@@ -235,12 +267,18 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         map_key = mp.get("parameter")
         if not isinstance(map_key, str):
             raise InputError("operating_map.parameter: missing; allowed a scalar scenario key")
-        check_continuable(map_key)
+        check_continuable(map_key, "operating_map.parameter")
         if map_key == key:
             raise InputError("operating_map.parameter: must differ from continuation.parameter")
         if "to" not in mp:
             raise InputError("operating_map.to: missing; allowed a value of the second parameter")
         map_to = _si(map_key, mp["to"], "operating_map.to")
+        base = sc[map_key]
+        if base is not None and map_to == float(base):
+            raise InputError(
+                f"operating_map.to: equals the scenario's {map_key} ({map_to:g}), where the "
+                "map starts; allowed another value"
+            )
         if "types" in mp:
             t = mp["types"]
             if not isinstance(t, list) or any(x not in (*SPECIAL_TYPES[:2], "grazing") for x in t):
@@ -280,18 +318,16 @@ def parse_spec(table: Mapping[str, Any], base_dir: Path = Path()) -> Continuatio
         segments=_int("continuation.segments", cont.get("segments", 1), 1),
         method=method,
         max_points=_int("continuation.max_points", cont.get("max_points", 200), 2),
-        step=_float("continuation.step", cont.get("step", 0.02), 0.0, 1.0),
-        max_step=_float("continuation.max_step", cont.get("max_step", 0.1), 0.0, 1.0),
-        min_step=_float("continuation.min_step", cont.get("min_step", 1e-6), 0.0, 1.0),
+        step=steps["step"],
+        max_step=steps["max_step"],
+        min_step=steps["min_step"],
         switch=_bool("continuation.switch", cont.get("switch", True)),
         max_doublings=_int("continuation.max_doublings", cont.get("max_doublings", 2), 0),
         both_directions=_bool("continuation.both_directions", cont.get("both_directions", False)),
-        transient_cycles=_float(
-            "continuation.transient_cycles", cont.get("transient_cycles", 300), -1.0, 1e6
-        ),
+        transient_cycles=float(transient),
         seed=seed,
         restart=str(base_dir / restart) if restart else None,
-        restart_point=int(cont.get("restart_point", -1)),
+        restart_point=restart_point,
         resting_speed=resting,
         map_parameter=map_key,
         map_to=map_to,

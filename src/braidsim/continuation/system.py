@@ -107,23 +107,23 @@ class Prepared:
         return np.array(out, dtype=float)
 
 
-def check_continuable(key: str) -> None:
-    """:class:`InputError` unless ``key`` is a scalar scenario key continuation can vary."""
+def check_continuable(key: str, where: str = "continuation.parameter") -> None:
+    """:class:`InputError` unless ``key`` is a scalar scenario key continuation can vary
+    (``where``: the spec entry that names it, for the message)."""
     allowed = "a scalar parameter such as " + ", ".join(CONTINUABLE_EXAMPLES)
     if key not in SCHEMA:
         import difflib
 
         close = difflib.get_close_matches(key, list(SCHEMA), n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise InputError(f"continuation.parameter: unknown key {key!r}{hint}; allowed {allowed}")
+        raise InputError(f"{where}: unknown key {key!r}{hint}; allowed {allowed}")
     if SCHEMA[key].kind != "float":
         raise InputError(
-            f"continuation.parameter: {key!r} is not a number and cannot be continued; "
-            f"allowed {allowed}"
+            f"{where}: {key!r} is not a number and cannot be continued; allowed {allowed}"
         )
     if key in NOT_CONTINUABLE_KEYS or key.startswith(NOT_CONTINUABLE_PREFIXES):
         raise InputError(
-            f"continuation.parameter: {key!r} is not a parameter of the periodic orbit "
+            f"{where}: {key!r} is not a parameter of the periodic orbit "
             f"(initial state, solver setting or transfer schedule); allowed {allowed}"
         )
 
