@@ -51,6 +51,7 @@ from braidsim.continuation import ScenarioSystem, seed_orbit
 from braidsim.continuation.branch import continue_orbit
 from braidsim.continuation.plots import plot_branches, plot_operating_map
 from braidsim.continuation.twopar import crossing_boundaries, trace_boundary
+from braidsim.io import json_safe
 from braidsim.plotting import new_figure, save
 
 HA = "track.vibration_amplitude"
@@ -279,7 +280,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     findings["clearance_special_points"] = [s.to_dict() for s in br_c.special]
     findings["clearance_cross_special_points"] = [s.to_dict() for s in br_x.special]
     findings["curves"] = [c.to_dict() for c in curves]
-    (out / "findings.json").write_text(json.dumps(findings, indent=1), encoding="utf-8")
+    # strict JSON: a value that does not exist (NaN) is null, as in every braidsim output
+    text = json.dumps(json_safe(findings), indent=1, allow_nan=False)
+    (out / "findings.json").write_text(text, encoding="utf-8")
     stage(f"wrote {out / 'continuation_clearance_map.png'} and {out / 'findings.json'}")
     return findings
 
