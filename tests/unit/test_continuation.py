@@ -368,3 +368,20 @@ def test_spec_accepts_a_transient_of_whole_periods_and_a_restart_point_from_the_
     spec = parse_spec({"scenario": "paper-3.3", "continuation": cont})
     assert spec.transient_cycles == 0.0 and spec.restart_point == -2
     assert spec.restart is not None and spec.restart.endswith("b.zarr")
+
+
+def test_a_branch_ending_just_below_a_lift_off_ends_on_its_own_orbit(system) -> None:
+    """The resting branch of paper-3.3 continued to 0.0968 mm, 1.5 % below its lift-off at
+    0.0983 mm, with long steps: the step past the end landed beyond the lift-off, on the
+    bouncing orbit that coexists there, and the end point found from it was that orbit
+    (one impact, a grazing reported at the end value). It is found from the branch's own
+    prediction now: still resting, no special point."""
+    rest = seed_orbit(system, {HA: 0.05e-3}, 1, method="fd")
+    assert rest.profile.impacts == 0
+    br = continue_orbit(
+        system, rest, HA, 0.0968e-3, method="fd", switch=False, step=0.1, max_step=0.3
+    )
+    assert br.points[-1].values[HA] == pytest.approx(0.0968e-3, rel=1e-12)
+    assert br.stop.startswith("reached")
+    assert all(o.profile.impacts == 0 for o in br.points)
+    assert not br.special
