@@ -406,8 +406,9 @@ def run_model(
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
     if n < n_full:
-        y_full = np.full(n_full, np.nan)
+        y_full = np.empty(n_full)  # (np.full costs 1.5 us)
         y_full[:n] = raw.y
+        y_full[n:] = np.nan
         raw.y = y_full
     return raw
 

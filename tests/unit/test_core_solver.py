@@ -288,6 +288,38 @@ def test_declared_model_walks_a_record_once_and_knows_it_by_identity() -> None:
     assert driver.declared_model(model) == first
 
 
+def test_runs_of_known_argument_types_call_the_kept_entry_point_with_the_same_bits(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A run whose solver arguments have the fingerprints of an earlier run's calls the
+    compiled entry point kept for them, not numba's dispatcher (which types every argument
+    at every call), and gives the same bits; with none kept, the run goes through
+    ``integrate`` (numba's dispatcher), and where that has no overloads to read nothing is
+    kept."""
+    from braidsim.core import driver
+
+    sc = load_scenario("paper-3.4a")
+    first = simulate(sc, 0.01, series=False)
+    real = driver.integrate
+    calls: list[int] = []
+
+    def dispatcher(*args: Any) -> Any:
+        calls.append(1)
+        return real(*args)
+
+    monkeypatch.setattr(driver, "integrate", dispatcher)
+    kept = simulate(sc, 0.01, series=False)
+    assert not calls
+    monkeypatch.setattr(driver, "_ENTRIES", {})
+    through = simulate(sc, 0.01, series=False)
+    assert calls and not driver._ENTRIES
+    for res in (kept, through):
+        assert res.episodes.tobytes() == first.episodes.tobytes()
+        assert res.ranges.tobytes() == first.ranges.tobytes()
+        assert repr(res.final_state) == repr(first.final_state)  # (NaN quadratures)
+        assert res.stats == first.stats
+
+
 def test_as_declared_makes_ints_floats_only_where_a_float_is_declared() -> None:
     """Python and numpy ints in float fields become floats, nested records included; a bool
     field, an array and a record with nothing to change are left as they are (the same

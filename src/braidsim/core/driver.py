@@ -235,7 +235,8 @@ def declared_options(opts: Any) -> Any:
 def _keep_newest(memo: dict[Any, Any], key: Any, value: Any) -> None:
     """Store ``value`` in ``memo``, dropping its oldest entry past :data:`_DECLARED_KEPT`."""
     if len(memo) >= _DECLARED_KEPT:
-        memo.pop(next(iter(memo)))
+        # (a run on another thread of a batch may have dropped the same entry)
+        memo.pop(next(iter(memo)), None)
     memo[key] = value
 
 
@@ -258,6 +259,51 @@ def declared_model(model: Any) -> Any:
     return declared
 
 
+# numba's fingerprints of the records passed to the solver lately, by identity; each is held,
+# so that its id is not reused while it is kept
+_TYPE_KEYS: dict[int, tuple[Any, Any]] = {}
+
+
+def _type_key(record: Any) -> Any:
+    """numba's fingerprint of an immutable record (:func:`_fingerprint`), kept for the last
+    few records by identity: the model's record, walked by numba's dispatcher at every call
+    of the solver, cost ~8 us of a ~50-us call."""
+    seen = _TYPE_KEYS.get(id(record))
+    if seen is not None and seen[0] is record:
+        return seen[1]
+    key = _fingerprint(record)
+    _keep_newest(_TYPE_KEYS, id(record), (record, key))
+    return key
+
+
+# integrate's compiled entry points, by the fingerprints of the arguments that select them
+_ENTRIES: dict[tuple[Any, ...], Any] = {}
+
+
+def _integrate_for(key: tuple[Any, ...] | None) -> Any:
+    """The compiled entry point of ``integrate`` for arguments of fingerprints ``key`` (see
+    :func:`_keep_entry`), else ``integrate`` itself: numba's dispatcher, which types every
+    argument at every call."""
+    return integrate if key is None else _ENTRIES.get(key, integrate)
+
+
+def _keep_entry(key: tuple[Any, ...] | None, args: tuple[Any, ...]) -> None:
+    """After a call of ``integrate`` through numba's dispatcher with ``args``, of
+    fingerprints ``key``: keep the compiled entry point of their types, which arguments of
+    the same fingerprints select (numba's dispatcher keys argument types by them). Where
+    numba does not say (another numba, a signature not compiled as such), none is kept and
+    the dispatcher goes on choosing."""
+    if key is None or key in _ENTRIES:
+        return
+    try:
+        from numba import typeof
+
+        entry = integrate.overloads[tuple(typeof(a) for a in args)].entry_point
+    except Exception:
+        return
+    _keep_newest(_ENTRIES, key, entry)
+
+
 _PER_CLASS: dict[tuple[Any, ...], Any] = {}
 
 
@@ -272,11 +318,18 @@ def _per_class(fn: Any, model: Any, *args: int) -> Any:
     return _PER_CLASS[key]
 
 
+_SIZES: dict[type, tuple[int, int, int]] = {}
+
+
 def model_sizes(model: Any) -> tuple[int, int, int]:
     """(n_coords, n_pairs, n_quads) of ``model``
-    (:func:`~braidsim.core.interfaces.model_size`, kept per record class)."""
-    n_coords, n_pairs, n_quads = _per_class(model_size, model)
-    return int(n_coords), int(n_pairs), int(n_quads)
+    (:func:`~braidsim.core.interfaces.model_size`, kept per record class: a run reads them
+    five times)."""
+    sizes = _SIZES.get(type(model))
+    if sizes is None:
+        n_coords, n_pairs, n_quads = _per_class(model_size, model)
+        sizes = _SIZES[type(model)] = (int(n_coords), int(n_pairs), int(n_quads))
+    return sizes
 
 
 def dissipation_slot(model: Any, pair: int) -> int:
@@ -513,10 +566,17 @@ def run(
     sens_closed: list[np.ndarray] = []
     written = 0
     event_rows = 0  # of those, the rows that are not samples (start, onsets, peaks, ...)
-    i_kind = list(series_columns(model)).index("kind")
+    i_kind = list(series_columns(model)).index("kind") if rows is not None else -1
     budget = int(opts.max_steps)
     pause = L.PAUSE_STEPS if budget <= 2**52 else budget  # (see below)
     steps = RS["steps"]  # (a view of the record's field: its reads and writes cost 0.1 us)
+    args = (model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY)
+    # the arguments' types, by numba's fingerprints (None where one has none: a typed list);
+    # the record's and the options' kept by identity. (A fingerprint does not tell an int64
+    # from a uint64 int, which numba types by value: reserve, the only int, is small.)
+    fingerprints = (_type_key(model), _type_key(opts), _fingerprint(args[2:]))
+    key = None if None in fingerprints else fingerprints
+    call = _integrate_for(key)
     while True:
         # a call takes at most PAUSE_STEPS step attempts and returns to Python, so that a
         # pending signal (Ctrl-C, SIGTERM) is acted on: the record's count of attempts is
@@ -526,9 +586,10 @@ def run(
         # (the record's count is a float: exact to 2^53; a larger budget runs unpaused)
         shift = max(0, budget - pause - int(steps[0]))
         steps[0] += shift
-        status = integrate(
-            model, opts, y, RS, ST, TR, WIN, rows, reserve, EP, RANGES, XSQ, STATS, SENS, IMP, TAY
-        )
+        status = call(*args)
+        if call is integrate:
+            _keep_entry(key, args)
+            call = _integrate_for(key)
         if shift:
             steps[0] -= shift
             if status == L.ST_MAX_STEPS:
@@ -603,17 +664,23 @@ def run(
     )
 
 
+try:
+    from numba._dispatcher import compute_fingerprint as _compute_fingerprint  # (not public)
+except ImportError:  # another numba: no fingerprints, numba's dispatcher types every call
+    _compute_fingerprint = None  # type: ignore[assignment]
+
+
 def _fingerprint(value: Any) -> Any:
     """numba's fingerprint of a value, what its dispatcher keys argument types by (a
     record's class and field names, the dtypes and layouts of its arrays); a typed list's
     own numba type, which it carries; None where numba gives none (or has no fingerprint)."""
     if hasattr(value, "_numba_type_"):
         return ("typed", value._numba_type_)
+    if _compute_fingerprint is None:
+        return None
     try:
-        from numba._dispatcher import compute_fingerprint  # (numba's, not public)
-
-        return compute_fingerprint(value)
-    except Exception:  # a value numba cannot fingerprint, or another numba
+        return _compute_fingerprint(value)
+    except Exception:  # a value numba cannot fingerprint
         return None
 
 
