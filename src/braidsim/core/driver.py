@@ -251,16 +251,21 @@ def declared_model(model: Any) -> Any:
     model built once and run many times (a scenario's records are derived once,
     :func:`braidsim.model.build_model`) is walked once. Records are immutable; the arrays in
     them are not walked."""
-    seen = _DECLARED.get(id(model))
-    if seen is not None and seen[0] is model:
+    return _by_identity(_DECLARED, model, as_declared)
+
+
+def _by_identity(memo: dict[int, tuple[Any, Any]], record: Any, derive: Any) -> Any:
+    """``derive(record)``, kept in ``memo`` for the last few records by identity (each
+    record is held there, so that its id is not reused while it is kept)."""
+    seen = memo.get(id(record))
+    if seen is not None and seen[0] is record:
         return seen[1]
-    declared = as_declared(model)
-    _keep_newest(_DECLARED, id(model), (model, declared))
-    return declared
+    value = derive(record)
+    _keep_newest(memo, id(record), (record, value))
+    return value
 
 
-# numba's fingerprints of the records passed to the solver lately, by identity; each is held,
-# so that its id is not reused while it is kept
+# numba's fingerprints of the records passed to the solver lately, by identity
 _TYPE_KEYS: dict[int, tuple[Any, Any]] = {}
 
 
@@ -268,12 +273,7 @@ def _type_key(record: Any) -> Any:
     """numba's fingerprint of an immutable record (:func:`_fingerprint`), kept for the last
     few records by identity: the model's record, walked by numba's dispatcher at every call
     of the solver, cost ~8 us of a ~50-us call."""
-    seen = _TYPE_KEYS.get(id(record))
-    if seen is not None and seen[0] is record:
-        return seen[1]
-    key = _fingerprint(record)
-    _keep_newest(_TYPE_KEYS, id(record), (record, key))
-    return key
+    return _by_identity(_TYPE_KEYS, record, _fingerprint)
 
 
 # integrate's compiled entry points, by the fingerprints of the arguments that select them
