@@ -449,13 +449,50 @@ class FlowMap:
         return M
 
 
+def _initial_state(y0: Any, n: int) -> np.ndarray:
+    """``y0`` as the n entries of a flow map's start, checked."""
+    try:
+        ya = np.asarray(y0, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"flow_map: y0 = {y0!r}; allowed {n} finite numbers") from None
+    if ya.shape != (n,):
+        raise InputError(f"flow_map: y0 has the shape {ya.shape}; allowed {n} finite numbers")
+    if not np.all(np.isfinite(ya)):
+        raise InputError(f"flow_map: y0 = {ya.tolist()} is not finite; allowed {n} finite numbers")
+    return ya
+
+
+def _checked_keys(keys: Any) -> tuple[str, ...]:
+    """The keys of a flow map's parameters: a sequence of names, not one name (whose
+    letters a loop would take for keys)."""
+    if isinstance(keys, str) or not all(isinstance(k, str) for k in keys):
+        raise InputError(
+            f"flow_map: keys = {keys!r}; allowed a list of parameter names, "
+            "e.g. ['track.clearance']"
+        )
+    return tuple(keys)
+
+
 def _contact_state(
     modes: Sequence[int], v0s: Sequence[float]
 ) -> tuple[tuple[int, int], np.ndarray]:
     """The contact modes and latched speeds a flow map starts from, checked: each mode -1,
     0 or +1, and a speed > 0 for a pair in contact."""
-    modes_t = (int(modes[0]), int(modes[1]))
-    v0a = np.array(v0s, dtype=float).reshape(2)
+    try:
+        modes_t = (int(modes[0]), int(modes[1]))
+        if len(modes) != 2:
+            raise ValueError
+    except (TypeError, ValueError, IndexError):
+        raise InputError(
+            f"flow_map: modes = {modes!r}; allowed two contact modes (track, slot), each -1, "
+            "0 or +1"
+        ) from None
+    try:
+        v0a = np.array(v0s, dtype=float).reshape(2)
+    except (TypeError, ValueError):
+        raise InputError(
+            f"flow_map: v0s = {v0s!r}; allowed two latched speeds in m/s (NaN for a free pair)"
+        ) from None
     for p in range(2):
         if modes_t[p] not in (-1, 0, 1):
             raise InputError(f"flow_map: modes[{p}] = {modes_t[p]}; allowed -1, 0, +1")
@@ -503,13 +540,11 @@ def flow_map(
     n = 4 if model.two_dof else 2
     y = model.y0.copy()
     if y0 is not None:
-        ya = np.asarray(y0, dtype=float)
-        if ya.shape != (n,) or not np.all(np.isfinite(ya)):
-            raise InputError(f"flow_map: y0 needs {n} finite entries, got {ya.shape}")
-        y[:n] = ya
+        y[:n] = _initial_state(y0, n)
         y[n:] = 0.0
     modes_t, v0a = _contact_state(modes, v0s)
     # directions: the n state components, the 2 latched speeds, the keys
+    keys = _checked_keys(keys)
     dirs = directions(model, keys) if keys else None
     zero = zero_tangent(model.record)
     k = n + 2 + len(keys)
@@ -692,10 +727,9 @@ def record_flow_map(
     if not (math.isfinite(t0) and math.isfinite(t1) and t1 > t0):
         raise InputError(f"flow_map: [t0, t1] = [{t0}, {t1}] is not a time interval")
     check_differentiable(record)
+    keys = _checked_keys(keys)
     n = state_size(record, False)
-    ya = np.asarray(y0, dtype=float)
-    if ya.shape != (n,) or not np.all(np.isfinite(ya)):
-        raise InputError(f"flow_map: y0 needs {n} finite entries, got {ya.shape}")
+    ya = _initial_state(y0, n)
     modes_t, v0a = _contact_state(modes, v0s)
     zero = zero_tangent(record)
     records = [zero] * (n + 2)

@@ -6,6 +6,7 @@ resting-contact orbit against finite differences of the flow map."""
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -472,6 +473,22 @@ def test_bad_keys_are_one_clear_line() -> None:
         braidsim.simulate("paper-3.3", duration=0.01, sensitivities=["contact.track.restitutio"])
     with pytest.raises(InputError, match=r"simulation\.rtol is not a differentiable"):
         braidsim.simulate("paper-3.3", duration=0.01, sensitivities=["simulation.rtol"])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        # a string was taken letter by letter ("t: unknown parameter")
+        ({"keys": "track.clearance"}, "keys = 'track.clearance'; allowed a list"),
+        ({"modes": (1,)}, "modes = (1,); allowed two contact modes"),  # (an IndexError)
+        ({"modes": (-1, 0), "v0s": ("a", 1)}, "v0s = ('a', 1); allowed two latched speeds"),
+        ({"y0": [math.nan, 0.0]}, "y0 = [nan, 0.0] is not finite"),  # ("got (2,)")
+        ({"y0": [0.0, 0.0, 0.0]}, "y0 has the shape (3,); allowed 2 finite numbers"),
+    ],
+)
+def test_flow_map_inputs_are_one_clear_line(kwargs, message) -> None:
+    with pytest.raises(InputError, match=re.escape(message)):
+        flow_map("paper-3.3", 0.0, 0.01, **kwargs)
 
 
 def test_grazing_contact_is_refused() -> None:

@@ -80,7 +80,7 @@ def run(
             sc,
             duration=dur,
             windows=windows,
-            sensitivities=list(sensitivity or ()) or None,
+            sensitivities=[k.strip() for k in sensitivity or ()] or None,
             series=out is not None,  # only the files of --out read the series
         )
     summary = res.summary(window=win)
