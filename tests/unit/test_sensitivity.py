@@ -247,6 +247,12 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
         braidsim.simulate(sc, duration=0.01, series=False, sensitivities=["initial.y"])
     # the initial x moves the slot's gap by rounding only (it was refused at this atol)
     braidsim.simulate(sc, duration=0.01, series=False, sensitivities=["initial.x"])
+    # nor do the start's tangents, difference quotients good to ~1e-13, at an atol of
+    # 1e-12 m/s (a rate of 1e-13 m/s per unit along the horn gear's speed was refused)
+    tighter = sc.with_overrides({"simulation.atol_velocity": 1e-12})
+    keys = ["horn_gear.angular_velocity", "initial.x"]
+    again = braidsim.simulate(tighter, duration=0.01, series=False, sensitivities=keys)
+    assert np.all(again.sensitivity.impacts[i_slot, :, 0] == 0.0)
 
 
 def test_stencil_rounding_is_no_derivative() -> None:

@@ -240,7 +240,8 @@ def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plu
     wall, carried by the horn gear) touches from the first instant, and its onset found a
     few 1e-20 s later has no normal speed: grazing by the test above. But where no direction
     moves that wall's gap or its rate at the start (each tangent below the direction's
-    absolute tolerance), the contact starts at the run's start whatever the parameters: the
+    absolute tolerance plus 1e-9 of the largest tangent of its kind, the rounding of the
+    start's tangents), the contact starts at the run's start whatever the parameters: the
     onset time's derivative is 0 and the tangents do not jump; the approach speed is held at
     its floor. A direction that moves the gap or its rate there (the initial y, say) does
     make the contact appear or not: grazing.
@@ -254,7 +255,12 @@ def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plu
         for d in range(SENS.S.shape[0]):
             dg_in, dg_out, drate_in = pair_gaps_jvp(model, SENS.tangents[d], pair, t, y, SENS.S[d])
             dg = dg_in if side < 0 else dg_out
-            if abs(dg) > SENS.ATOL[d, 0] or abs(drate_in) > SENS.ATOL[d, 1]:
+            # (the start's tangents are difference quotients of the model's records, good
+            # to ~1e-13 of their size: a rate of 1e-13 m/s per unit at an atol of 1e-12
+            # m/s was taken for a direction that moves the wall)
+            if abs(dg) > SENS.ATOL[d, 0] + 1e-9 * SENS.SMAX[d, 0]:
+                return False
+            if abs(drate_in) > SENS.ATOL[d, 1] + 1e-9 * SENS.SMAX[d, 1]:
                 return False
         pinned = True
     acc_in = pair_gap_accel(model, pair, t, f_minus)
