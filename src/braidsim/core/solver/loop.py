@@ -84,13 +84,13 @@ from braidsim.core.solver.recorders import (
 )
 from braidsim.core.solver.tangent import (
     arrays_fit,
-    contact_event,
     episode_extremes,
     new_episode_row,
     onset_correction,
     series_tangent_row,
     start_contact,
     step_series_tangents,
+    surface_event,
     tangent_dense_coeffs,
     tangent_dense_eval,
     tangent_error,
@@ -337,6 +337,10 @@ def integrate(
         y_minus = np.empty(n)
         prev_depth_t = np.zeros(2)
         prev_peak_t = np.zeros(2)
+        ev_modes = np.empty(2, dtype=np.int64)  # (the contact modes before an event)
+        yc = np.empty(n)  # the state on the wall at an event, and the fields there
+        fm = np.empty(n)
+        fp = np.empty(n)
         if not arrays_fit(SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]):
             return ST_BAD_ARRAYS
     modes = np.empty(2, dtype=np.int64)  # (all three set from the restart record below)
@@ -1103,8 +1107,30 @@ def integrate(
             if SENS is not None:
                 # (at a clamp the field is continuous: the tangents do not jump)
                 at_start = ev_onset and t - t_begin <= 1e-12 * max(1.0, abs(t_begin))
-                if not kink and not contact_event(
-                    model, SENS, pair, side, ev_onset, at_start, t, y, Ke6, K0, n_dof2, ev_ie, KS
+                # (on the wall itself: tangent.surface_event)
+                if not kink and not surface_event(
+                    model,
+                    SENS,
+                    pair,
+                    side,
+                    ev_onset,
+                    at_start,
+                    t,
+                    y,
+                    Ke6,
+                    K0,
+                    n,
+                    n_dof2,
+                    ev_ie,
+                    KS,
+                    h_taken,
+                    modes,
+                    v0s,
+                    ev_modes,
+                    yc,
+                    fm,
+                    fp,
+                    sw,
                 ):
                     status = ST_GRAZING
                     break
