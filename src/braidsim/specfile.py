@@ -19,6 +19,16 @@ def closest_hint(word: str, choices: Sequence[str]) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
+def check_choice(where: str, value: Any, choices: Sequence[str]) -> None:
+    """Raise :class:`InputError` unless ``value`` is one of ``choices`` (``where``: the
+    entry's name), with the closest choice as a hint."""
+    if value not in choices:
+        raise InputError(
+            f"{where}: {value!r} is not allowed{closest_hint(str(value), choices)}; "
+            f"allowed {', '.join(choices)}"
+        )
+
+
 def check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
     """Raise :class:`InputError` for the first key of ``table`` not in ``allowed``."""
     for k in table:

@@ -48,7 +48,7 @@ from typing import Any
 from braidsim.errors import InputError
 from braidsim.fit.data import IMPACT_UNITS, QUANTITY_UNITS
 from braidsim.params import SCHEMA, Scenario, load_scenario
-from braidsim.specfile import check_keys, closest_hint, expect_table, read_toml_file
+from braidsim.specfile import check_choice, check_keys, closest_hint, expect_table, read_toml_file
 from braidsim.units import to_si
 
 #: every quantity a record or an impact list can give, with its SI unit
@@ -217,11 +217,7 @@ def _quantities(value: Any) -> tuple[str, ...]:
         )
     out = []
     for q in items:
-        if q not in names:
-            raise InputError(
-                f"fit.quantity: {q!r} is not allowed{closest_hint(str(q), names)}; "
-                f"allowed {', '.join(names)}"
-            )
+        check_choice("fit.quantity", q, names)
         if q not in out:
             out.append(q)
     return tuple(out)

@@ -72,7 +72,7 @@ from braidsim import limits
 from braidsim.batch import METRIC_NAMES, SERIES_VARIABLES, RunOptions, check_options
 from braidsim.errors import InputError
 from braidsim.params import SCHEMA, Scenario, builtin_names, convert, flatten, load_scenario
-from braidsim.specfile import check_keys, closest_hint, expect_table
+from braidsim.specfile import check_choice, check_keys, closest_hint, expect_table
 from braidsim.units import to_si
 
 TOP_KEYS = (
@@ -414,12 +414,7 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         start = spec.check_number(to_si(f"{where}start ({key})", t["start"], spec.unit))
         stop = spec.check_number(to_si(f"{where}stop ({key})", t["stop"], spec.unit))
         spacing = t.get("spacing", "linear")
-        if spacing not in SPACINGS:
-            raise InputError(
-                f"{where}spacing: {spacing!r} is not allowed"
-                f"{closest_hint(str(spacing), SPACINGS)}; "
-                f"allowed {', '.join(SPACINGS)}"
-            )
+        check_choice(f"{where}spacing", spacing, SPACINGS)
         if num > 1 and start == stop:
             raise InputError(
                 f"{where}stop: equals start ({start:g}), an empty range; allowed stop != start"
@@ -469,12 +464,7 @@ def _samples(table: Any, base: Scenario) -> Samples:
     t = expect_table("samples", table)
     check_keys("samples.", t, SAMPLES_KEYS)
     method = t.get("method", "latin_hypercube")
-    if method not in SAMPLE_METHODS:
-        raise InputError(
-            f"samples.method: {method!r} is not allowed"
-            f"{closest_hint(str(method), SAMPLE_METHODS)}; "
-            f"allowed {', '.join(SAMPLE_METHODS)}"
-        )
+    check_choice("samples.method", method, SAMPLE_METHODS)
     if "n" not in t:
         raise InputError("samples.n: missing; allowed an integer >= 1")
     n = _int("samples.n", t["n"], 1)
