@@ -591,9 +591,18 @@ class Scenario:
         )
 
     def with_overrides(
-        self, overrides: Mapping[str, Any] | None = None, name: str | None = None
+        self,
+        overrides: Mapping[str, Any] | None = None,
+        name: str | None = None,
+        *,
+        check_start: bool = True,
     ) -> Scenario:
-        """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied."""
+        """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied.
+
+        ``check_start=False`` leaves the start's position unchecked against the walls: for a
+        caller that sets the start itself afterwards (a machine's carriers start at rest on
+        the inner wall, wherever the scenario they are built from starts, and a smaller
+        clearance must not be refused for that scenario's start)."""
         if overrides is not None and not isinstance(overrides, Mapping):
             # analyze(scenario, 0.3) and the like: their second positional argument is the
             # overrides, the duration a keyword
@@ -616,7 +625,7 @@ class Scenario:
             raw[key] = convert(SCHEMA[key], value)
             explicit.add(key)
         _resolve_stiffness(raw)
-        _check_consistency(raw)
+        _check_consistency(raw, check_start)
         return Scenario(
             name or self.name,
             MappingProxyType(raw),
@@ -683,9 +692,10 @@ def _check_start_between_walls(values: Mapping[str, Any]) -> None:
             )
 
 
-def _check_consistency(values: Mapping[str, Any]) -> None:
+def _check_consistency(values: Mapping[str, Any], check_start: bool = True) -> None:
     """Cross-key checks that a single range cannot express."""
-    _check_start_between_walls(values)
+    if check_start:
+        _check_start_between_walls(values)
     for pair, (body, other) in {
         "track": ("guide_pad", "track"),
         "slot": ("carrier", "horn_gear"),

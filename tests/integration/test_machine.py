@@ -78,6 +78,28 @@ def test_start_from_the_scenario() -> None:
     np.testing.assert_allclose(before["peak_force"], ref.impacts["peak_force"], rtol=1e-9)
 
 
+def test_a_clearance_below_the_scenarios_start_is_taken_with_the_rest_start() -> None:
+    """paper-3.2 starts on its outer wall at x0 = 3 mm; a machine spec that narrows the
+    clearance to 1.4 mm (the design study's clearance lever goes to 1.5 mm) was refused for
+    that start, "initial.x: 3 mm is out of range", though the carriers start at rest on the
+    inner wall instead. With start = "scenario" the scenario's own start is the carriers',
+    and it is refused, naming it."""
+    narrow = {**one_carrier(0.3), "overrides": {"track.clearance": "1.4 mm"}}
+    spec = parse_machine_spec(narrow)
+    assert spec.scenario["track.clearance"] == pytest.approx(1.4e-3)
+    assert spec.scenario["initial.x"] < 0.0  # at rest, pressed into the inner wall
+    narrow["machine"] = {**narrow["machine"], "start": "scenario"}
+    with pytest.raises(braidsim.InputError, match=r"initial\.x: 3 mm is out of range"):
+        parse_machine_spec(narrow)
+
+
+def test_a_speed_that_presses_the_carriers_through_the_clearance_is_refused() -> None:
+    """At 1e9 rpm the rest start's static deflection (centrifugal load) is 1e6 mm: refused
+    naming machine.speed and the largest speed the clearance allows (it named initial.x)."""
+    with pytest.raises(braidsim.InputError, match=r"machine\.speed: .* allowed below 7243 rad/s"):
+        parse_machine_spec(one_carrier(0.3, speed="1e9 rpm"))
+
+
 def test_every_transfer_against_closed_forms() -> None:
     """Outside references for each complete transfer of one carrier (no track vibration):
 

@@ -67,7 +67,7 @@ from braidsim.machine.geometry import (
 from braidsim.machine.kinematics import SpeedLaw, cycle_profile, revolution_time
 from braidsim.model import build_model
 from braidsim.params import Scenario, builtin_names, flatten, load_scenario
-from braidsim.specfile import check_keys, closest_hint, expect_table, read_toml_file
+from braidsim.specfile import check_choice, check_keys, expect_table, read_toml_file
 from braidsim.units import to_si
 
 TOP_KEYS = (
@@ -244,6 +244,17 @@ def _rest_start(sc: Scenario) -> dict[str, float]:
     rec = model.record
     load = rec.load_x + rec.mass_radius * om0 * om0
     delta = (load / model.track.stiffness) ** (1.0 / model.track.exponent) if load > 0 else 0.0
+    clearance = sc["track.clearance"]
+    if delta > clearance:
+        # (no machine runs so fast: 1e9 rpm was refused naming initial.x, a key the rest
+        # start derives, and the speeds in between ran with absurd forces)
+        spare = model.track.stiffness * clearance**model.track.exponent - rec.load_x
+        top = math.sqrt(spare / rec.mass_radius) if spare > 0 and rec.mass_radius > 0 else 0.0
+        raise InputError(
+            f"machine.speed: {om0:g} rad/s presses each carrier {delta * 1e3:.3g} mm into the "
+            f"inner wall at rest (its centrifugal load m r_c omega^2), more than the track "
+            f"clearance of {clearance * 1e3:g} mm; allowed below {top:.4g} rad/s"
+        )
     h0, hd0, _ = wall_motion.py(rec.track, 0.0)
     out = {"initial.x": float(h0 - delta), "initial.vx": float(hd0)}
     if sc["simulation.dof"] == "xy":
@@ -274,7 +285,14 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     if ref not in builtin_names() and path is not None and (path.parent / ref).is_file():
         scen = path.parent / ref
     overrides = flatten(expect_table("overrides", data.get("overrides", {})))
-    base = load_scenario(scen, overrides=overrides or None)
+    m = expect_table("machine", data.get("machine", {}))
+    check_keys("machine.", m, MACHINE_KEYS)
+    start = m.get("start", "rest")
+    check_choice("machine.start", start, STARTS)
+    # (the carriers' start is checked once it is set: at rest, below, it replaces the
+    # scenario's own, which a smaller clearance may put inside the outer wall)
+    rest = start == "rest"
+    base = load_scenario(scen).with_overrides(overrides or None, check_start=not rest)
     for key in MACHINE_SET_KEYS:
         if key in base.explicit and base[key] not in ((), 0.0):
             raise InputError(
@@ -282,8 +300,6 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
                 "scenario and its overrides"
             )
 
-    m = expect_table("machine", data.get("machine", {}))
-    check_keys("machine.", m, MACHINE_KEYS)
     if "horn_gears" not in m:
         raise InputError("machine.horn_gears: missing; allowed an even number from 4 to 1000")
     n_gears = _int("machine.horn_gears", m["horn_gears"], 4, 1000)
@@ -322,13 +338,6 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
             "hercules or a table {A = [lanes], B = [lanes]}"
         )
 
-    start = m.get("start", "rest")
-    if start not in STARTS:
-        raise InputError(
-            f"machine.start: {start!r} is not allowed{closest_hint(str(start), STARTS)}; "
-            f"allowed {', '.join(STARTS)}"
-        )
-
     machine_over: dict[str, Any] = {"carrier.turning_radius": geom.pitch_radius}
     speed_set = "speed" in m
     if speed_set:
@@ -345,7 +354,7 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
                 "machine.speed: the scenario sets horn_gear.speed_profile; allowed: one of them"
             )
         machine_over["horn_gear.angular_velocity"] = w
-    sc = base.with_overrides(machine_over)
+    sc = base.with_overrides(machine_over, check_start=not rest)
     law = SpeedLaw.from_model(build_model(sc, 1.0))
     mean = law.mean
 
@@ -365,7 +374,7 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
         phases = _numbers("machine.speed_profile.phase", prof["phase"])
         factors = _numbers("machine.speed_profile.factor", prof["factor"])
         table, scale = cycle_profile(phases, factors, mean, geom.transfer_cycle * geom.quantum)
-        sc = sc.with_overrides({"horn_gear.speed_profile": table})
+        sc = sc.with_overrides({"horn_gear.speed_profile": table}, check_start=not rest)
         law = SpeedLaw.from_model(build_model(sc, 1.0))
         profile_in = {"phase": phases, "factor": factors}
     if start == "rest":
