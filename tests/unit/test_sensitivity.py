@@ -481,6 +481,29 @@ def test_bad_keys_are_one_clear_line() -> None:
         braidsim.simulate("paper-3.3", duration=0.01, sensitivities=["simulation.rtol"])
 
 
+def test_a_grazing_onset_after_a_pause_is_refused_as_before_it(monkeypatch) -> None:
+    """The grazing of the test above along a direction that does not move the gap (the
+    law's stiffness): a run that pauses (every 5 steps here; every 50,000 in use) resumed in
+    calls whose start time was -inf, where every onset counted as the run's start and was
+    taken as pinned on its wall: the run went on past it. It is refused there, as in one
+    call."""
+    from braidsim.core import driver
+
+    law = PowerLawContact(1e9, 1.5, 0.3)
+    g = 1e-3
+    model = ImpactOscillator(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, g, law, 1e-2, -1.0)
+    opts = L.SolverOptions(1e-10, 1e-15, 1e-12, 1e-3, 10**6, 2.0)
+    y0 = np.array([g - 1e-8, 1e-8, 0.0, 0.0, 0.0])
+    z = zero_tangent(model)
+    stiff = z._replace(law=z.law._replace(stiffness=1.0))
+    tg = Tangents([stiff], np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 0)), np.ones(1), False)
+    for pause in (L.PAUSE_STEPS, 5):
+        monkeypatch.setattr(driver.L, "PAUSE_STEPS", pause)
+        raw = run(model, opts, y0, series=False, tangents=tg)
+        # (at the onset, t = 1 s: resumed, the run went on to fail at the exit, 1.032 s)
+        assert raw.status == L.ST_GRAZING and raw.t == pytest.approx(1.0, rel=1e-6), pause
+
+
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [

@@ -1106,7 +1106,13 @@ def integrate(
             st.rhs_evaluations += 1
             if SENS is not None:
                 # (at a clamp the field is continuous: the tangents do not jump)
-                at_start = ev_onset and t - t_begin <= 1e-12 * max(1.0, abs(t_begin))
+                # (t_begin is -inf in a call that resumes a run: no onset there is the
+                # run's start, though inf <= inf would say so)
+                at_start = (
+                    ev_onset
+                    and t_begin > -math.inf
+                    and t - t_begin <= 1e-12 * max(1.0, abs(t_begin))
+                )
                 # (on the wall itself: tangent.surface_event)
                 if not kink and not surface_event(
                     model,
