@@ -245,7 +245,7 @@ def test_colliding_loading_exits_2_with_one_line(
     spec.write_text('[machine]\nhorn_gears = 8\nslots = 4\nloading = "hercules"\n')
     code, out, err = run_cli(capsys, "machine", str(spec), "--out", str(tmp_path / "o"))
     assert code == 2 and out == ""
-    assert err.count("\n") == 1 and "pattern 'hercules' is not collision-free" in err
+    assert err.count("\n") == 1 and "pattern 'hercules' (3/3) needs at least 6 slots" in err
     assert not (tmp_path / "o").exists()
     spec.write_text("[machine]\nhorn_gears = 8\nloading = { A = [0], B = [2] }\n")
     code, _, err = run_cli(capsys, "machine", str(spec), "--out", str(tmp_path / "o"))

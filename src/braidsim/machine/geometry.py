@@ -624,6 +624,13 @@ def loading_pattern(geom: MachineGeometry, name: str) -> Loading:
             f"machine.loading: unknown pattern {name!r}{hint}; allowed {', '.join(allowed)} or a "
             "table {A = [lanes], B = [lanes]}"
         )
+    if k > geom.S // 2:
+        # (more than a full loading: it was refused as a collision of two carriers)
+        raise InputError(
+            f"machine.loading: pattern {name!r} ({k}/{k}) needs at least {2 * k} slots per "
+            f"horn gear, machine.slots is {geom.S}; allowed patterns with k <= S/2 = "
+            f"{geom.S // 2} (full: {geom.S // 2}/{geom.S // 2})"
+        )
     n = k * geom.N // 2
     L = geom.lanes
     if n > L:
