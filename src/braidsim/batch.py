@@ -69,7 +69,7 @@ from braidsim.core import CARRIER_COLUMNS, RawRun
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
 from braidsim.params import SCHEMA, Scenario, load_scenario
-from braidsim.regimes import CONTACT_PATTERNS, FAILED, contact_pattern
+from braidsim.regimes import CONTACT_PATTERNS, FAILED, window_contacts
 from braidsim.result import UNITS as SERIES_UNITS
 
 if TYPE_CHECKING:
@@ -308,30 +308,17 @@ def run_samples(model: Model, sample_times: np.ndarray, windows: np.ndarray) -> 
 
 
 def _episode_metrics(EP: np.ndarray, t0: float, t1: float, values: np.ndarray) -> None:
-    """Impacts, approach speeds, contact fractions and the regime from the episode table."""
-    t_on = EP["t"]
-    t_off = EP["t_end"]
-    pair = EP["pair"]
-    wall = EP["wall"]
-    onset = (EP["initial"] == 0.0) & (t_on >= t0) & (t_on <= t1)
-    overlap = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
-    counts = {}
+    """Impacts, approach speeds, contact fractions and the regime from the episode table
+    (:func:`braidsim.regimes.window_contacts`, as the steady-state regime reads them)."""
+    wc = window_contacts(EP, t0, t1)
     for ip, (pname, walls) in enumerate(
         (("track", ("inner", "outer")), ("slot", ("rear", "front")))
     ):
-        mine = pair == ip
-        for side, wname in zip((-1.0, 1.0), walls, strict=True):
-            n = int(np.count_nonzero(onset & mine & (wall == side)))
-            counts[(pname, wname)] = n
-            values[METRIC_INDEX[f"{pname}_{wname}_impacts"]] = n
-        v = EP["velocity"][onset & mine]
-        values[METRIC_INDEX[f"{pname}_max_approach_speed"]] = float(v.max()) if v.size else 0.0
-        values[METRIC_INDEX[f"{pname}_contact_fraction"]] = float(overlap[mine].sum()) / (t1 - t0)
-    values[METRIC_INDEX["regime"]] = contact_pattern(
-        values[METRIC_INDEX["track_contact_fraction"]] > 0.0,
-        counts[("track", "inner")],
-        counts[("track", "outer")],
-    )
+        for k, wname in enumerate(walls):
+            values[METRIC_INDEX[f"{pname}_{wname}_impacts"]] = int(wc.onsets[ip, k])
+        values[METRIC_INDEX[f"{pname}_max_approach_speed"]] = wc.max_approach_speed[ip]
+        values[METRIC_INDEX[f"{pname}_contact_fraction"]] = wc.contact_fraction[ip]
+    values[METRIC_INDEX["regime"]] = wc.track_pattern
 
 
 # ----------------------------------------------------------------------------------------

@@ -22,6 +22,10 @@ A run that failed numerically is ``failed`` on both levels (code -1).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
+
 CONTACT_PATTERNS = ("no_contact", "resting_contact", "one_sided_impacts", "two_sided_impacts")
 """Contact patterns of a window; the index is the code stored in batches and sweeps."""
 FAILED = -1
@@ -58,3 +62,62 @@ def pattern_of(regime: str, walls: str) -> str:
     if regime not in STEADY_REGIMES:
         raise ValueError(f"regime: {regime!r} is not one of {', '.join(STEADY_REGIMES)}")
     return "two_sided_impacts" if walls == "both" else "one_sided_impacts"
+
+
+@dataclass(frozen=True)
+class WindowContacts:
+    """What a run's impact table says of a time window [t0, t1], per pair (0: the track,
+    1: the slot); the one reduction behind the batch metrics and the steady-state regime.
+
+    Attributes
+    ----------
+    onsets : np.ndarray
+        (2, 2) contact onsets in the window (``initial`` rows, present at the start, are
+        not onsets), per pair and wall: inner and outer for the track, rear and front for
+        the slot.
+    max_approach_speed : np.ndarray
+        (2,) the largest approach speed of those onsets [m/s]; 0 without any.
+    contact_fraction : np.ndarray
+        (2,) the part of the window spent in contact, sum(overlap) / (t1 - t0).
+    longest_contact : np.ndarray
+        (2,) the longest whole contact that overlaps the window for a positive time [s]; 0
+        without any.
+    """
+
+    onsets: np.ndarray
+    max_approach_speed: np.ndarray
+    contact_fraction: np.ndarray
+    longest_contact: np.ndarray
+
+    @property
+    def track_pattern(self) -> int:
+        """:func:`contact_pattern` of the track: in contact when a contact overlaps the
+        window for a positive time."""
+        return contact_pattern(
+            bool(self.contact_fraction[0] > 0.0), int(self.onsets[0, 0]), int(self.onsets[0, 1])
+        )
+
+
+def window_contacts(episodes: np.ndarray, t0: float, t1: float) -> WindowContacts:
+    """:class:`WindowContacts` of the impact table ``episodes`` (the core's episode rows;
+    a contact still open at the run's end is closed there by the driver) over [t0, t1]."""
+    t_on = episodes["t"]
+    t_off = episodes["t_end"]
+    pair = episodes["pair"]
+    wall = episodes["wall"]
+    onset = (episodes["initial"] == 0.0) & (t_on >= t0) & (t_on <= t1)
+    inside = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
+    onsets = np.zeros((2, 2), dtype=np.int64)
+    vmax = np.zeros(2)
+    fraction = np.zeros(2)
+    longest = np.zeros(2)
+    for ip in range(2):
+        mine = pair == ip
+        for k, side in enumerate((-1.0, 1.0)):
+            onsets[ip, k] = np.count_nonzero(onset & mine & (wall == side))
+        v = episodes["velocity"][onset & mine]
+        vmax[ip] = float(v.max()) if v.size else 0.0
+        fraction[ip] = float(inside[mine].sum()) / (t1 - t0)
+        over = mine & (inside > 0.0)
+        longest[ip] = float((t_off - t_on)[over].max()) if over.any() else 0.0
+    return WindowContacts(onsets, vmax, fraction, longest)

@@ -56,7 +56,7 @@ import numpy as np
 
 from braidsim.errors import InputError
 from braidsim.params import Scenario, load_scenario
-from braidsim.regimes import STEADY_REGIMES, contact_pattern, pattern_of
+from braidsim.regimes import STEADY_REGIMES, contact_pattern, pattern_of, window_contacts
 
 if TYPE_CHECKING:
     from braidsim.result import Result, State
@@ -491,19 +491,13 @@ def steady_state_from_result(
     vx = s["vx"][samp][idx]
     u = x - s["track_position"][samp][idx]
     t0, t1 = window
-    E = result.episodes
-    track = E["pair"] == 0.0
-    t_on = E["t"]
-    t_off = np.where(np.isnan(E["t_end"]), result.final["t"], E["t_end"])
-    overlap = track & (t_off >= t0) & (t_on <= t1)
-    onset = track & (E["initial"] == 0.0) & (t_on >= t0) & (t_on <= t1)
-    inner = int(np.count_nonzero(onset & (E["wall"] < 0)))
-    outer = int(np.count_nonzero(onset & (E["wall"] > 0)))
-    inside = np.clip(np.minimum(t_off, t1) - np.maximum(t_on, t0), 0.0, None)
-    fraction = float(inside[track].sum()) / (t1 - t0)
-    longest = float((t_off - t_on)[overlap].max()) if overlap.any() else 0.0
-    v = E["velocity"][onset]
-    vmax = float(v.max()) if v.size else 0.0
+    # (the reduction of the batch metrics: braidsim.regimes.window_contacts)
+    wc = window_contacts(result.episodes, t0, t1)
+    inner = int(wc.onsets[0, 0])
+    outer = int(wc.onsets[0, 1])
+    fraction = float(wc.contact_fraction[0])
+    longest = float(wc.longest_contact[0])
+    vmax = float(wc.max_approach_speed[0])
     h_a = float(sc["track.vibration_amplitude"])
     ptp = float(np.ptp(u)) if u.size else 0.0
     L = max(ptp, h_a, 1e-3 * float(sc["track.clearance"]))
@@ -512,7 +506,7 @@ def steady_state_from_result(
     w = w_h if w_h > 0.0 else 2.0 * math.pi / T
     st = stick_time(sc)
     regime = classify(
-        contacts=bool(overlap.any()),
+        contacts=fraction > 0.0,
         inner_impacts=inner,
         outer_impacts=outer,
         longest_contact=longest,
