@@ -265,6 +265,23 @@ def test_a_duration_beyond_the_transfer_limit_is_refused_up_front(
     assert not (tmp_path / "o").exists()
 
 
+def test_a_bad_duration_in_the_spec_is_named_as_the_files_with_duration_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The spec's own ``duration`` is the file's key, not the ``--duration`` option the
+    command also has (the line read ``--duration: -1 s ...`` with a valid option)."""
+    spec = tmp_path / "s.toml"
+    spec.write_text('duration = "-1 s"\n[machine]\nhorn_gears = 8\n')
+    for extra in ([], ["--duration", "0.01 s"]):
+        code, out, err = run_cli(capsys, "machine", str(spec), "--out", str(tmp_path / "o"), *extra)
+        assert code == 2 and out == "" and err.count("\n") == 1
+        assert "error: duration: -1 s is out of range; allowed > 0 s" in err, err
+    code, _, err = run_cli(
+        capsys, "machine", str(EXAMPLE), "--out", str(tmp_path / "o"), "--duration", "-1 s"
+    )
+    assert code == 2 and "error: --duration: -1 s is out of range" in err
+
+
 @pytest.mark.parametrize(
     ("text", "match"),
     [

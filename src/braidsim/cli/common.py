@@ -37,6 +37,7 @@ app = typer.Typer(
 )
 
 F = TypeVar("F", bound=Callable[..., Any])
+T = TypeVar("T")
 
 
 def _show_version(value: bool) -> None:
@@ -306,13 +307,28 @@ def option_names(func: Any) -> dict[str, str]:
     return out
 
 
-def option_named(text: str, names: dict[str, str], given: dict[str, Any]) -> str:
+def spec_loaded(load: Callable[[Any], T], path: Any) -> T:
+    """``load(path)`` for a verb's SPEC file, its input errors marked as the file's: a bad
+    ``duration`` in the file stays ``duration: ...`` when the command also has a
+    ``--duration`` (:func:`option_named` would have named the option, which was fine)."""
+    try:
+        return load(path)
+    except InputError as exc:
+        exc.in_spec_file = True  # type: ignore[attr-defined]
+        raise
+
+
+def option_named(
+    text: str, names: dict[str, str], given: dict[str, Any], in_spec_file: bool = False
+) -> str:
     """An input error's leading parameter name as the command's option: the API says
     ``cycles: 0 is out of range ...``, the command line ``--cycles: 0 is out of range
     ...``, so that the line names what was typed. Only for an option that has a value
-    (``given``: the verb's arguments): a spec file's ``duration`` with ``--duration``
-    absent stays ``duration: ...``, and a scenario key, ``track.clearance: ...``, is no
-    option."""
+    (``given``: the verb's arguments) and an error not raised by the SPEC file's reader
+    (``in_spec_file``, :func:`spec_loaded`): a spec file's ``duration`` stays
+    ``duration: ...``, and a scenario key, ``track.clearance: ...``, is no option."""
+    if in_spec_file:
+        return text
     head, sep, rest = text.partition(": ")
     if sep and head in names and given.get(head) is not None:
         return f"{names[head]}: {rest}"
@@ -333,7 +349,8 @@ def guarded(func: F) -> F:
             return out
         except InputError as exc:
             _NOTICES.clear()  # the error line names the value and its unit
-            fail(option_named(str(exc), option_names(func), kwargs), 2)
+            in_file = getattr(exc, "in_spec_file", False)
+            fail(option_named(str(exc), option_names(func), kwargs, in_file), 2)
         except SimulationError as exc:
             flush_notices()
             fail(f"simulation failed: {exc}", 1)

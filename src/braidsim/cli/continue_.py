@@ -9,7 +9,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json
+from braidsim.cli.common import app, guarded, print_json, spec_loaded
 
 
 @app.command("continue")
@@ -37,7 +37,7 @@ def continue_(
 
     if fmt not in ("nc", "zarr"):
         raise InputError(f"--format: {fmt!r} is not allowed; allowed nc or zarr")
-    s = load_spec(spec)
+    s = spec_loaded(load_spec, spec)
     check_output_directory(out, REPORT_KIND)  # fail before the work, not after it
     show = enabled(quiet) and not json_
     if show:

@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json, result_console
+from braidsim.cli.common import app, guarded, print_json, result_console, spec_loaded
 
 
 @app.command()
@@ -40,7 +40,7 @@ def design(
     from braidsim.errors import InputError
     from braidsim.io import check_output_directory
 
-    s = load_design_spec(spec)
+    s = spec_loaded(load_design_spec, spec)
     if workers is not None:
         if workers < 0:
             raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")

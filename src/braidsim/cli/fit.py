@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json
+from braidsim.cli.common import app, guarded, print_json, spec_loaded
 
 
 @app.command()
@@ -38,7 +38,7 @@ def fit(
     from braidsim.fit.report import REPORT_KIND, summary, write_report
     from braidsim.io import check_output_directory
 
-    s = load_fit_spec(spec)
+    s = spec_loaded(load_fit_spec, spec)
     items = [(p, {}) for p in data] if data else list(s.datasets)
     if not items:
         raise InputError("--data: missing; allowed a CSV or netCDF record (or data = in the spec)")

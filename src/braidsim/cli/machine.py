@@ -7,7 +7,14 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, guarded, print_json, quantity_option, result_console
+from braidsim.cli.common import (
+    app,
+    guarded,
+    print_json,
+    quantity_option,
+    result_console,
+    spec_loaded,
+)
 
 
 @app.command()
@@ -47,7 +54,7 @@ def machine(
         limits.check("frames", frames, "--frames")
     if workers is not None and workers < 0:
         raise InputError(f"--workers: {workers} is out of range; allowed >= 0 (0: all cores)")
-    s = load_machine_spec(spec)
+    s = spec_loaded(load_machine_spec, spec)
     check_output_directory(out, REPORT_KIND)  # fail before the run, not after it
     dur = None if duration is None else quantity_option("--duration", duration, "s")
     from braidsim.cli.progress import progress_status

@@ -7,7 +7,15 @@ from typing import Annotated
 
 import typer
 
-from braidsim.cli.common import app, fail, flush_notices, guarded, print_json, result_console
+from braidsim.cli.common import (
+    app,
+    fail,
+    flush_notices,
+    guarded,
+    print_json,
+    result_console,
+    spec_loaded,
+)
 
 
 @app.command()
@@ -40,7 +48,7 @@ def sweep(
     from braidsim.io import check_output_target
     from braidsim.sweep import SweepError, export_netcdf, load_spec, run_sweep
 
-    s = load_spec(spec)
+    s = spec_loaded(load_spec, spec)
     check_output_target(out, "--out", directory=True)
     if netcdf is not None:
         check_output_target(netcdf, "--netcdf", directory=False, suffixes=(".nc",))
