@@ -510,6 +510,8 @@ def flow_map(
     v0s: Sequence[float] = (math.nan, math.nan),
     keys: Sequence[str] = (),
     overrides: Mapping[str, Any] | None = None,
+    *,
+    check_start: bool = True,
 ) -> FlowMap:
     """Integrate from t0 (state ``y0``, contacts ``modes`` with latched speeds ``v0s``) to
     t1 with the Jacobians of the result with respect to the state, the latched speeds and
@@ -517,7 +519,10 @@ def flow_map(
 
     ``y0`` is (x, vx) or (x, vx, y, vy) in the solver's ground frame (default: the
     scenario's initial state). The run from t0 starts with a fresh step-size controller, so
-    that the map depends on (t0, y0, contacts) only.
+    that the map depends on (t0, y0, contacts) only. A pair declared in contact must start
+    on that wall (:data:`CONTACT_START_SLACK`), unless ``check_start`` is False (a Newton
+    iterate of a continuation, whose cuts keep their contacts while the state moves: a
+    contact then ends at once, and the continuation reports the changed contacts).
     """
     from braidsim.core import run as core_run
     from braidsim.core.driver import state_size
@@ -591,11 +596,46 @@ def flow_map(
         restart=restart,
         tangents=tangents,
     )
+    if check_start:
+        assert raw.series is not None  # (series=True)
+        _check_declared_contacts(raw.series[0], model, modes_t)
     if raw.status == L.ST_GRAZING:
         raise sensitivity_error(raw.t)
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
     return _flow_map_of_run(t0, t1, y[:n], modes_t, v0a, raw, n, keys, _min_gaps(raw, model))
+
+
+#: how far off its wall [fraction of the pair's clearance] a state declared in contact may
+#: start: a located onset lies up to ~1e-12 m off the wall, a free state ~1e-4 of it and more
+CONTACT_START_SLACK = 1e-6
+
+
+def _check_declared_contacts(first: np.ndarray, model: Model, modes: tuple[int, int]) -> None:
+    """Refuse a contact mode declared for a pair whose start is off that wall (``first``:
+    the run's first sample, the state at t0 with the walls' positions). The solver took
+    such a contact for one that ends at once, with no force: the map was that of a free
+    start, with a latched speed it never used (or a grazing exit)."""
+    from braidsim.core import CARRIER_COLUMNS
+
+    col = {c: i for i, c in enumerate(CARRIER_COLUMNS)}
+    rec = model.record
+    pairs = (
+        ("x", "track_position", rec.track_clearance, ("inner track wall", "outer track wall")),
+        ("y", "slot_position", rec.slot_clearance, ("rear slot wall", "front slot wall")),
+    )
+    for p, mode in enumerate(modes):
+        if mode == 0:
+            continue
+        coord, wall, eps, names = pairs[p]
+        u = first[col[coord]] - first[col[wall]]
+        depth = -u if mode < 0 else u - eps
+        if depth < -CONTACT_START_SLACK * eps:
+            raise InputError(
+                f"flow_map: modes[{p}] = {mode:+d} declares a contact with the "
+                f"{names[mode > 0]}, but y0 is {-depth * 1e3:.4g} mm off it at t0 = "
+                f"{first[0]:.9g} s; allowed a start on that wall (overlap >= 0) or mode 0"
+            )
 
 
 def _min_gaps(raw: Any, model: Model) -> np.ndarray:

@@ -513,6 +513,15 @@ def test_a_grazing_onset_after_a_pause_is_refused_as_before_it(monkeypatch) -> N
         ({"modes": (-1, 0), "v0s": ("a", 1)}, "v0s = ('a', 1); allowed two latched speeds"),
         ({"y0": [math.nan, 0.0]}, "y0 = [nan, 0.0] is not finite"),  # ("got (2,)")
         ({"y0": [0.0, 0.0, 0.0]}, "y0 has the shape (3,); allowed 2 finite numbers"),
+        # a contact declared on a free state was taken for one that ends at once
+        (
+            {"y0": [0.5e-3, 0.0], "modes": (-1, 0), "v0s": (0.1, math.nan)},
+            "modes[0] = -1 declares a contact with the inner track wall, but y0 is 0.38 mm",
+        ),
+        (
+            {"y0": [0.5e-3, 0.0], "modes": (1, 0), "v0s": (0.1, math.nan)},
+            "modes[0] = +1 declares a contact with the outer track wall, but y0 is 2.62 mm",
+        ),
     ],
 )
 def test_flow_map_inputs_are_one_clear_line(kwargs, message) -> None:

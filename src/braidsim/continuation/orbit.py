@@ -132,6 +132,7 @@ def evaluate_map(
             modes=(int(modes[0]), int(modes[1])),
             v0s=tuple(float(v) for v in v0s),
             keys=tuple(keys),
+            check_start=False,
         )
         return fm  # type: ignore[return-value]  # the same fields (module docstring)
     return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
