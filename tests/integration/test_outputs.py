@@ -621,22 +621,24 @@ def test_ctrl_c_stops_a_long_run_of_the_compiled_solver() -> None:
     signal is acted on. Before, it returned only when a buffer filled, which a carrier at
     rest never does: paper-3.1 over 1e5 s (about 200 s of CPU) ran on after SIGINT and
     SIGTERM until it was killed."""
-    p = subprocess.Popen(
+    # (communicate, not wait: a child that writes more than a pipe holds to stderr blocks
+    # until it is read; and the pipes are closed whatever happens, or an unclosed file
+    # warning fails a later test of the same worker)
+    with subprocess.Popen(
         [sys.executable, "-c", _LONG_RUN],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-    )
-    try:
-        assert p.stdout is not None and p.stdout.readline().strip() == "ready"
-        time.sleep(1.0)  # inside the long run's compiled loop by now
-        p.send_signal(signal.SIGINT)
-        p.wait(timeout=20)
-    finally:
-        if p.poll() is None:
-            p.kill()
-            p.wait()
-    out, err = p.communicate()
+    ) as p:
+        try:
+            assert p.stdout is not None and p.stdout.readline().strip() == "ready"
+            time.sleep(1.0)  # inside the long run's compiled loop by now
+            p.send_signal(signal.SIGINT)
+            out, err = p.communicate(timeout=60)
+        finally:
+            if p.poll() is None:
+                p.kill()
+                p.communicate()
     assert "finished" not in out
     assert p.returncode != 0 and "KeyboardInterrupt" in err, err[-500:]
 
