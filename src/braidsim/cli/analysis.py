@@ -536,7 +536,8 @@ def analyze(
     duration: Annotated[
         str | None,
         typer.Option(
-            help="Simulated time [s] (default: the scenario's, at least 150 excitation periods)."
+            help="Simulated time [s] (default: the scenario's, at least 150 excitation "
+            "periods; for a run folder, that run's own length)."
         ),
     ] = None,
     transient: Annotated[
