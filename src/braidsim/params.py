@@ -281,7 +281,16 @@ SCHEMA_LIST: list[ParamSpec] = [
         "x: radial DOF only, y frozen (the paper's section 3); xy: both DOFs",
         choices=("x", "xy"),
     ),
-    _positive("simulation.rtol", "", 1e-8, "relative tolerance of the RK step control", high=1e-2),
+    ParamSpec(
+        "simulation.rtol",
+        "float",
+        "",
+        1e-8,
+        "relative tolerance of the RK step control (>= 1e-15: below it the rounding of the "
+        "state, 2.2e-16 relative, decides the error, not the step control)",
+        low=1e-15,
+        high=1e-2,
+    ),
     _positive("simulation.atol_position", "m", 1e-13, "absolute tolerance on x and y [m]"),
     _positive("simulation.atol_velocity", "m/s", 1e-9, "absolute tolerance on velocities [m/s]"),
     _positive(

@@ -91,7 +91,9 @@ def test_run_window_and_set(capsys) -> None:
         (["run", "paper-3.1", "--set", "horn_gear.angular_velocity=150 rmp"], "'rpm'?"),
         # text that is neither a number nor a unit: the key's own unit and range
         (["run", "paper-3.1", "--set", "carrier.mass=abc"], "'abc'; allowed > 0 kg"),
-        (["run", "paper-3.1", "--set", "simulation.rtol=abc"], "allowed > 0 and <= 0.01"),
+        (["run", "paper-3.1", "--set", "simulation.rtol=abc"], "allowed >= 1e-15 and <= 0.01"),
+        # (below the state's rounding: was taken, and the run limited by atol alone)
+        (["run", "paper-3.1", "--set", "simulation.rtol=1e-30"], "1e-30 is out of range"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) -> None:
