@@ -361,3 +361,26 @@ def locate_event(model, j, t0, h, RC, modes, v0s, n, ys, GS):
                 ghi *= 0.5
             side = 1
     return hi
+
+
+@helper
+def first_event(model, n_pairs, t, h, RC, modes, v0s, clamped, n, ys, GS, f0, f1, INF0, INF1):
+    """(theta, j): the step's earliest event, a wall's or a clamp's, found as the loop finds
+    it (the same calls on the same values: the same bits), or (2.0, -1). For the loop that
+    carries tangents, which asks it before its step is accepted (tangent.clamp_step_end)."""
+    theta = 2.0
+    j_ev = -1
+    if sample_events(model, n_pairs, t, h, RC, modes, n, ys, GS, f0, f1, INF0, INF1):
+        for j in range(2 * n_pairs):
+            th = locate_event(model, j, t, h, RC, modes, v0s, n, ys, GS)
+            if th < theta:
+                theta = th
+                j_ev = j
+    if clamp_pending(n_pairs, modes, clamped, INF0, INF1):
+        th, j = locate_clamp(
+            model, n_pairs, t, h, RC, modes, v0s, clamped, n, ys, GS, INF0, INF1, theta, j_ev
+        )
+        if th < theta:
+            theta = th
+            j_ev = j
+    return theta, j_ev

@@ -61,6 +61,7 @@ from braidsim.core.solver.events import (
     N_SUB,
     clamp_pending,
     clamp_state,
+    first_event,
     locate_clamp,
     locate_event,
     sample_events,
@@ -84,6 +85,8 @@ from braidsim.core.solver.recorders import (
 )
 from braidsim.core.solver.tangent import (
     arrays_fit,
+    clamp_event,
+    clamp_step_end,
     episode_extremes,
     new_episode_row,
     onset_correction,
@@ -753,10 +756,72 @@ def integrate(
             h *= fac
             st.rejected_steps += 1
             continue
+        tangents_cut = False  # (the tangents below made over the part before a kink)
         if SENS is not None:
             # the tangents over the step, held to the same tolerance as the state
             tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1)
             err_s = tangent_error(SENS, S1, h, KS, n_dof2, opts.rtol, SENS.SMAX)
+            if not err_s <= 1.0 and not took_taylor and not took_implicit:
+                # A step over the kink of a clamped force: its stages past the kink read the
+                # tangents' field on the far side, and the estimate sees the jump of its
+                # derivative, which only a short step makes small (h times the jump of
+                # dN / m). It rejected the steps that crossed the kink until they were a
+                # few 1e-14 s long (at rtol 1e-12 on a 1e10 N/m Kelvin-Voigt wall: a
+                # collapsed step). Where the step ends at that kink (its earliest event),
+                # the tangents will be carried over the part before it only: the estimate
+                # of that part decides (the step there and its tangents are made again
+                # below, the same bits).
+                dense_coeffs(y, y1, h, K, RC, n)
+                pair_infos(model, n_pairs, t + h, y1, K6, modes, v0s, INF1)
+                th_k, j_k = first_event(
+                    model,
+                    n_pairs,
+                    t,
+                    h,
+                    RCs,
+                    modes,
+                    v0s,
+                    clamped,
+                    n_dof2,
+                    ys,
+                    GS,
+                    K0,
+                    K6,
+                    INF0,
+                    INF1,
+                )
+                if j_k >= CLAMP0:
+                    hk = th_k * h
+                    if hk <= 0.0:
+                        hk = 1e-16 * max(1.0, t)
+                    for i in range(n):
+                        Ke[0, i] = K[0, i]
+                    rk_step(model, t, y, hk, Ke, modes, v0s, n, yc, ye)
+                    st.rhs_evaluations += 6
+                    tangent_step(model, SENS, t, y, hk, Ke, KS, modes, v0s, n_dof2, YS, ss, S1)
+                    clamp_step_end(
+                        model,
+                        SENS,
+                        (j_k - CLAMP0) // 2,
+                        (j_k - CLAMP0) % 2 == 1,
+                        t,
+                        hk,
+                        Ke,
+                        KS,
+                        modes,
+                        v0s,
+                        n_dof2,
+                        YS,
+                        ss,
+                        S1,
+                        yc,
+                        sw,
+                    )
+                    err_s = tangent_error(SENS, S1, hk, KS, n_dof2, opts.rtol, SENS.SMAX)
+                    tangents_cut = True
+                    if not err_s <= 1.0:
+                        # (the next try ends short of the kink)
+                        h = hk
             if not err_s <= 1.0:
                 # near onset and exit the tangents' error grows as h^1.5 (Hertz's sqrt(p)
                 # stiffness; other exponents are rescaled as Hertz, which costs steps only)
@@ -988,8 +1053,44 @@ def integrate(
         if SENS is not None:
             # the tangents over the step taken (recomputed when it ended at an event), then
             # at the instants the step recorded
-            if j_ev >= 0:
-                tangent_step(model, SENS, t, y, h_taken, Ke, KS, modes, v0s, n_dof2, YS, ss, S1)
+            if j_ev >= 0 or tangents_cut:
+                # (a step whose kink the search above found is found here too, from the
+                # same values; were it not, the tangents over the whole step)
+                tangent_step(
+                    model,
+                    SENS,
+                    t,
+                    y,
+                    h_taken,
+                    Ke if j_ev >= 0 else K,
+                    KS,
+                    modes,
+                    v0s,
+                    n_dof2,
+                    YS,
+                    ss,
+                    S1,
+                )
+                if j_ev >= CLAMP0:
+                    # (the stages at the kink on the step's side of it: tangent.py)
+                    clamp_step_end(
+                        model,
+                        SENS,
+                        (j_ev - CLAMP0) // 2,
+                        (j_ev - CLAMP0) % 2 == 1,
+                        t,
+                        h_taken,
+                        Ke,
+                        KS,
+                        modes,
+                        v0s,
+                        n_dof2,
+                        YS,
+                        ss,
+                        S1,
+                        yc,
+                        sw,
+                    )
             tangent_scales(S1, n_dof2, SENS.SMAX)
             tangent_dense_coeffs(SENS, S1, h_taken, KS, RCS, n_dof2)
             for pair in range(n_pairs):
@@ -1105,7 +1206,8 @@ def integrate(
             pair_infos(model, n_pairs, t, y, K0, modes, v0s, INF0)
             st.rhs_evaluations += 1
             if SENS is not None:
-                # (at a clamp the field is continuous: the tangents do not jump)
+                # (at a clamp the field is continuous: the tangents do not jump; its
+                # derivative does: tangent.clamp_event below)
                 # (t_begin is -inf in a call that resumes a run: no onset there is the
                 # run's start, though inf <= inf would say so)
                 at_start = (
@@ -1145,7 +1247,27 @@ def integrate(
                         model, SENS, ev_ie, pair, t, y, SENS.S, modes[pair], v0s[pair], 3
                     )
                     onset_correction(SENS, ev_ie, 3, INF0[pair, I_PD], INF0[pair, I_DN])
-                tangent_start(model, SENS, t, y, modes, v0s, KS)
+                if kink:
+                    # (to the kink and back, and the next step's first stage on its new
+                    # side: tangent.clamp_event)
+                    clamp_event(
+                        model,
+                        SENS,
+                        pair,
+                        clamped[pair] == 1,
+                        t,
+                        y,
+                        K0,
+                        h_taken,
+                        modes,
+                        v0s,
+                        n_dof2,
+                        KS,
+                        yc,
+                        sw,
+                    )
+                else:
+                    tangent_start(model, SENS, t, y, modes, v0s, KS)
                 if nrow > nrow_ev:
                     series_tangent_row(
                         model, SENS, SENS.RSENS, nrow_ev, t, y, SENS.S, modes, v0s, n_pairs, sw

@@ -28,6 +28,13 @@ unless the floor ``min_impact_velocity`` holds it. A transfer at time tau, y+ = 
 
     s+ = T_t dtau + T_y (s- + f- dtau) + T_key - f+ dtau                 (5)
 
+A law that cannot pull clamps its force, N = max(0, F_k + F_c). The field is continuous
+where F_k + F_c crosses 0 (the kink): nothing jumps there, but the field's derivative does,
+and (1) on each side of the kink has its own: the law's linearisation (dN = dF_k + dF_c)
+on the side where the force presses, dN = 0 where it is clamped. The solver ends a step at
+the kink, so that each step's stages see one side only; those at the kink itself are read
+on the side of their step (:func:`clamp_step_end`, :func:`clamp_event`).
+
 Peak force and maximum depth are stationary in time where they occur, so their tangents
 are the partial ones at that instant (plus their slope times dt_e when the maximum sits at
 the onset instant itself). See ``docs/sensitivities.md`` for the derivation. (2), (3) and
@@ -50,6 +57,7 @@ from braidsim.core.interfaces import (
     pair_gap_accel,
     pair_gaps_jvp,
     pair_law_jvp,
+    pair_law_rates,
     penetration,
     penetration_jvp,
 )
@@ -72,7 +80,7 @@ from braidsim.core.solver.dopri5 import (
     RK_A,
     RK_C,
 )
-from braidsim.core.solver.pairs import gaps
+from braidsim.core.solver.pairs import gaps, pair_forces
 
 # with numba's reference counting (the tangent records come out of a typed list), unlike
 # core.generic.helper, whose functions run without it
@@ -367,6 +375,149 @@ def surface_event(
         return False
     tangent_shift(model, SENS, t + dts, yc, -dts, modes, v0s, n_dof2, work)
     return True
+
+
+# the first move of the unclamped force asked of a nudge onto one side of the clamp
+# (clamp_side), relative to |F_k| + |F_c| (a 1e10 N/m wall at 2 um: 4e-5 N, ~40 times the
+# force of one ulp of the position), and the factor by which the nudge grows while the
+# state is still on the wrong side
+CLAMP_NUDGE = 1e-9
+CLAMP_NUDGE_GROWTH = 10.0
+
+
+@tangent_helper
+def clamp_force_rate(model, pair, t, y, f, mode, v0):
+    """(F_k + F_c, d(F_k + F_c)/dt) of ``pair`` in contact mode ``mode`` at (t, y), ``f``
+    being dy/dt there: the unclamped force and its rate (the laws' rates are those of the
+    unclamped force)."""
+    g_in, g_out, rate = gaps(model, pair, t, y)
+    p, pd = penetration(mode, g_in, g_out, rate)
+    acc = pair_gap_accel(model, pair, t, f)
+    pdd = -acc if mode < 0 else acc
+    _, _, fk, fc, _ = pair_forces(model, pair, t, y, mode, v0)
+    dn, _ = pair_law_rates(model, pair, p, pd, pdd, v0, fk, fc)
+    return fk + fc, dn
+
+
+@tangent_helper
+def clamp_side(model, pair, mode, v0, want_clamped, t, y, f, m, yn):
+    """tau: a time offset that puts y + f tau (written into ``yn[:m]``) on the wanted side
+    of the clamp of ``pair`` (clamped: F_k + F_c < 0, the test the laws' linearisations
+    make), 0 where y is on it already, NaN where no nudge found one.
+
+    The state at a located kink, and the stages of a step that ends there, lie on either
+    side of it by the location's error (F_k + F_c = 1.6e-7 N, of either sign, on a 1e10
+    N/m wall: below the force of one ulp of the position). The tangents' field there is
+    wanted on the side of the step it belongs to: it is read at the nearby state, moved
+    along the flow past the kink, tau = -(F_k + F_c) / (dF/dt) and beyond by
+    CLAMP_NUDGE (|F_k| + |F_c|) / |dF/dt|, grown until the sign is the wanted one (the
+    field is smooth on each side: a move of a few 1e-15 s changes it by that time over the
+    contact's time scale, ~1e-10 on the 1e10 N/m wall)."""
+    fsum, fdot = clamp_force_rate(model, pair, t, y, f, mode, v0)
+    for i in range(m):
+        yn[i] = y[i]
+    if (fsum < 0.0) == want_clamped:
+        return 0.0
+    if not (abs(fdot) > 0.0 and math.isfinite(fdot)):
+        return math.nan
+    # towards F < 0 where a clamped side is wanted, F > 0 otherwise
+    sgn = 1.0 if (fdot < 0.0) == want_clamped else -1.0
+    _, _, fk, fc, _ = pair_forces(model, pair, t, y, mode, v0)
+    tau = sgn * (abs(fsum) + CLAMP_NUDGE * (abs(fk) + abs(fc))) / abs(fdot)
+    for _ in range(8):
+        for i in range(m):
+            yn[i] = y[i] + f[i] * tau
+        _, _, fk, fc, _ = pair_forces(model, pair, t + tau, yn, mode, v0)
+        if (fk + fc < 0.0) == want_clamped:
+            return tau
+        tau *= CLAMP_NUDGE_GROWTH
+    for i in range(m):
+        yn[i] = y[i]
+    return math.nan
+
+
+@tangent_helper
+def clamp_step_end(
+    model, SENS, pair, pre_clamped, t, h, K, KS, modes, v0s, n_dof2, YS, ss, S1, yn, work
+):
+    """The tangents over a step [t, t + h] that ends at the kink of the force of ``pair``
+    (:func:`tangent_step` has filled KS, YS and S1), with the stages at the step's end read
+    on the step's side of the kink (``pre_clamped``: whether the force is clamped there).
+
+    Stages 5 and 6 of the Dormand-Prince step sit at t + h: at the kink itself, up to the
+    location's error, whose sign decides which linearisation they got. Stage 5 is in the
+    solution, weight b6 = 11/84: read on the wrong side, it added h b6 (dN / m) to the
+    tangents' speeds, dN the tangent of the unclamped force there, of order dF/dt times the
+    kink time's tangent. With the kink located on its far side, this left the monodromy of
+    an impact oscillator on a clamped Kelvin-Voigt wall of 1e10 N/m 3e-4 off its central
+    differences. Here a stage read on the wrong side (:func:`clamp_side`) is read again
+    at a state nudged onto the right one, and S1 takes the difference,
+
+        S1 += h b6 (J- s5 - KS5),
+
+    then stage 6 (the step's end, FSAL: the dense output's slope) is read there at S1.
+    ``yn``, ``work``: n_dof2 of work space each."""
+    mode = modes[pair]
+    v0 = v0s[pair]
+    moved = False
+    for st in range(5, 7):
+        tau = clamp_side(model, pair, mode, v0, pre_clamped, t + h, YS[st], K[st], n_dof2, yn)
+        if not math.isfinite(tau):
+            continue
+        if tau == 0.0 and not (st == 6 and moved):
+            continue
+        for d in range(SENS.S.shape[0]):
+            if st == 6:
+                tangent_rhs(model, SENS, d, t + h + tau, yn, S1[d], modes, v0s, KS[d, 6])
+                continue
+            for i in range(n_dof2):
+                acc = 0.0
+                for j in range(st):
+                    acc += RK_A[st, j] * KS[d, j, i]
+                ss[i] = SENS.S[d, i] + h * acc
+            tangent_rhs(model, SENS, d, t + h + tau, yn, ss, modes, v0s, work)
+            for i in range(n_dof2):
+                S1[d, i] += h * RK_A[6, st] * (work[i] - KS[d, st, i])
+                KS[d, st, i] = work[i]
+        moved = True
+
+
+@tangent_helper
+def clamp_event(model, SENS, pair, post_clamped, t, y, f, h_step, modes, v0s, n_dof2, KS, yn, work):
+    """The tangents at a located kink of the force of ``pair`` at (t, y), ``f`` = dy/dt
+    there: carried to the kink on the old side's field and back on the new one's (as
+    :func:`surface_event` for an onset or exit; no jump: the field is continuous), and the
+    first stage of the next step (KS[:, 0], (1) at t) read on the new side
+    (``post_clamped``), which the state at t may miss (:func:`clamp_step_end`): read on
+    the old one, it weighs b1 = 35/384 in the next step (and E1 in its error estimate).
+
+    The kink lies dt_k = -(F_k + F_c) / (dF/dt) from t (a shift not small against the
+    step to the kink, ``h_step``, is not made), so, with J- s = KS[:, 6] (the old side's
+    field at the step's end, S = S1),
+
+        s += dt_k (J- s) - dt_k (J+ s).
+
+    ``yn``, ``work``: n_dof2 of work space each."""
+    mode = modes[pair]
+    v0 = v0s[pair]
+    fsum, fdot = clamp_force_rate(model, pair, t, y, f, mode, v0)
+    dtk = 0.0
+    if abs(fdot) > 0.0 and math.isfinite(fdot):
+        dtk = -fsum / fdot
+        if not abs(dtk) <= 0.5 * h_step:
+            dtk = 0.0
+    tau = clamp_side(model, pair, mode, v0, post_clamped, t, y, f, n_dof2, yn)
+    if not math.isfinite(tau):
+        tau = 0.0
+    for d in range(SENS.S.shape[0]):
+        s = SENS.S[d]
+        if dtk != 0.0:
+            for i in range(n_dof2):
+                s[i] += dtk * KS[d, 6, i]
+            tangent_rhs(model, SENS, d, t + tau, yn, s, modes, v0s, work)
+            for i in range(n_dof2):
+                s[i] -= dtk * work[i]
+        tangent_rhs(model, SENS, d, t + tau, yn, s, modes, v0s, KS[d, 0])
 
 
 @tangent_helper
