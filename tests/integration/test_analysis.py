@@ -261,6 +261,29 @@ def test_cli_restitution(capsys, tmp_path) -> None:
     assert json.loads((tmp_path / "r" / "restitution.json").read_text())["nominal"] == d["nominal"]
 
 
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (("scenarios", "--keys"), ("12.566370614359172", "horn_gear.angular_velocity")),
+        (("models",), ("doi:10.1515/crll.1882.92.156", "lankarani_nikravesh")),
+    ],
+)
+def test_piped_tables_fold_no_word(
+    capsys, monkeypatch, args: tuple[str, ...], words: tuple[str, ...]
+) -> None:
+    """Piped, a table is printed wide enough that no word of a cell is folded over two
+    lines: the default omega 12.566370614359172 read 12.56637 / 06143591 / 72 in a file.
+    Its text still wraps at spaces (not one line of a thousand columns). (A COLUMNS the
+    user sets is kept: test_cli.test_listed_names_are_whole_in_80_columns.)"""
+    monkeypatch.delenv("COLUMNS", raising=False)
+    code, out, err = run_cli(capsys, *args)
+    assert code == 0, err
+    for word in words:
+        assert word in out
+    assert "…" not in out
+    assert max(len(line) for line in out.splitlines()) <= 160
+
+
 def test_cli_restitution_table_is_whole_when_piped(capsys) -> None:
     """Piped output counts as 80 columns for rich, which cut every cell of the 11-column
     table to '1.0…'; tables are printed at their own width instead."""

@@ -77,14 +77,17 @@ def result_console() -> Any:
     Its tables are printed whole. rich fits a table to the console by folding its text
     cells and, where that is not enough, by cutting cells short (``1.0…`` for 1.0000); a
     piped output counts as 80 columns, so a wide table of numbers sent to a file lost them.
-    A table that rich would cut is printed at the width that keeps every cell whole instead
-    (a terminal wraps its lines, a file keeps them); one that folds is left as it is.
+    On a terminal, a table that rich would cut is printed at the width that keeps every
+    cell whole instead (the terminal wraps its lines), and one that folds is left as it is;
+    piped or redirected, every table is printed wide enough that no word of a cell is
+    folded or cut (text still wraps at its spaces), unless ``COLUMNS`` asks for a width.
     """
     import io
 
     from rich.console import Console
     from rich.measure import Measurement
     from rich.table import Table
+    from rich.text import Text
 
     class _WholeTables(Console):
         def _cut_at(self, table: Table, width: int) -> bool:
@@ -92,23 +95,60 @@ def result_console() -> Any:
             trial.print(table)
             return "…" in trial.file.getvalue()  # type: ignore[attr-defined]
 
-        def _whole_width(self, table: Table) -> int:
-            """The narrowest width from the console's at which rich cuts no cell of
-            ``table`` short (a bisection: more width never cuts more)."""
+        def _folds_at(self, table: Table, width: int) -> bool:
+            """Whether rich, at ``width``, cuts a cell of ``table`` short or folds one of
+            its words over two lines (a word of a cell missing from the printed text)."""
+            trial = Console(file=io.StringIO(), width=width, color_system=None)
+            trial.print(table)
+            text = trial.file.getvalue()  # type: ignore[attr-defined]
+            if "…" in text:
+                return True
+            for column in table.columns:
+                for cell in column._cells:
+                    # (a string cell as rich renders it: its markup read)
+                    shown = cell if isinstance(cell, Text) else self.render_str(str(cell))
+                    plain = shown.plain
+                    if any(word not in text for word in plain.split()):
+                        return True
+            return False
+
+        def _narrowest(self, table: Table, bad: Callable[[Table, int], bool]) -> int:
+            """The narrowest width from the console's at which ``bad`` is false (a
+            bisection up to the table's natural width: more width never cuts or folds
+            more)."""
             unbounded = self.options.update_width(1 << 20)  # measured, not fitted
             low, high = self.width, max(self.width, Measurement.get(self, unbounded, table).maximum)
             while low < high:
                 mid = (low + high) // 2
-                low, high = (mid + 1, high) if self._cut_at(table, mid) else (low, mid)
+                low, high = (mid + 1, high) if bad(table, mid) else (low, mid)
             return high
+
+        def _whole_width(self, table: Table) -> int:
+            """The narrowest width at which rich cuts no cell of ``table`` short."""
+            return self._narrowest(table, self._cut_at)
+
+        def _unfolded_width(self, table: Table) -> int:
+            """The narrowest width at which no cell of ``table`` is cut or has a word
+            folded."""
+            return self._narrowest(table, self._folds_at)
 
         def print(self, *objects: Any, **kwargs: Any) -> None:
             tables = [o for o in objects if isinstance(o, Table)]
-            if not any(self._cut_at(t, self.width) for t in tables):
+            if not tables:
                 super().print(*objects, **kwargs)
                 return
+            if self.is_terminal or os.environ.get("COLUMNS"):  # (a width asked for: kept)
+                if not any(self._cut_at(t, self.width) for t in tables):
+                    super().print(*objects, **kwargs)
+                    return
+                wide = max(self._whole_width(t) for t in tables)
+            else:
+                # piped or redirected: wide enough that no word of a cell is folded (a
+                # number split over two lines of a file reads as two numbers), text
+                # still wrapped at its spaces; and no cell cut short
+                wide = max(self._unfolded_width(t) for t in tables)
             width = self.width
-            self.width = max(self._whole_width(t) for t in tables)
+            self.width = wide
             try:
                 super().print(*objects, **{**kwargs, "crop": False})
             finally:
