@@ -4,6 +4,7 @@ maps that start after t = 0."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -176,3 +177,24 @@ def test_a_contact_open_at_a_cut_that_is_a_transfer_joins_to_the_uninterrupted_r
     assert len(first.impacts) + len(rest) == len(whole) + 1
     assert rest.initial.iloc[1] and whole.initial.iloc[4]
     np.testing.assert_allclose(rest["t"].iloc[1:], whole["t"].iloc[4:], rtol=0, atol=1e-7)
+
+
+def test_the_pause_hook_sees_the_run_advance_and_changes_nothing(monkeypatch) -> None:
+    """The command line's bar of simulated time (core.driver.PAUSE_HOOK) is called at each
+    pause of the compiled loop with the run's time, increasing and inside the run; the
+    results are those of the same run without it, bit for bit."""
+    from braidsim.core import driver
+
+    sc = braidsim.load_scenario("paper-3.3")
+    plain = braidsim.simulate(sc, 0.05, series=False)
+    monkeypatch.setattr(driver.L, "PAUSE_STEPS", 50)
+    seen: list[float] = []
+    token = driver.PAUSE_HOOK.set(seen.append)
+    try:
+        hooked = braidsim.simulate(sc, 0.05, series=False)
+    finally:
+        driver.PAUSE_HOOK.reset(token)
+    assert len(seen) >= 5
+    assert all(0.0 < a < b < 0.05 for a, b in itertools.pairwise(seen))
+    assert hooked.impacts.equals(plain.impacts)
+    assert hooked.final == plain.final

@@ -142,6 +142,56 @@ def progress_bar(
 
 
 @contextmanager
+def progress_simulated(
+    message: str, t_start: float, t_end: float, quiet: bool = False
+) -> Iterator[None]:
+    """A spinner with ``message`` on stderr that becomes a bar of simulated time [s] with an
+    estimate of the time left, for a run from ``t_start`` to ``t_end`` (only when
+    :func:`enabled`). The compiled loop hands control back to Python every few tens of
+    thousands of steps; each time, the bar moves to the run's time
+    (:data:`braidsim.core.driver.PAUSE_HOOK`). A short run ends before it ever moves.
+    """
+    if not enabled(quiet):
+        yield
+        return
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        SpinnerColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    from braidsim.core.driver import PAUSE_HOOK
+
+    if kernel_needs_compile():
+        message = f"{COMPILE_NOTE}; then {message}"
+    span = max(t_end - t_start, 0.0)
+    with Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TaskProgressColumn(),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=_console(),
+        transient=True,
+    ) as prog:
+        task = prog.add_task(message, total=span or None)
+
+        def moved(t: float) -> None:
+            prog.update(task, completed=min(max(t - t_start, 0.0), span))
+
+        token = PAUSE_HOOK.set(moved)
+        try:
+            yield
+        finally:
+            PAUSE_HOOK.reset(token)
+
+
+@contextmanager
 def sigterm_as_interrupt() -> Iterator[None]:
     """Within the block, SIGTERM raises KeyboardInterrupt as SIGINT does.
 

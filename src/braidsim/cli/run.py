@@ -55,7 +55,7 @@ def run(
 ) -> None:
     """Simulate one carrier and report depth and force ranges and the impacts."""
     import braidsim
-    from braidsim.cli.progress import progress_status
+    from braidsim.cli.progress import progress_simulated, progress_status
 
     if out is not None:
         from braidsim.io import check_output_directory
@@ -75,7 +75,7 @@ def run(
     )
     windows = [win] if win else None
     T = float(sc["simulation.duration"] if dur is None else dur)
-    with progress_status(f"simulating {sc.name}, {T:g} s", quiet=json_):
+    with progress_simulated(f"simulating {sc.name}, {T:g} s", 0.0, T, quiet=json_):
         res = braidsim.simulate(
             sc,
             duration=dur,

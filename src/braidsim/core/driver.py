@@ -10,6 +10,7 @@ The run is integrated once; its bits do not depend on the buffer sizes.
 
 from __future__ import annotations
 
+import contextvars
 import functools
 import math
 import typing
@@ -277,6 +278,14 @@ def _type_key(record: Any) -> Any:
 
 
 # integrate's compiled entry points, by the fingerprints of the arguments that select them
+#: Called with the simulated time [s] each time a run hands control back to Python between
+#: steps (every :data:`braidsim.core.layout.PAUSE_STEPS` step attempts, and at each flush of
+#: its buffers): a progress bar of the command line (``braidsim.cli.progress``) sets it for
+#: the run it draws. A context variable, so that a thread's runs report to its own bar.
+PAUSE_HOOK: contextvars.ContextVar[Callable[[float], None] | None] = contextvars.ContextVar(
+    "braidsim_pause_hook", default=None
+)
+
 _ENTRIES: dict[tuple[Any, ...], Any] = {}
 
 
@@ -616,6 +625,10 @@ def run(
                 elif sink is not None:
                     sink(chunk)
                 RS[0]["rows"] = 0
+        if not final:
+            hook = PAUSE_HOOK.get()
+            if hook is not None:
+                hook(float(r.t))
         if final:
             closed.append(L.copy_records(EP[: int(r.episodes)]))
             if SENS is not None:
