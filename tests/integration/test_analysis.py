@@ -434,6 +434,9 @@ def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
             "track.clearance",
         ),
         (("basins", "paper-3.3", "--x", "initial.vx"), "two different"),
+        # (the product's name "--nx x --ny" named no option the user typed)
+        (("basins", "paper-3.3", "--nx", "0", "--ny", "3"), "error: --nx: 0 is out of range"),
+        (("basins", "paper-3.3", "--ny", "-2"), "error: --ny: -2 is out of range"),
         (("lyapunov", "paper-3.3", "--d0", "0"), "d0"),
         (("analyze", "no-such-scenario"), "scenario"),
         (("analyze", "results/no-such-run"), "a folder written by `braidsim run --out`"),

@@ -330,6 +330,9 @@ def basins(
     if x == y:
         raise InputError(f"--x, --y: both are {x!r}; allowed two different parameters")
     _check_out(out, "basins")
+    for option, count in (("--nx", nx), ("--ny", ny)):
+        if count < 1:
+            raise InputError(f"{option}: {count} is out of range; allowed >= 1")
     _check_grid(nx * ny, workers, "--nx x --ny")
     check_scalar_key(x)
     check_scalar_key(y)
