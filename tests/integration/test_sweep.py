@@ -331,6 +331,11 @@ def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path)
             ),
             "reversed range",
         ),
+        # the values as written beside SI's (bare SI numbers read as another size)
+        (
+            ('start = "0.06 mm"\nstop = "0.18 mm"', 'start = "0.18 mm"\nstop = "0.06 mm"'),
+            r"stop: 0.06 mm \(6e-05 m\) is below start \(0.18 mm; 0.00018 m\)",
+        ),
         (
             ('start = "0.06 mm"', 'start = "0.06 s"'),
             r"start \(track.vibration_amplitude\).*wrong unit",

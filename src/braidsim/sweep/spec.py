@@ -415,14 +415,20 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         stop = spec.check_number(to_si(f"{where}stop ({key})", t["stop"], spec.unit))
         spacing = t.get("spacing", "linear")
         check_choice(f"{where}spacing", spacing, SPACINGS)
+        # (the values as written, "60 rpm", and in SI: a unit other than SI's read as
+        # bare numbers of another size)
+        said = {k: (t[k] if isinstance(t[k], str) else f"{t[k]:g}") for k in ("start", "stop")}
+        unit = f" {spec.unit}" if spec.unit else ""
         if num > 1 and start == stop:
             raise InputError(
-                f"{where}stop: equals start ({start:g}), an empty range; allowed stop != start"
+                f"{where}stop: {said['stop']} equals start ({said['start']}; {start:g}{unit}), "
+                "an empty range; allowed stop != start"
             )
         if stop < start:  # (with num = 1 as well: stop would be ignored)
             raise InputError(
-                f"{where}stop: {stop:g} is below start ({start:g}), a reversed range; "
-                "allowed stop > start (list values = [...] for another order)"
+                f"{where}stop: {said['stop']} ({stop:g}{unit}) is below start "
+                f"({said['start']}; {start:g}{unit}), a reversed range; allowed stop > start "
+                "(list values = [...] for another order)"
             )
         if spacing == "log":
             if start <= 0.0 or stop <= 0.0:
