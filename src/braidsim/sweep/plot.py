@@ -196,16 +196,15 @@ def plot_sweep(
     from braidsim.plotting import new_figure
 
     if metric not in ds.data_vars:
-        import difflib
+        from braidsim.specfile import closest_hint
 
-        close = difflib.get_close_matches(metric, [str(v) for v in ds.data_vars], n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        names = sorted(str(v) for v in ds.data_vars)  # (a store's own order is arbitrary)
         raise InputError(
-            f"--metric: {metric!r} is not in the sweep{hint}; "
-            f"allowed {', '.join(map(str, ds.data_vars))}"
+            f"--metric: {metric!r} is not in the sweep{closest_hint(metric, names)}; "
+            f"allowed {', '.join(names)}"
         )
     if ds[metric].dtype.kind not in "biuf":
-        numeric = [str(v) for v in ds.data_vars if ds[v].dtype.kind in "biuf"]
+        numeric = sorted(str(v) for v in ds.data_vars if ds[v].dtype.kind in "biuf")
         raise InputError(
             f"--metric: {metric!r} holds text, not numbers; allowed {', '.join(numeric)}"
         )
