@@ -93,6 +93,23 @@ def test_a_clearance_below_the_scenarios_start_is_taken_with_the_rest_start() ->
         parse_machine_spec(narrow)
 
 
+def test_the_slot_contacts_totals_beside_the_tracks() -> None:
+    """A two-DOF machine gives the slot contact's totals (they were in the carriers' rows
+    only, and the report's table read as the machine's): sums over the carriers, and none
+    in a one-DOF run."""
+    two = {**one_carrier(0.3), "overrides": {"simulation.dof": "xy"}}
+    run = run_machine(parse_machine_spec(two), workers=1)
+    sl = run.totals["slot"]
+    ca = run.carriers
+    assert sl["impacts"] == int(ca["slot_impacts"].sum()) > 0
+    assert sl["impacts_per_second"] == pytest.approx(sl["impacts"] / run.duration)
+    assert sl["impact_energy_per_second"] == pytest.approx(
+        ca["slot_impact_energy"].sum() / run.duration
+    )
+    assert sl["max_peak_force"] == ca["slot_max_peak_force"].max() > 0.0
+    assert "slot" not in run_machine(parse_machine_spec(one_carrier(0.3)), workers=1).totals
+
+
 def test_a_speed_that_presses_the_carriers_through_the_clearance_is_refused() -> None:
     """At 1e9 rpm the rest start's static deflection (centrifugal load) is 1e6 mm: refused
     naming machine.speed and the largest speed the clearance allows (it named initial.x)."""

@@ -74,8 +74,15 @@ def machine(
         f"{run.duration:.4g} s simulated ({run.elapsed:.3g} s on {run.workers} process(es))"
     )
     con.print(
-        f"impacts/s {t['impacts_per_second']:.4g}, "
+        f"track: impacts/s {t['impacts_per_second']:.4g}, "
         f"impact energy/s {t['impact_energy_per_second']:.4g} W, "
         f"largest peak force {t['max_peak_force']:.4g} N (carrier {t['worst_carrier']['carrier']})"
     )
+    if "slot" in t:
+        sl = t["slot"]
+        con.print(
+            f"slot: impacts/s {sl['impacts_per_second']:.4g}, "
+            f"impact energy/s {sl['impact_energy_per_second']:.4g} W, "
+            f"largest peak force {sl['max_peak_force']:.4g} N"
+        )
     con.print(f"report: {data['out']}/report.md")

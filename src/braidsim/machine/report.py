@@ -378,17 +378,29 @@ def markdown(run: MachineRun, data: dict[str, Any], figures: list[str]) -> str:
     trow = [
         {"q": "carriers", "v": t["carriers"], "u": ""},
         {"q": "transfers simulated", "v": t["transfers"], "u": ""},
-        {"q": "impacts", "v": t["impacts"], "u": ""},
-        {"q": "impacts per second", "v": t["impacts_per_second"], "u": "1/s"},
+        {"q": "track impacts", "v": t["impacts"], "u": ""},
+        {"q": "track impacts per second", "v": t["impacts_per_second"], "u": "1/s"},
         {
-            "q": "impact energy per second (sum of m v^2/2 at onsets)",
+            "q": "track impact energy per second (sum of m v^2/2 at onsets)",
             "v": t["impact_energy_per_second"],
             "u": "W",
         },
         {"q": "power dissipated by the track contacts", "v": t["dissipated_power"], "u": "W"},
-        {"q": "largest peak force", "v": t["max_peak_force"], "u": "N"},
-        {"q": "worst carrier", "v": t["worst_carrier"]["carrier"], "u": ""},
+        {"q": "largest track peak force", "v": t["max_peak_force"], "u": "N"},
+        {"q": "worst carrier (track peak force)", "v": t["worst_carrier"]["carrier"], "u": ""},
     ]
+    sl = t.get("slot")
+    if sl:
+        trow += [
+            {"q": "slot impacts", "v": sl["impacts"], "u": ""},
+            {"q": "slot impacts per second", "v": sl["impacts_per_second"], "u": "1/s"},
+            {
+                "q": "slot impact energy per second (sum of m v^2/2 at onsets)",
+                "v": sl["impact_energy_per_second"],
+                "u": "W",
+            },
+            {"q": "largest slot peak force", "v": sl["max_peak_force"], "u": "N"},
+        ]
     wt = t.get("worst_transfer")
     if wt:
         trow.append(
