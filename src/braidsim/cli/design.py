@@ -36,7 +36,7 @@ def design(
 
     from braidsim.batch import local_processes
     from braidsim.design import load_design_spec, run_design, write_report
-    from braidsim.design.report import REPORT_KIND
+    from braidsim.design.report import REPORT_KIND, percent_se
     from braidsim.errors import InputError
     from braidsim.io import check_output_directory
 
@@ -103,8 +103,8 @@ def design(
     if rb.get("median_improvement") is not None:
         con.print(
             f"  improvement over {rb['samples']} tolerance samples: median "
-            f"{100 * rb['median_improvement']:+.1f} %, 5th percentile "
-            f"{100 * rb['p5_improvement']:+.1f} %",
+            f"{percent_se(rb, 'median_improvement')}, 5th percentile "
+            f"{percent_se(rb, 'p5_improvement')} (+- bootstrap standard error)",
             markup=False,
         )
     if data.get("levers"):

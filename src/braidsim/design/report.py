@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -188,6 +189,16 @@ def _side(m: dict[str, float], drive: dict[str, float], robust: dict[str, Any]) 
     }
 
 
+def percent_se(stats: Mapping[str, Any], key: str) -> str:
+    """``stats[key]`` in percent with its bootstrap standard error (``key + "_se"``), e.g.
+    ``+0.4 +- 0.4 %``; the value alone where there is none."""
+    value = 100 * stats[key]
+    se = stats.get(f"{key}_se")
+    if se is None or not math.isfinite(se):
+        return f"{value:+.1f} %"
+    return f"{value:+.1f} +- {100 * se:.1f} %"
+
+
 def _robust(res: DesignResult) -> dict[str, Any]:
     if res.robust is None:
         return {"median_improvement": None, "p5_improvement": None, "samples": 0}
@@ -202,7 +213,13 @@ def _robust(res: DesignResult) -> dict[str, Any]:
 def _zero_robust(res: DesignResult) -> dict[str, Any]:
     """Constant speed against itself: improvement 0 on every set (exact)."""
     n = res.robust.samples if res.robust is not None else 0
-    return {"median_improvement": 0.0, "p5_improvement": 0.0, "samples": n}
+    return {
+        "median_improvement": 0.0,
+        "median_improvement_se": 0.0,
+        "p5_improvement": 0.0,
+        "p5_improvement_se": 0.0,
+        "samples": n,
+    }
 
 
 # ----------------------------------------------------------------------------------------
@@ -374,8 +391,8 @@ def _robust_axes(ax: Any, res: DesignResult) -> None:
     ax.set_title(
         f"{st['samples']} held-out tolerance samples, {res.spec.robust.check_cycles:g} cycles "
         f"each (dots; diamond median, bar 5-95 %): profile median "
-        f"{100 * st['median_improvement']:+.1f} %, "
-        f"5th percentile {100 * st['p5_improvement']:+.1f} %",
+        f"{percent_se(st, 'median_improvement')}, "
+        f"5th percentile {percent_se(st, 'p5_improvement')}",
         fontsize=8,
     )
 
@@ -816,8 +833,9 @@ def _robust_lines(res: DesignResult) -> list[str]:
             f"Improvement 1 - J(profile)/J(constant) measured on {st['samples']} *other* "
             f"parameter sets (seed {R.seed + 1}, {R.check_cycles:g}-cycle runs, every set "
             f"against constant speed on the same machine): median "
-            f"{100 * st['median_improvement']:+.1f} %, 5th percentile "
-            f"{100 * st['p5_improvement']:+.1f} %, 95th percentile "
+            f"{percent_se(st, 'median_improvement')}, 5th percentile "
+            f"{percent_se(st, 'p5_improvement')} (+- a bootstrap standard error: what "
+            f"another draw of {st['samples']} sets would move it by), 95th percentile "
             f"{100 * st.get('p95_improvement', math.nan):+.1f} %, better than constant speed "
             f"on {100 * st.get('fraction_better', math.nan):.0f} % of the sets.",
             "",
@@ -831,8 +849,8 @@ def _robust_lines(res: DesignResult) -> list[str]:
                     i,
                     d["name"],
                     d["description"],
-                    f"{100 * d['median_improvement']:+.1f} %",
-                    f"{100 * d['p5_improvement']:+.1f} %",
+                    percent_se(d, "median_improvement"),
+                    percent_se(d, "p5_improvement"),
                     d["effort"],
                     d["improvement_per_effort"],
                 ]

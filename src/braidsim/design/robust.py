@@ -258,6 +258,28 @@ class RobustObjective:
         return reduce_ratios(self.ratios(profile), self.statistic, self.quantile)
 
 
+#: resamples of the bootstrap standard errors of :meth:`Improvement.stats` (seeded: the
+#: same values give the same errors)
+BOOTSTRAP_RESAMPLES = 2000
+
+
+def _bootstrap_se(values: np.ndarray, q: float) -> float:
+    """Bootstrap standard error of the q-quantile of ``values`` (NaN for fewer than 2
+    values, or all equal: no spread to resample)."""
+    from scipy import stats
+
+    if values.size < 2 or np.ptp(values) == 0.0:
+        return 0.0 if values.size >= 2 else math.nan
+    res = stats.bootstrap(
+        (values,),
+        lambda x, axis: np.quantile(x, q, axis=axis),
+        n_resamples=BOOTSTRAP_RESAMPLES,
+        method="percentile",
+        rng=np.random.default_rng(0),
+    )
+    return float(res.standard_error)
+
+
 @dataclass
 class Improvement:
     """The improvement distribution of one change against constant speed.
@@ -276,6 +298,10 @@ class Improvement:
         return int(self.values.size)
 
     def stats(self) -> dict[str, float]:
+        """Median, 5th and 95th percentiles, mean, worst and the fraction of sets made
+        better, with bootstrap standard errors of the median and the 5th percentile
+        (``*_se``: how far another draw of as many sets would move them; Efron &
+        Tibshirani 1993, doi:10.1007/978-1-4899-4541-9)."""
         v = self.values
         ok = v[np.isfinite(v)]
         if ok.size == 0:
@@ -283,7 +309,9 @@ class Improvement:
             return {"median_improvement": nan, "p5_improvement": nan, "samples": v.size}
         return {
             "median_improvement": float(np.median(ok)),
+            "median_improvement_se": _bootstrap_se(ok, 0.5),
             "p5_improvement": float(np.quantile(ok, 0.05)),
+            "p5_improvement_se": _bootstrap_se(ok, 0.05),
             "p95_improvement": float(np.quantile(ok, 0.95)),
             "mean_improvement": float(np.mean(ok)),
             "worst_improvement": float(np.min(ok)),
