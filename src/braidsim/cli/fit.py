@@ -62,11 +62,23 @@ def fit(
         return
     import sys
 
+    from braidsim.fit.data import IMPACT_UNITS, QUANTITY_UNITS
+
     lines = [
         f"fit of {', '.join(res.quantities)} ({res.n_data} data, law {res.law}): "
         f"{'converged' if res.converged else 'NOT converged'}, cost {res.cost:.6g}, "
         f"residual std {res.stats.residual_std:.3g} (in units of the noise)"
     ]
+    given = s.noise or {}
+    units = {**QUANTITY_UNITS, **IMPACT_UNITS}
+    lines.append(
+        "  noise: "
+        + ", ".join(
+            f"{q} {sigma:.4g} {units.get(q, '')}".rstrip()
+            + (" (given)" if given.get(q) else " (estimated from the record)")
+            for q, sigma in res.noise.items()
+        )
+    )
     for i, p in enumerate(res.free):
         lo, hi = res.stats.ci95[i]
         unit = f" {p.unit}" if p.unit else ""

@@ -617,16 +617,61 @@ def _part_table(problem: Problem, u: np.ndarray) -> list[dict[str, Any]]:
             data = dict(part.record.columns)
             t = part.record.t
             kind = "series"
+        row = {
+            "source": _source(part),
+            "kind": kind,
+            "t": t,
+            "quantities": part.quantities,
+            "data": {q: data[q] for q in part.quantities},
+            "model": model,
+            "noise": dict(part.sigma),
+        }
+        if not isinstance(part, ImpactProblem) and part.has_events:
+            row["pulses"] = (part.onsets, part._model_onsets(res)[0], part.record.sample_interval)
+        out.append(row)
+    return out
+
+
+#: the normalised residuals' standard deviation above which the fit warns that the model
+#: does not explain the record (a right model gives 0.9-1.1 with white noise; a record
+#: offset by half a sample 1.6-1.8; a wrong vibration, friction or fixed parameter 4-83)
+MISFIT_LIMIT = 1.5
+
+
+def fit_warnings(
+    stats: Statistics, converged: bool, parts: Sequence[Mapping[str, Any]]
+) -> list[str]:
+    """Warnings on the fit as a whole, beside the identifiability ones of
+    :func:`statistics`: a local run that did not converge, residuals larger than the noise,
+    and impact pulses of the record that the fitted model does not make (or the reverse).
+    The intervals assume none of these: each says what to check."""
+    out = []
+    if not converged:
         out.append(
-            {
-                "source": _source(part),
-                "kind": kind,
-                "t": t,
-                "quantities": part.quantities,
-                "data": {q: data[q] for q in part.quantities},
-                "model": model,
-                "noise": dict(part.sigma),
-            }
+            "the local least squares did not converge (fit.max_evaluations reached, or no "
+            "step lowered the cost): the values and intervals are those of its last point; "
+            "raise fit.max_evaluations or fit.starts"
+        )
+    if stats.residual_std > MISFIT_LIMIT:
+        out.append(
+            f"the residuals are {stats.residual_std:.3g} times the noise: the model does not "
+            "explain the record to its noise (a fixed law or parameter, the record's units "
+            "or time origin), or the noise is not white (then give fit.noise); the "
+            "intervals assume it does"
+        )
+    for part in parts:
+        if "pulses" not in part:
+            continue
+        td, tm, dt = part["pulses"]
+        if td.size == tm.size:
+            continue
+        far = [t for t in td if tm.size == 0 or np.min(np.abs(tm - t)) > 5 * dt]
+        where = f" (record pulses at t = {', '.join(f'{t:.6g}' for t in far[:3])} s match none)"
+        out.append(
+            f"{part['source']}: the record shows {td.size} impact pulses, the fitted model "
+            f"{tm.size} above the same threshold{where if far else ''}: a glitch in the "
+            "record, an impact the model misses, or a model that does not follow the "
+            "record; the intervals assume they match"
         )
     return out
 
@@ -692,6 +737,7 @@ def fit_record(spec: FitSpec, record: Records, progress: Progress | None = None)
         say(f"profile likelihood of {key}")
         profiles.append(profile(pr, key, lf.u, stats, spec.profile_points, spec.max_evaluations))
     parts = _part_table(pr, lf.u)
+    stats.warnings.extend(fit_warnings(stats, lf.converged, parts))
     return FitResult(
         law=str(pr.scenario["contact.track.model"]),
         keys=pr.keys,
