@@ -54,6 +54,8 @@ def test_xarray_and_netcdf_records(tmp_path):
         ("t,x", [[0, 1], [1, math.nan], [2, 3]], "column x has a missing"),
         ("t,x [N]", [[0, 1], [1, 2], [2, 3]], "unit [N] does not match the quantity 'x'"),
         ("t [m],x", [[0, 1], [1, 2], [2, 3]], "unit [m] does not match the quantity 't'"),
+        # (an accelerometer's g: pint's g is the gram)
+        ("t,acceleration [g]", [[0, 1], [1, 2], [2, 3]], "write [g0] for standard gravity"),
         ("t,y", [[0, 1], [1, 2], [2, 3]], "no measured column"),
         ("t,x", [[-1, 1], [1, 2], [2, 3]], "allowed times >= 0"),
     ],

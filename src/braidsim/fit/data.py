@@ -128,8 +128,10 @@ def _factor(where: str, unit: str, quantity: str) -> float:
     try:
         return to_si(where, f"1 {unit}", target)
     except InputError:
+        # (pint's g is the gram: an accelerometer's g is its g0, standard gravity)
+        hint = " (g is the gram: write [g0] for standard gravity)" if unit.strip() == "g" else ""
         raise InputError(
-            f"{where}: unit [{unit}] does not match the quantity {quantity!r}; "
+            f"{where}: unit [{unit}] does not match the quantity {quantity!r}{hint}; "
             f"allowed a unit of {target}"
         ) from None
 
