@@ -374,3 +374,20 @@ def test_fitted_scenario_of_a_scenario_without_file_is_written_whole(tmp_path):
         if key == "simulation.duration":
             continue
         assert back[key] == (pytest.approx(value, rel=1e-14) if isinstance(value, float) else value)
+
+
+def test_a_law_stuck_far_from_its_twin_is_flagged_not_rejected():
+    """With the restitution free, laws of one exponent are one force law: Flores fitted
+    4,950 AIC worse than Hunt-Crossley on Lankarani-Nikravesh data with 3 starts (equal with
+    6), and the comparison read as a verdict. select_law now says it is a stuck search;
+    a law of another exponent, or one whose restitution ended at a bound, is not flagged."""
+    from braidsim.fit.estimate import LawResult, select_law
+
+    def law(name, aic, n=1.5, inside=True):
+        return LawResult(name, (), {}, 0.0, 100, 2, aic, aic, 0.6, 0.6, True, n, inside)
+
+    _, notes = select_law([law("hunt_crossley", -84.8), law("flores", 4952.5)], "hunt_crossley")
+    assert any("flores fits 5.04e+03 AIC worse" in n and "local minimum" in n for n in notes)
+    for other in (law("brandlein", 4952.5, n=1.08), law("flores", 4952.5, inside=False)):
+        _, notes = select_law([law("hunt_crossley", -84.8), other], "hunt_crossley")
+        assert not any("local minimum" in n for n in notes)
