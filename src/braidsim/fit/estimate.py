@@ -619,6 +619,15 @@ def _check_covers_an_impact(problem: Problem) -> None:
                 f"data (--data): the record {record.source} ({record.duration:g} s) holds no "
                 "impact; allowed a record of at least one impact"
             )
+        if part.has_events and n_model == 0:
+            # (times in seconds headed [ms] made a record 1000 times shorter: the fit said
+            # the data did not depend on the restitution)
+            raise InputError(
+                f"data (--data): the record {record.source} ({record.duration:g} s) shows "
+                f"{part.onsets.size} impact pulses, but the scenario at the start values makes "
+                "none in that time; allowed a time column in the unit its header says (t [s] "
+                "or t [ms]) and a scenario that reaches the record's impacts"
+            )
         if part.event_quantity is None and n_model == 0:
             raise InputError(
                 f"data (--data): the record {record.source} ({record.duration:g} s) is shorter "
