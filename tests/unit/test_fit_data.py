@@ -56,6 +56,10 @@ def test_xarray_and_netcdf_records(tmp_path):
         ("t [m],x", [[0, 1], [1, 2], [2, 3]], "unit [m] does not match the quantity 't'"),
         # (an accelerometer's g: pint's g is the gram)
         ("t,acceleration [g]", [[0, 1], [1, 2], [2, 3]], "write [g0] for standard gravity"),
+        # (pandas renamed the second "x.1", which was then ignored)
+        ("t,x,x", [[0, 1, 1], [1, 2, 2], [2, 3, 3]], "column 'x' appears twice"),
+        # (pandas took the first column for an index: every column shifted, a NaN at row 1)
+        ("t,x", [[0, 1, 9], [1, 2, 9], [2, 3, 9]], "more fields than the header's 2"),
         ("t,y", [[0, 1], [1, 2], [2, 3]], "no measured column"),
         ("t,x", [[-1, 1], [1, 2], [2, 3]], "allowed times >= 0"),
     ],

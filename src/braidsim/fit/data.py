@@ -321,12 +321,43 @@ def read_csv(path: str | Path) -> Record | ImpactList:
     p = Path(path)
     if not p.is_file():
         raise InputError(f"data (--data): {str(p)!r} is not a file; allowed a CSV or netCDF record")
+    import warnings
+
     try:
-        df = pd.read_csv(p, comment="#", skipinitialspace=True)
+        with warnings.catch_warnings():
+            # a row longer than the header: pandas took the first column for an index (every
+            # column shifted, read as a NaN at row 1) or, told not to, dropped the extra
+            # fields with a warning; either is an error of the file
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            df = pd.read_csv(p, comment="#", skipinitialspace=True, index_col=False)
+    except pd.errors.ParserWarning:
+        raise InputError(
+            f"{p}: a data row has more fields than the header's {len(_header_names(p))}; "
+            "allowed rows of the header's length"
+        ) from None
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         line = " ".join(str(exc).split())[:120]
         raise InputError(f"{p}: cannot read as CSV ({line})") from None
-    return from_table({c: df[c].to_numpy() for c in df.columns}, str(p))
+    header = [str(c) for c in df.columns]
+    first = _header_names(p)
+    seen = set()
+    for name in first:
+        if name in seen:
+            # (pandas renamed the second one "name.1", which no quantity matched: ignored)
+            raise InputError(f"{p}: column {name!r} appears twice; allowed each column once")
+        seen.add(name)
+    return from_table({c: df[c].to_numpy() for c in header}, str(p))
+
+
+def _header_names(path: Path) -> list[str]:
+    """The names of a CSV file's header row as written (the first line that is not empty or
+    a # comment), each stripped."""
+    with path.open(encoding="utf-8", errors="replace") as f:
+        for line in f:
+            text = line.split("#", 1)[0].strip()
+            if text:
+                return [" ".join(name.split()) for name in text.split(",")]
+    return []
 
 
 def from_xarray(ds: Any, source: str = "xarray") -> Record:
