@@ -349,8 +349,8 @@ def option_names(func: Any) -> dict[str, str]:
 
 def spec_loaded(load: Callable[[Any], T], path: Any) -> T:
     """``load(path)`` for a verb's SPEC file, its input errors marked as the file's: a bad
-    ``duration`` in the file stays ``duration: ...`` when the command also has a
-    ``--duration`` (:func:`option_named` would have named the option, which was fine)."""
+    ``duration`` in the file stays ``duration: ...`` when ``--duration`` is given too
+    (:func:`option_named` had renamed it after the option, which the user had typed right)."""
     try:
         return load(path)
     except InputError as exc:
