@@ -387,16 +387,16 @@ CLAMP_NUDGE_GROWTH = 10.0
 
 @tangent_helper
 def clamp_force_rate(model, pair, t, y, f, mode, v0):
-    """(F_k + F_c, d(F_k + F_c)/dt) of ``pair`` in contact mode ``mode`` at (t, y), ``f``
-    being dy/dt there: the unclamped force and its rate (the laws' rates are those of the
-    unclamped force)."""
+    """(F_k + F_c, d(F_k + F_c)/dt, |F_k| + |F_c|) of ``pair`` in contact mode ``mode`` at
+    (t, y), ``f`` being dy/dt there: the unclamped force, its rate (the laws' rates are
+    those of the unclamped force) and the size of its two terms."""
     g_in, g_out, rate = gaps(model, pair, t, y)
     p, pd = penetration(mode, g_in, g_out, rate)
     acc = pair_gap_accel(model, pair, t, f)
     pdd = -acc if mode < 0 else acc
     _, _, fk, fc, _ = pair_forces(model, pair, t, y, mode, v0)
     dn, _ = pair_law_rates(model, pair, p, pd, pdd, v0, fk, fc)
-    return fk + fc, dn
+    return fk + fc, dn, abs(fk) + abs(fc)
 
 
 @tangent_helper
@@ -413,7 +413,7 @@ def clamp_side(model, pair, mode, v0, want_clamped, t, y, f, m, yn):
     CLAMP_NUDGE (|F_k| + |F_c|) / |dF/dt|, grown until the sign is the wanted one (the
     field is smooth on each side: a move of a few 1e-15 s changes it by that time over the
     contact's time scale, ~1e-10 on the 1e10 N/m wall)."""
-    fsum, fdot = clamp_force_rate(model, pair, t, y, f, mode, v0)
+    fsum, fdot, size = clamp_force_rate(model, pair, t, y, f, mode, v0)
     for i in range(m):
         yn[i] = y[i]
     if (fsum < 0.0) == want_clamped:
@@ -422,8 +422,7 @@ def clamp_side(model, pair, mode, v0, want_clamped, t, y, f, m, yn):
         return math.nan
     # towards F < 0 where a clamped side is wanted, F > 0 otherwise
     sgn = 1.0 if (fdot < 0.0) == want_clamped else -1.0
-    _, _, fk, fc, _ = pair_forces(model, pair, t, y, mode, v0)
-    tau = sgn * (abs(fsum) + CLAMP_NUDGE * (abs(fk) + abs(fc))) / abs(fdot)
+    tau = sgn * (abs(fsum) + CLAMP_NUDGE * size) / abs(fdot)
     for _ in range(8):
         for i in range(m):
             yn[i] = y[i] + f[i] * tau
@@ -500,7 +499,7 @@ def clamp_event(model, SENS, pair, post_clamped, t, y, f, h_step, modes, v0s, n_
     ``yn``, ``work``: n_dof2 of work space each."""
     mode = modes[pair]
     v0 = v0s[pair]
-    fsum, fdot = clamp_force_rate(model, pair, t, y, f, mode, v0)
+    fsum, fdot, _ = clamp_force_rate(model, pair, t, y, f, mode, v0)
     dtk = 0.0
     if abs(fdot) > 0.0 and math.isfinite(fdot):
         dtk = -fsum / fdot
