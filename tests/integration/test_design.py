@@ -141,6 +141,10 @@ def test_design_command_on_the_example_with_a_tiny_budget(
     for f in data["files"]:
         assert (out / f).is_file(), f
     assert (out / "design_summary.png").stat().st_size > 10_000
+    # one generation: nothing to compare, no claim either way
+    opt = data["optimisation"]
+    assert opt["generations"] == 1 and opt["recent_generations"] == 0
+    assert opt["recent_gain"] is None and opt["still_improving"] is False
     # the same mean speed, the same transfers
     p = data["production"]
     assert p["after_mean_speed"] == pytest.approx(p["before_mean_speed"], rel=1e-12)
@@ -225,6 +229,13 @@ def test_the_example_as_shipped(tmp_path: Path) -> None:
     assert len(res.levers) == 4
     data = write_report(res, tmp_path / "design16")
     assert data["optimised"]["drive"]["peak_torque"] <= res.spec.drive.max_torque
+    # docs/design.md: the search stops at its cap with its best value 0.42 % lower than five
+    # generations before, and the report says so
+    d = data["optimisation"]
+    assert d["generations"] == 20 and d["recent_generations"] == 5 and d["still_improving"]
+    assert d["recent_gain"] == pytest.approx(0.0042, abs=5e-5)
+    md = (tmp_path / "design16" / "report.md").read_text()
+    assert "stopped at its iteration cap still improving" in md
 
 
 DIAGNOSTIC = ("speed_min", "speed_max", "acceleration_max", "jerk_max")

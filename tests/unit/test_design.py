@@ -4,6 +4,7 @@ speed-limit formulas, the spec parser."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import tomllib
@@ -254,6 +255,42 @@ def test_optimiser_respects_limits_and_never_loses_to_constant_speed() -> None:
         OptimizerOptions(maxiter=2, popsize=3, seed=3, cycles=6),
     )
     np.testing.assert_array_equal(again.x, res.x)
+    # the summary says whether the search stopped still improving (its own history)
+    d = res.to_dict()
+    assert d["generations"] == len(res.history) == 2
+    k, gain = res.recent_gain()
+    assert d["recent_generations"] == k == 1
+    assert gain == pytest.approx(1.0 - res.history[-1]["best"] / res.history[-2]["best"])
+    assert d["still_improving"] == (gain > 0.0)
+
+
+def test_still_improving_reads_the_last_quarter_of_the_generations() -> None:
+    """recent_gain compares the best value now with the one k = generations // 4 generations
+    before; still_improving needs the cap reached and a fall over those generations."""
+    res = optimise_profile(
+        two_carriers(1.0),
+        None,
+        ProfileFamily("dip"),
+        Limits(),
+        "peak_force",
+        OptimizerOptions(maxiter=1, popsize=2, seed=1, cycles=2),
+    )
+    opts = dataclasses.replace(res.options, maxiter=8)
+
+    def rows(best: list[float]) -> list[dict[str, float]]:
+        return [{"generation": float(i), "best": b} for i, b in enumerate(best)]
+
+    falling = dataclasses.replace(res, options=opts, history=rows([1.0] * 5 + [0.9, 0.9, 0.8]))
+    assert falling.recent_gain() == (2, pytest.approx(1.0 - 0.8 / 0.9))
+    assert falling.still_improving()
+    # flat over the last two generations (the fall before them does not count)
+    flat = dataclasses.replace(res, options=opts, history=rows([1.0] * 5 + [0.8, 0.8, 0.8]))
+    assert flat.recent_gain() == (2, 0.0)
+    assert not flat.still_improving()
+    # stopped before the cap (SciPy's spread test, tol > 0): not "still improving"
+    early = dataclasses.replace(res, options=opts, history=rows([1.0, 0.9, 0.8]))
+    assert not early.still_improving()
+    assert dataclasses.replace(res, history=rows([1.0])).recent_gain()[0] == 0
 
 
 # ---------------------------------------------------------------------------- sensitivity

@@ -107,6 +107,14 @@ def design(
             f"{percent_se(rb, 'p5_improvement')} (+- bootstrap standard error)",
             markup=False,
         )
+    opt = data["optimisation"]
+    if opt["still_improving"]:
+        con.print(
+            f"  the optimiser stopped at its iteration cap still improving "
+            f"({-100 * opt['recent_gain']:+.2g} % over its last {opt['recent_generations']} "
+            "generations): raise design.optimizer.maxiter for a better profile",
+            markup=False,
+        )
     if data.get("levers"):
         con.print(
             "  levers by improvement per effort: " + ", ".join(lv["name"] for lv in data["levers"]),

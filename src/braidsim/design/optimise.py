@@ -224,7 +224,8 @@ class OptimizationResult:
     margins : dict
         Limit margins of the best profile (:func:`limit_margins`), with the drive's.
     history : list of dict
-        Per generation: best value, evaluations so far, population's feasible fraction.
+        Per generation after the first population: best value, evaluations so far,
+        elapsed time.
     evaluations : int
         Simulated candidates (feasible ones; infeasible ones cost no run).
     elapsed : float
@@ -252,7 +253,29 @@ class OptimizationResult:
     message: str = ""
     candidates: list[tuple[np.ndarray, float]] = field(default_factory=list)
 
+    def recent_gain(self) -> tuple[int, float]:
+        """(k, g): the relative fall of the best proxy value over the last k generations,
+        g = 1 - best_last / best_(last - k), with k = max(1, generations // 4).
+
+        With ``tol`` = 0 (the default) the search runs to its iteration cap; g > 0 there
+        says that it was still finding better profiles when it stopped, so a larger
+        ``maxiter`` may find a better one. (0, nan) with fewer than two generations.
+        """
+        best = [row["best"] for row in self.history]
+        if len(best) < 2:
+            return 0, math.nan
+        k = max(1, len(best) // 4)
+        before = best[-1 - k]
+        return k, 1.0 - best[-1] / before if before else math.nan
+
+    def still_improving(self) -> bool:
+        """Stopped at its iteration cap with the best value falling over the last
+        generations (:meth:`recent_gain`)."""
+        k, gain = self.recent_gain()
+        return len(self.history) >= self.options.maxiter and k > 0 and gain > 0.0
+
     def to_dict(self) -> dict[str, Any]:
+        k, gain = self.recent_gain()
         return {
             "objective": self.objective,
             "pair": self.pair,
@@ -270,6 +293,10 @@ class OptimizationResult:
             "evaluations": self.evaluations,
             "elapsed_s": self.elapsed,
             "message": self.message,
+            "generations": len(self.history),
+            "recent_generations": k,
+            "recent_gain": gain if math.isfinite(gain) else None,
+            "still_improving": self.still_improving(),
         }
 
 

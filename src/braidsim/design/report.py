@@ -1014,6 +1014,21 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
         f"({-100 * (1 - opt.value / opt.baseline_value):+.1f} %).",
         "",
     ]
+    recent, gain = opt.recent_gain()
+    if opt.still_improving():
+        lines += [
+            f"The search stopped at its iteration cap still improving: its best proxy value "
+            f"fell by {100 * gain:.2g} % over the last {recent} of its {len(opt.history)} "
+            "generations, so a larger `design.optimizer.maxiter` (or other seeds) may find a "
+            "better profile; this one is the best found within the budget, not an optimum.",
+            "",
+        ]
+    elif recent > 0:
+        lines += [
+            f"The best proxy value did not change over the last {recent} of the "
+            f"{len(opt.history)} generations.",
+            "",
+        ]
     if res.fidelity is not None:
         fd = res.fidelity
         lines += [
