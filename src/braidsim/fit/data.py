@@ -416,6 +416,16 @@ def read_record(data: Any) -> Record | ImpactList:
     return read_csv(p)
 
 
+def pulse_levels(y: np.ndarray, noise: float, fraction: float = 0.05) -> tuple[float, float, float]:
+    """``(base, threshold, top)`` of an acceleration or contact-force record [its units]:
+    the median ``base`` (free flight, or rest on a wall), the largest distance ``top`` of a
+    sample from it, and the pulse threshold ``max(6 noise, fraction * top)`` of
+    :func:`detect_pulses`."""
+    base = float(np.median(y))
+    top = float(np.max(np.abs(y - base))) if y.size else 0.0
+    return base, max(6.0 * noise, fraction * top), top
+
+
 def detect_pulses(
     t: np.ndarray, y: np.ndarray, noise: float, fraction: float = 0.05
 ) -> tuple[np.ndarray, float]:
@@ -427,11 +437,8 @@ def detect_pulses(
     a sample interval (the true onset lies between the last quiet sample and the first loud
     one). Returns ``(onsets, threshold)``.
     """
-    base = float(np.median(y))
-    d = np.abs(y - base)
-    top = float(d.max()) if d.size else 0.0
-    thr = max(6.0 * noise, fraction * top)
-    loud = d > thr
+    base, thr, top = pulse_levels(y, noise, fraction)
+    loud = np.abs(y - base) > thr
     if not loud.any() or not math.isfinite(thr) or top <= 0:
         return np.zeros(0), thr
     idx = np.flatnonzero(loud)
