@@ -48,6 +48,7 @@ from braidsim.fit.problem import (
 )
 from braidsim.fit.spec import FitSpec, FreeParameter
 from braidsim.params import Scenario, load_scenario
+from braidsim.units import to_si
 
 Progress = Callable[[str], None]
 
@@ -636,6 +637,92 @@ def _check_covers_an_impact(problem: Problem) -> None:
             )
 
 
+#: time units a refusal of a too coarse time column may suggest, coarsest first [s]
+_FINER_UNITS = {"ms": 1e-3, "us": 1e-6}
+
+
+def _check_time_scale(problem: Problem, laws: Sequence[str] = ()) -> None:
+    """Refuse, before any simulation, a sampled record whose sample interval is longer
+    than the motion it records can last (typically times in ms under a header that reads
+    them as s, ``t [s]`` or a bare ``t``): the fit would simulate a record 1000 times too
+    long for minutes and end in warnings.
+
+    The bounds are closed forms (:mod:`braidsim.fit.timescale`), the largest over the
+    scenario variants the fit may reach (start values, corners of the free parameters'
+    box, the laws compared), so that a record the fit can use is never refused:
+
+    - acceleration or contact force: the elastic contact duration of the impacts the record
+      can show, at its smallest and largest pulse height (the pulse threshold of
+      :func:`braidsim.fit.data.detect_pulses`, and its largest pulse);
+    - displacement: the longest flight between the track walls.
+
+    Impact lists have no sample interval, and may skip impacts or the carrier's rests
+    between them: no closed form bounds their times (:func:`_check_covers_an_impact`
+    compares them with the run at the start values).
+    """
+    from braidsim.fit.data import pulse_levels
+    from braidsim.fit.timescale import longest_flight, pulse_duration, variants
+
+    for part in _parts(problem):
+        if isinstance(part, ImpactProblem):
+            continue
+        record = part.record
+        dt = record.sample_interval
+        scenarios = variants(part.scenario, part.free, laws)
+        pulses = [q for q in part.quantities if q in ("acceleration", "contact_force")]
+        if pulses:
+            # An impact pulse is resolved only if at least two samples fall within its
+            # contact. The record's pulses rise above its detection threshold; for n > 1 an
+            # impact of smaller peak force lasts longer (T ~ F^((1 - n) / (2 n)) at given
+            # m, K), so the longest pulse the record can show is the one that just reaches
+            # the threshold (for n < 1 its largest pulse). Damping lengthens a contact
+            # mostly in its low-force rebound, below the threshold of a pulse that barely
+            # reaches it; the pulses that rise well above it are shorter. A sample interval
+            # longer than this bound leaves every pulse one sample at most: the impacts are
+            # not in the record at this time scale. (The example record, 10 kHz: 8.6 sample
+            # intervals in its bound of 0.86 ms; its times in ms read as s, 0.1 s: 117 bounds.)
+            bound = 0.0
+            for q in pulses:
+                _, thr, top = pulse_levels(record.columns[q], part.sigma[q])
+                for sc in scenarios:
+                    mass = float(sc["carrier.mass"]) if q == "acceleration" else 1.0
+                    for level in (thr, top):
+                        bound = max(bound, pulse_duration(sc, mass * level))
+            what = (
+                f"the longest impact pulse it can show ({bound * 1e3:.3g} ms, the elastic "
+                "contact of an impact at its detection threshold, over the free parameters' "
+                "bounds): no pulse can be resolved"
+            )
+        else:
+            # A displacement record does not need the contacts resolved, only the flights
+            # between them: its samples must follow the carrier from wall to wall. Under a
+            # load that exceeds the friction every flight is shorter than the bound; a
+            # sample interval longer than it straddles every flight (the record shows the
+            # walls in an order the samples cannot tell).
+            bound = max(longest_flight(sc) for sc in scenarios)
+            what = (
+                f"the longest flight of the carrier between the track walls ({bound * 1e3:.3g}"
+                " ms, under the least constant load, over the free parameters' bounds): the "
+                "samples cannot follow it from wall to wall"
+            )
+        if not dt > bound:
+            continue
+        unit = record.units_read.get("t", "")
+        factor = to_si("t", f"1 {unit}", "s") if unit else 1.0
+        finer = [u for u, f in _FINER_UNITS.items() if f < factor and dt * f / factor <= bound]
+        fix = (
+            f"if its times are in {finer[0]}, head the column t [{finer[0]}]"
+            if finer
+            else "a record sampled faster"
+        )
+        header = f"t [{unit}]" if unit else "t (no unit: read as s)"
+        raise InputError(
+            f"data (--data): {record.source}: column {header} has a sample interval of "
+            f"{dt:.3g} s ({record.t.size} samples over {record.duration:.3g} s), longer than "
+            f"{what}; allowed a time column in the unit its header says: {fix}"
+        )
+
+
 def _first_record(problem: Problem) -> Record | ImpactList:
     first = _parts(problem)[0]
     return first.impacts if isinstance(first, ImpactProblem) else first.record
@@ -733,6 +820,7 @@ def fit_record(spec: FitSpec, record: Records, progress: Progress | None = None)
     say = progress or (lambda s: None)
     problem = build_problem(spec, record)
     problem.use_events = spec.events
+    _check_time_scale(problem, spec.laws)
     _check_covers_an_impact(problem)
     check_informed(problem, problem.u_start)
     laws = list(spec.laws)

@@ -1,0 +1,124 @@
+"""A record whose time column is in ms but read as s (``t [s]`` or a bare ``t``) is refused
+before any simulation, in one line naming the column, the numbers and the fix; records
+sampled finely enough (the shipped example, synthetic records, a long record) pass."""
+
+from __future__ import annotations
+
+import importlib
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim.errors import InputError
+from braidsim.fit import fit, load_fit_spec, make_record, parse_fit_spec, read_record
+from braidsim.fit.estimate import _check_time_scale, build_problem
+from braidsim.fit.synthetic import synthetic_record
+from braidsim.fit.timescale import longest_flight, pulse_duration
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+SC = "paper-3.1"
+FREE2 = {"contact.track.restitution": [0.3, 0.9], "track.clearance": ["2.5 mm", "3.5 mm"]}
+#: the module braidsim.simulate (the package's attribute of that name is the function)
+SIMULATE = importlib.import_module("braidsim.simulate")
+
+
+@pytest.fixture
+def no_simulation(monkeypatch):
+    """Make every simulation fail the test (the refusals come before any)."""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a simulation ran before the record was refused")
+
+    monkeypatch.setattr(SIMULATE, "simulate", refuse)
+
+
+def _cli(argv, capsys):
+    from braidsim.cli import _register
+    from braidsim.cli.common import run_app
+
+    _register()
+    code = run_app(argv)
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.parametrize(
+    ("header", "named"), [("t [s]", "column t [s]"), ("t", "column t (no unit: read as s)")]
+)
+def test_cli_refuses_the_example_in_ms_read_as_s_before_any_simulation(
+    tmp_path, capsys, no_simulation, header, named
+):
+    # the shipped 0.1-s record at 10 kHz: read as s, 100 s at 10 Hz, which the fit ran for
+    # minutes before its warnings
+    text = (EXAMPLES / "fit_record.csv").read_text()
+    assert "\nt [ms],acceleration" in text
+    data = tmp_path / "rec.csv"
+    data.write_text(text.replace("\nt [ms],", f"\n{header},", 1))
+    out = tmp_path / "out"
+    argv = ["fit", str(EXAMPLES / "fit_spec.toml"), "--data", str(data), "--out", str(out)]
+    code, stdout, err = _cli(argv, capsys)
+    assert code == 2
+    assert stdout == ""
+    assert err.count("\n") == 1, err
+    for words in (
+        named,
+        "sample interval of 0.1 s (1000 samples over 100 s)",
+        "longest impact pulse",
+        "head the column t [ms]",
+    ):
+        assert words in err, (words, err)
+    assert not out.exists()
+
+
+def test_a_displacement_record_in_ms_read_as_s_is_refused_by_the_longest_flight(no_simulation):
+    t = np.arange(1, 1001) * 0.1  # 0.1 ms steps written as s
+    x = 1.5 * (1 - np.cos(t))  # [mm]: any motion, it is not looked at
+    with pytest.raises(InputError, match=r"column t \[s\] has a sample interval of 0\.1 s") as e:
+        fit(SC, {"t [s]": t, "x [mm]": x}, FREE2, quantity="x")
+    assert "longest flight of the carrier between the track walls" in str(e.value)
+    assert "head the column t [ms]" in str(e.value)
+
+
+def test_records_sampled_finely_enough_pass():
+    """The shipped example and synthetic records of every quantity (at 10 kHz, and a laser
+    at 1 kHz) pass, and so does a long record sampled finely: the bound is on the sample
+    interval, not the duration."""
+    spec = load_fit_spec(EXAMPLES / "fit_spec.toml")
+    example = read_record(EXAMPLES / "fit_record.csv")
+    _check_time_scale(build_problem(spec, example), spec.laws)
+    for quantities, rate in ((("acceleration",), 1e4), (("contact_force",), 1e4), (("x",), 1e3)):
+        rec = synthetic_record(SC, 0.05, rate=rate, quantities=quantities, noise=None)
+        spec_q = parse_fit_spec({"scenario": SC, "fit": {"free": FREE2, "quantity": quantities[0]}})
+        _check_time_scale(build_problem(spec_q, rec))
+    # 200 s at 10 kHz: the example's 0.1 s repeated
+    n = 2000
+    long = make_record(
+        np.arange(1, n * example.t.size + 1) * 1e-4,
+        {"acceleration": np.tile(example.columns["acceleration"], n)},
+    )
+    _check_time_scale(build_problem(spec, long))
+
+
+def test_the_closed_forms_against_the_simulator():
+    from braidsim.impact import single_impact
+    from braidsim.model import pair_model
+
+    # the elastic contact duration at a given peak force, against a run of hertz
+    sc = braidsim.load_scenario(SC)
+    hertz = sc.with_overrides({"contact.track.model": "hertz"})
+    one = single_impact("hertz", 1.0, 0.3, stiffness=pair_model(sc, "track").stiffness)
+    got = pulse_duration(hertz, one["max_force"])
+    assert got == pytest.approx(one["contact_duration"], rel=1e-6)
+    assert pulse_duration(sc, 0.0) == math.inf
+    # every flight of the paper-3.1 carrier between two impacts is shorter than the bound
+    res = braidsim.simulate(sc, duration=0.3, record_events=False)
+    imp = res.impacts
+    tr = imp[(imp["pair"] == "track") & ~imp["initial"]]
+    flights = tr["t"].to_numpy()[1:] - tr["t_end"].to_numpy()[:-1]
+    bound = longest_flight(sc)
+    assert 0 < flights.max() < bound < 3 * flights.max()
+    # no bound where the friction can hold the carrier between the walls
+    assert longest_flight(sc.with_overrides({"friction.carrier_horn_gear": 10.0})) == math.inf
