@@ -82,6 +82,23 @@ def test_a_displacement_record_in_ms_read_as_s_is_refused_by_the_longest_flight(
     assert "head the column t [ms]" in str(e.value)
 
 
+def test_an_impact_list_in_ms_read_as_s_is_refused_after_the_start_run(monkeypatch):
+    # an impact list has no sample interval and may skip impacts: no closed form bounds its
+    # times; the run at the start values shows the carrier resting long before the list
+    runs = []
+    simulate = SIMULATE.simulate
+
+    def counted(*args, **kwargs):
+        runs.append(kwargs.get("duration"))
+        return simulate(*args, **kwargs)
+
+    monkeypatch.setattr(SIMULATE, "simulate", counted)
+    table = {"t": [6.64, 15.85, 54.37], "peak_force [kN]": [5.56, 5.47, 3.28]}
+    with pytest.raises(InputError, match=r"starts at t = 6\.64 s, after the last track impact"):
+        fit(SC, table, FREE2)
+    assert len(runs) == 1
+
+
 def test_records_sampled_finely_enough_pass():
     """The shipped example and synthetic records of every quantity (at 10 kHz, and a laser
     at 1 kHz) pass, and so does a long record sampled finely: the bound is on the sample

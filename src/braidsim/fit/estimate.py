@@ -600,6 +600,21 @@ def _check_covers_an_impact(problem: Problem) -> None:
     for part in _parts(problem):
         start_run = part.run(part.u_start)
         if isinstance(part, ImpactProblem):
+            imp = start_run.impacts
+            tm = np.asarray(imp["t"], dtype=float)[
+                np.asarray(imp["pair"] == "track") & ~np.asarray(imp["initial"])
+            ]
+            if tm.size and part.impacts.t[0] > tm[-1]:
+                # (times in ms read as s put a list 1000 times later than the carrier's
+                # impacts: every listed one would be matched to a model impact seconds
+                # earlier, the fit ending at its bounds with residuals 1e5 times the noise)
+                raise InputError(
+                    f"data (--data): the impact list {part.impacts.source} starts at t = "
+                    f"{part.impacts.t[0]:.6g} s, after the last track impact of the scenario "
+                    f"at the start values (t = {tm[-1]:.6g} s; none from then to "
+                    f"{part.duration:.6g} s); allowed a time column in the unit its header "
+                    "says (t [s] or t [ms]) and an impact list the scenario can reach"
+                )
             try:
                 part.model_values(start_run)
             except SimulationError as exc:
