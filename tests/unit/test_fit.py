@@ -5,6 +5,7 @@ contact-law selection, and the command line (JSON, files, refusals)."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import tomllib
 from pathlib import Path
@@ -18,6 +19,7 @@ from braidsim.fit.problem import FD_STEP, Problem, exact_available, model_accele
 from braidsim.fit.synthetic import synthetic_record
 
 SC = "paper-3.1"
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 FREE2 = {"contact.track.restitution": [0.3, 0.9], "track.clearance": ["2.5 mm", "3.5 mm"]}
 
 
@@ -320,6 +322,38 @@ def test_cli_refuses_bad_input_in_one_line_and_writes_nothing(
     assert code == 2
     assert stdout == ""
     assert err.count("\n") == 1 and words in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("header", "named"), [("t [s]", "column t [s]"), ("t", "column t (no unit: read as s)")]
+)
+def test_cli_refuses_the_example_in_ms_read_as_s_before_any_simulation(
+    tmp_path, capsys, monkeypatch, header, named
+):
+    # the shipped 0.1-s record at 10 kHz: read as s, 100 s at 10 Hz, which the fit ran for
+    # minutes before its warnings (tests/unit/test_fit_time_scale.py: the bounds)
+    def refuse(*args, **kwargs):
+        raise AssertionError("a simulation ran before the record was refused")
+
+    monkeypatch.setattr(importlib.import_module("braidsim.simulate"), "simulate", refuse)
+    text = (EXAMPLES / "fit_record.csv").read_text()
+    assert "\nt [ms],acceleration" in text
+    data = tmp_path / "rec.csv"
+    data.write_text(text.replace("\nt [ms],", f"\n{header},", 1))
+    out = tmp_path / "out"
+    argv = ["fit", str(EXAMPLES / "fit_spec.toml"), "--data", str(data), "--out", str(out)]
+    code, stdout, err = _cli(argv, capsys)
+    assert code == 2
+    assert stdout == ""
+    assert err.count("\n") == 1, err
+    for words in (
+        named,
+        "sample interval of 0.1 s (1000 samples over 100 s)",
+        "longest impact pulse",
+        "head the column t [ms]",
+    ):
+        assert words in err, (words, err)
     assert not out.exists()
 
 

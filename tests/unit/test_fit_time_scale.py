@@ -1,6 +1,7 @@
 """A record whose time column is in ms but read as s (``t [s]`` or a bare ``t``) is refused
 before any simulation, in one line naming the column, the numbers and the fix; records
-sampled finely enough (the shipped example, synthetic records, a long record) pass."""
+sampled finely enough (the shipped example, synthetic records, a long record) pass. The
+command line's refusal of the shipped example read so is in tests/unit/test_fit.py."""
 
 from __future__ import annotations
 
@@ -33,44 +34,6 @@ def no_simulation(monkeypatch):
         raise AssertionError("a simulation ran before the record was refused")
 
     monkeypatch.setattr(SIMULATE, "simulate", refuse)
-
-
-def _cli(argv, capsys):
-    from braidsim.cli import _register
-    from braidsim.cli.common import run_app
-
-    _register()
-    code = run_app(argv)
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-@pytest.mark.parametrize(
-    ("header", "named"), [("t [s]", "column t [s]"), ("t", "column t (no unit: read as s)")]
-)
-def test_cli_refuses_the_example_in_ms_read_as_s_before_any_simulation(
-    tmp_path, capsys, no_simulation, header, named
-):
-    # the shipped 0.1-s record at 10 kHz: read as s, 100 s at 10 Hz, which the fit ran for
-    # minutes before its warnings
-    text = (EXAMPLES / "fit_record.csv").read_text()
-    assert "\nt [ms],acceleration" in text
-    data = tmp_path / "rec.csv"
-    data.write_text(text.replace("\nt [ms],", f"\n{header},", 1))
-    out = tmp_path / "out"
-    argv = ["fit", str(EXAMPLES / "fit_spec.toml"), "--data", str(data), "--out", str(out)]
-    code, stdout, err = _cli(argv, capsys)
-    assert code == 2
-    assert stdout == ""
-    assert err.count("\n") == 1, err
-    for words in (
-        named,
-        "sample interval of 0.1 s (1000 samples over 100 s)",
-        "longest impact pulse",
-        "head the column t [ms]",
-    ):
-        assert words in err, (words, err)
-    assert not out.exists()
 
 
 def test_a_displacement_record_in_ms_read_as_s_is_refused_by_the_longest_flight(no_simulation):
