@@ -237,6 +237,46 @@ def damping_carvalho_martins(c_r: float) -> float:
     return exact_damping_factor(c_r)
 
 
+# ----------------------------------------------------------------------------------------
+# Their inverses c_r(D) in closed form, where one exists (ContactLaw.restitution_at)
+# ----------------------------------------------------------------------------------------
+
+
+def restitution_hunt_crossley(d: float) -> float:
+    """c_r = 1 - 2 D / 3, the inverse of Eq. (5)."""
+    return 1.0 - d / 1.5
+
+
+def restitution_herbert_mcwhannell(d: float) -> float:
+    """c_r of Eqs. (6)-(7): the root in [0, 1] of 4 D c^2 + (6 - 4 D) c + 4 D - 6 = 0,
+    c_r = 2 (4 D - 6) / (4 D - 6 - sqrt(12 (3 + 4 D - 4 D^2))) (the form without the
+    cancellation of the usual one at small D); 0 for D >= 3/2, where no c_r gives D."""
+    disc = 12.0 * (3.0 + 4.0 * d - 4.0 * d * d)
+    if d >= 1.5 or disc <= 0.0:
+        return 0.0
+    return 2.0 * (4.0 * d - 6.0) / (4.0 * d - 6.0 - math.sqrt(disc))
+
+
+def restitution_lee_wang(d: float) -> float:
+    """c_r = 1 - 4 D / 3, the inverse of Eq. (8)."""
+    return 1.0 - d / 0.75
+
+
+def restitution_lankarani_nikravesh(d: float) -> float:
+    """c_r = sqrt(1 - 4 D / 3), the inverse of Eq. (9); 0 for D >= 3/4."""
+    return math.sqrt(max(1.0 - d / 0.75, 0.0))
+
+
+def restitution_gonthier(d: float) -> float:
+    """c_r = 2 / (D + sqrt(D^2 + 4)), the positive root of c^2 + D c - 1 = 0 (Eq. 10)."""
+    return 2.0 / (d + math.sqrt(d * d + 4.0))
+
+
+def restitution_flores(d: float) -> float:
+    """c_r = 8 / (8 + 5 D), the inverse of Eq. (13)."""
+    return 8.0 / (8.0 + 5.0 * d)
+
+
 @dataclass(frozen=True)
 class ContactLaw:
     """A named contact force law ``F = K p^n (1 + D(c_r) pdot / v0)``.
@@ -255,6 +295,9 @@ class ContactLaw:
         Where the law stands in the paper.
     reference : str
         Citation.
+    inverse : callable, optional
+        c_r(D), the closed-form inverse of ``damping`` on (0, 1], where one exists
+        (:meth:`restitution_at`).
     """
 
     name: str
@@ -263,10 +306,36 @@ class ContactLaw:
     dissipative: bool
     equation: str
     reference: str
+    inverse: Callable[[float], float] | None = None
 
     def damping_factor(self, c_r: float) -> float:
         """D(c_r) of this law [-]."""
         return float(self.damping(c_r)) if self.dissipative else 0.0
+
+    def restitution_at(self, damping_factor: float) -> float:
+        """The nominal restitution c_r in [0, 1] at which D(c_r) equals ``damping_factor``
+        [-]: the closed-form inverse where the law has one (``inverse``), else Brent's
+        method on (0, 1], where every law's D falls from its value at c_r -> 0 to D(1) = 0.
+
+        1 for a factor <= 0; 0 for a factor above every D of the law (its limit c_r -> 0:
+        Hunt-Crossley's D stays below 3/2); nan for an elastic law (D does not depend on
+        c_r).
+        """
+        if not self.dissipative:
+            return math.nan
+        d = float(damping_factor)
+        if not d > 0.0:
+            return 1.0
+        if self.inverse is not None:
+            return min(max(float(self.inverse(d)), 0.0), 1.0)
+        from scipy import optimize
+
+        low = 1e-12
+        if self.damping(low) <= d:
+            return 0.0
+        return float(
+            optimize.brentq(lambda c: self.damping(c) - d, low, 1.0, xtol=1e-15, rtol=1e-15)
+        )
 
     @property
     def formula(self) -> str:
@@ -301,6 +370,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "Eq. (5)",
             "Hunt & Crossley (1975) doi:10.1115/1.3423596",
+            restitution_hunt_crossley,
         ),
         ContactLaw(
             "herbert_mcwhannell",
@@ -309,6 +379,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "Eqs. (6)-(7)",
             "Herbert & McWhannell (1977) J. Eng. Ind. 99:513",
+            restitution_herbert_mcwhannell,
         ),
         ContactLaw(
             "lee_wang",
@@ -317,6 +388,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "Eq. (8)",
             "Lee & Wang (1983) J. Mech. Trans. Autom. Des. 105:534",
+            restitution_lee_wang,
         ),
         ContactLaw(
             "lankarani_nikravesh",
@@ -325,6 +397,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "Eq. (9)",
             "Lankarani & Nikravesh (1990) doi:10.1115/1.2912617",
+            restitution_lankarani_nikravesh,
         ),
         ContactLaw(
             "gonthier",
@@ -333,6 +406,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "Eq. (10)",
             "Gonthier et al. (2004) doi:10.1023/B:MUBO.0000029392.21648.bc",
+            restitution_gonthier,
         ),
         ContactLaw(
             "zhiying_qishao",
@@ -349,6 +423,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "Eq. (13)",
             "Flores et al. (2011) doi:10.1007/s11044-010-9237-4",
+            restitution_flores,
         ),
         ContactLaw(
             "carvalho_martins",
@@ -357,6 +432,7 @@ _LAWS: dict[str, ContactLaw] = {
             True,
             "not in the paper (exact restitution)",
             "Carvalho & Martins (2019) doi:10.1016/j.mechmachtheory.2019.03.028",
+            effective_restitution,
         ),
     )
 }

@@ -98,6 +98,29 @@ def test_carvalho_martins_restitutes_exactly(c_r: float) -> None:
     assert contact.effective_restitution(d) == pytest.approx(c_r, abs=1e-12)
 
 
+@pytest.mark.parametrize("name", contact.law_names())
+def test_restitution_at_inverts_the_damping_factor(name: str) -> None:
+    """c_r(D) of each law (closed form, or Brent's method for Zhiying-Qishao) gives back
+    the c_r of D(c_r) over (0, 1]; 1 at D = 0, 0 beyond the law's largest D (its value at
+    c_r -> 0), nan for the elastic laws, whose D does not depend on c_r."""
+    law = contact.get_law(name)
+    if not law.dissipative:
+        assert math.isnan(law.restitution_at(0.5))
+        return
+    for c_r in np.linspace(0.01, 1.0, 100):
+        assert law.restitution_at(law.damping_factor(float(c_r))) == pytest.approx(c_r, abs=1e-13)
+    assert law.restitution_at(0.0) == 1.0
+    top = {
+        "hunt_crossley": 1.5,
+        "herbert_mcwhannell": 1.5,
+        "lee_wang": 0.75,
+        "lankarani_nikravesh": 0.75,
+        "zhiying_qishao": 0.75 * math.e**2,
+    }
+    if name in top:
+        assert law.restitution_at(top[name] * 1.01) == 0.0
+
+
 def test_hertz_stiffness_eq4_calibrated_and_printed() -> None:
     # docs/model.md §1: K = 2.4904e10 N/m^1.5 at E = 200 GPa, 2.490e8 at the printed 2 GPa
     k200 = contact.hertz_stiffness(200e9, 0.3, 0.020, 200e9, 0.3, 0.065, "concave")
