@@ -215,6 +215,50 @@ def test_laws_that_differ_only_in_restitution_are_reported_equal(accel_record):
     assert any("do not distinguish" in w for w in res.warnings)
 
 
+def test_a_law_stuck_far_from_its_twin_starts_again_from_the_twins_optimum():
+    """Flores fitted 4,950 AIC worse than Hunt-Crossley on Lankarani-Nikravesh data with 3
+    starts (equal with 6). Each law now starts also from the best law's optimum mapped onto
+    it (same K and n, the c_r where the damping factors agree): here 4,130 worse from its
+    own 3 starts, equal from Hunt-Crossley's (flores D = 8 (1 - c) / (5 c) equals
+    Hunt-Crossley's 3 (1 - c_HC) / 2 at c = 8 / (8 + 5 D))."""
+    sc = braidsim.load_scenario(SC, overrides={"contact.track.model": "lankarani_nikravesh"})
+    rec = synthetic_record(sc, 0.08, noise={"acceleration": 20.0}, seed=11)
+    free = {"contact.track.restitution": [0.3, 0.95]}
+    res = fit(SC, rec, free, quantity="acceleration", laws=["flores"], starts=3)
+    by = {lr.law: lr for lr in res.laws}
+    assert by["flores"].aic == pytest.approx(by["hunt_crossley"].aic, abs=0.01)
+    d = 1.5 * (1 - by["hunt_crossley"].restitution)
+    assert by["flores"].restitution == pytest.approx(8 / (8 + 5 * d), rel=1e-5)
+    (note,) = [n for n in res.notes if n.startswith("flores: fitted from hunt_crossley")]
+    assert float(note.split("ended ")[1].split(" AIC")[0]) > 1000  # its own starts: stuck
+    assert not any("local minimum" in w for w in res.warnings)
+    assert res.law == "hunt_crossley"
+
+
+def test_a_law_that_cannot_give_its_twins_force_law_stays_worse():
+    """On Hunt-Crossley data (c_r = 5/9, D = 2/3) fitted from the start alone, Flores is
+    stuck 4,060 AIC worse and reaches Hunt-Crossley from its optimum; Lee-Wang's D =
+    3 (1 - c) / 4 gives 2/3 only at c_r = 1/9, below the bounds: its start from there is
+    clipped to 0.3 (with a note), it stays far worse at that bound, and is not taken for a
+    stuck search."""
+    rec = synthetic_record(SC, 0.08, noise={"acceleration": 20.0}, seed=11)
+    free = {"contact.track.restitution": [0.3, 0.95]}
+    laws = ["flores", "lee_wang"]
+    res = fit(SC, rec, free, quantity="acceleration", laws=laws, global_method="none")
+    by = {lr.law: lr for lr in res.laws}
+    assert by["flores"].aic == pytest.approx(by["hunt_crossley"].aic, abs=0.01)
+    assert by["lee_wang"].aic - by["hunt_crossley"].aic > 1000
+    assert by["lee_wang"].restitution == pytest.approx(0.3)
+    assert not by["lee_wang"].restitution_inside
+    assert any(
+        n.startswith("lee_wang: hunt_crossley's optimum")
+        and "c_r = 0.1111" in n
+        and "cannot give" in n
+        for n in res.notes
+    )
+    assert not any("local minimum" in w for w in res.warnings)
+
+
 # ---------------------------------------------------------------------------------------
 # the command line
 # ---------------------------------------------------------------------------------------
