@@ -524,11 +524,11 @@ def twin_start(pr: Problem, law: str, twin: LawResult) -> tuple[np.ndarray, str]
     values[REST] = min(max(c, p.low), p.high)
     if p.low <= c <= p.high:
         return pr.to_unit(values), ""
-    where = f"c_r = {c:.4g}" if c > 0 else f"no c_r (its D stays below {d:.4g})"
+    where = f"c_r = {c:.4g}" if c > 0 else f"no c_r of {law} (its D stays below {d:.4g})"
     note = (
         f"{law}: {twin.law}'s optimum (D = {d:.4g} at c_r = {twin.restitution:.4g}) maps to "
-        f"{where}, outside {REST}'s bounds [{p.low:g}, {p.high:g}]; its start from there "
-        f"took {values[REST]:g}: within them {law} cannot give {twin.law}'s force law"
+        f"{where}, outside {REST}'s bounds [{p.low:g}, {p.high:g}]; its further start took "
+        f"c_r = {values[REST]:g}: within them {law} cannot give {twin.law}'s force law"
     )
     return pr.to_unit(values), note
 
