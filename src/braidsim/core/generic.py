@@ -6,7 +6,7 @@ or ``derivatives(model, t, ...)``. Each contact law, friction law, excitation an
 class::
 
     @contact_forces.register(MyLaw)
-    def _my_law_forces(law, p, p_dot, v0): ...   # parameters named as the declaration's
+    def _my_law_forces(law, p, p_dot, v0): ...   # parameters in the declaration's order
 
 Inside compiled code the call ``contact_forces(law, ...)`` is resolved by the *type* of
 ``law`` when the caller is compiled (numba's ``overload`` mechanism), so the dispatch costs
@@ -19,8 +19,12 @@ generic function is an error (one definition each).
 
 from __future__ import annotations
 
+import hashlib
 import inspect
-from collections.abc import Callable
+import os
+import sys
+from collections.abc import Callable, Iterable
+from pathlib import Path
 from typing import Any, TypeVar
 from typing import overload as overload_type
 
@@ -197,8 +201,118 @@ class _LinkOnlyCacheImpl(CompileResultCacheImpl):
             del codegen.unserialize_library
 
 
-class _LinkOnlyCache(FunctionCache):
+# ------------------------------------------------------------------------------------------
+# A cache that sees edits of the code it compiled in, wherever that code is written
+# ------------------------------------------------------------------------------------------
+
+#: the core's own sources: every compiled function of the core may hold code of any of them
+_CORE_DIR = Path(__file__).resolve().parent
+_CORE_FILES: tuple[str, ...] | None = None
+#: file -> ((mtime_ns, size), blake2b of its bytes), read once per process and stamp
+_FILE_HASHES: dict[str, tuple[tuple[int, int], bytes]] = {}
+#: every generic function declared (GenericFunction appends itself)
+_GENERICS: list[GenericFunction] = []
+
+
+def _file_hash(path: str) -> bytes:
+    """blake2b of a source file's bytes (b"" where it cannot be read), kept per process for
+    as long as its mtime and size stay."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return b""
+    stamp = (st.st_mtime_ns, st.st_size)
+    known = _FILE_HASHES.get(path)
+    if known is not None and known[0] == stamp:
+        return known[1]
+    try:
+        digest = hashlib.blake2b(Path(path).read_bytes(), digest_size=16).digest()
+    except OSError:
+        return b""
+    _FILE_HASHES[path] = (stamp, digest)
+    return digest
+
+
+def _record_classes(numba_types: Iterable[Any], out: set[type]) -> set[type]:
+    """The record classes of a signature, the records inside records (a model's laws,
+    friction and excitation) included."""
+    for t in numba_types:
+        cls = record_class(t)
+        if isinstance(t, RecordRef):
+            t = t.record
+        if cls is not None and cls not in out:
+            out.add(cls)
+        if isinstance(t, types.BaseTuple):
+            _record_classes(getattr(t, "types", ()), out)
+    return out
+
+
+def sources_digest(numba_types: Iterable[Any]) -> str:
+    """A digest of the sources a function compiled for these argument types holds: every
+    file of ``braidsim.core``, and for each record class among the types (or inside them)
+    the file that defines it and the files of its registered implementations, wherever
+    they are (an extension outside the core, a test's model).
+
+    numba's cache keys a compiled function by its own bytecode and checks its own file's
+    time stamp only, but the solver's machine code holds the code of every helper and
+    implementation it calls, from other files: after an edit of a contact law, a run loaded
+    the solver compiled before it and gave the old law's results (a force scaled by 1.0001
+    passed the law's test). With this digest in the key (:class:`SourceAwareCache`), the
+    edited law's runs are compiled again. Content, not time stamps: a checkout that restores
+    a file's content finds its compiled code again."""
+    global _CORE_FILES
+    if _CORE_FILES is None:
+        _CORE_FILES = tuple(sorted(str(p) for p in _CORE_DIR.rglob("*.py")))
+    files = set(_CORE_FILES)
+    for cls in _record_classes(numba_types, set()):
+        module = sys.modules.get(cls.__module__)
+        if module is not None and getattr(module, "__file__", None):
+            files.add(str(module.__file__))
+        for g in _GENERICS:
+            fn = g.impls.get(cls)
+            if fn is not None:
+                files.add(fn.__code__.co_filename)
+    h = hashlib.blake2b(digest_size=16)
+    for path in sorted(files):
+        h.update(path.encode())
+        h.update(_file_hash(path))
+    return h.hexdigest()
+
+
+class _SourceAwareKey:
+    """Mixin of numba's ``Cache``: the index key of a compiled function also holds
+    :func:`sources_digest` of its argument types."""
+
+    def _index_key(self, sig: Any, codegen: Any) -> Any:
+        sig_key, magic, hashes = super()._index_key(sig, codegen)  # type: ignore[misc]
+        arg_types = getattr(sig, "args", sig)
+        return sig_key, magic, (*hashes, sources_digest(arg_types))
+
+
+class SourceAwareCache(_SourceAwareKey, FunctionCache):
+    """numba's cache of a compiled function, keyed by the sources it holds as well
+    (:func:`sources_digest`)."""
+
+
+class _LinkOnlyCache(_SourceAwareKey, FunctionCache):
     _impl_class = _LinkOnlyCacheImpl
+
+
+def cached_njit(**options: Any) -> Callable[[Callable[..., Any]], Any]:
+    """``numba.njit(**options)`` with its disk cache keyed by the sources its code holds
+    (:class:`SourceAwareCache`), for the core's compiled functions that are not helpers."""
+
+    def deco(fn: Callable[..., Any]) -> Any:
+        disp: Any = njit(**options)(fn)
+        if getattr(numba_config, "DISABLE_JIT", False):
+            return disp
+        try:
+            disp._cache = SourceAwareCache(disp.py_func)
+        except RuntimeError:  # no file to cache it by (typed at a prompt): compiled per process
+            pass
+        return disp
+
+    return deco
 
 
 # numba's internals the link-only helpers rely on (numba 0.68); without them, plain helpers
@@ -256,7 +370,8 @@ class CompiledOnly(CPUDispatcher):
         if self._python_twin:
             if self._twin is None:  # compiled (or loaded from the cache) at the first call
                 cache = self._cache.__class__ is not NullCache
-                twin = njit(cache=cache, error_model="numpy", _nrt=False)  # type: ignore[call-overload]
+                options = {"error_model": "numpy", "_nrt": False}
+                twin = cached_njit(**options) if cache else njit(**options)  # type: ignore[call-overload]
                 self._twin = twin(self.py_func)
             return self._twin(*args, **kws)
         raise TypeError(
@@ -482,6 +597,7 @@ class GenericFunction:
         # helper compiled from it that compiled callers call (made at its first use)
         self.impls: dict[type, Any] = {}
         self._helpers: dict[type, Any] = {}
+        _GENERICS.append(self)
         # The typing function must have the stub's own parameters (numba matches them by
         # name), so it is written out for this signature; the stub's call becomes a call of
         # the helper, through a wrapper that numba inlines (one call, cheap to inline).

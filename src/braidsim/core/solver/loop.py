@@ -12,9 +12,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
-from braidsim.core.generic import by_ref, helper
+from braidsim.core.generic import by_ref, cached_njit, helper
 from braidsim.core.interfaces import (
     apply_transfer,
     dissipation_index,
@@ -166,10 +165,11 @@ def _onset_step(model, pair, v0):
 # braidsim.core.generic: _open and _start_contacts reach the tangents' records), compiled to
 # be called from compiled code only, without the Python and C-callback wrappers of a function
 # callable from Python (numba's type stubs do not list these switches)
-_OPTIONS = {"cache": True, "error_model": "numpy", "no_cfunc_wrapper": True}
-_solver_call = njit(no_cpython_wrapper=True, **_OPTIONS)  # type: ignore[call-overload]
+# (cached by the sources their code holds: core.generic.cached_njit)
+_OPTIONS = {"error_model": "numpy", "no_cfunc_wrapper": True}
+_solver_call = cached_njit(no_cpython_wrapper=True, **_OPTIONS)
 # integrate itself: called from Python, never through a C callback
-_entry_point = njit(nogil=True, **_OPTIONS)  # type: ignore[call-overload]
+_entry_point = cached_njit(nogil=True, **_OPTIONS)
 
 
 @_solver_call

@@ -10,9 +10,8 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from numba import njit
 
-from braidsim.core.generic import helper
+from braidsim.core.generic import cached_njit, helper
 from braidsim.core.interfaces import (
     pair_gap_accel,
     pair_gaps,
@@ -94,7 +93,7 @@ def pair_infos(model, n_pairs, t, y, f, modes, v0s, INF):
         pair_info(model, pair, t, y, f, modes[pair], v0s[pair], INF[pair])
 
 
-@njit(cache=True, error_model="numpy")
+@cached_njit(error_model="numpy")
 def _forces_along(model, pair, ts, Y, mode, v0, out):
     y = np.empty(Y.shape[0])
     for k in range(ts.shape[0]):
@@ -108,7 +107,7 @@ def _forces_along(model, pair, ts, Y, mode, v0, out):
         out[4, k] = nn
 
 
-@njit(cache=True, error_model="numpy")
+@cached_njit(error_model="numpy")
 def _gaps_along(model, pair, ts, Y, out):
     y = np.empty(Y.shape[0])
     for k in range(ts.shape[0]):

@@ -48,8 +48,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from braidsim.core.generic import cached_njit
 from braidsim.core.interfaces import (
     apply_transfer_jvp,
     derivatives_jvp,
@@ -84,7 +83,7 @@ from braidsim.core.solver.pairs import gaps, pair_forces
 
 # with numba's reference counting (the tangent records come out of a typed list), unlike
 # core.generic.helper, whose functions run without it
-tangent_helper = njit(cache=True, error_model="numpy")
+tangent_helper = cached_njit(error_model="numpy")
 
 
 @tangent_helper
