@@ -263,17 +263,9 @@ def check_differentiable(record: Any) -> None:
     itself (its four model tangents) or a physics record inside it, found by what it
     implements (a contact law, a friction law or an excitation needs the tangent of that
     function), whatever the field that holds it."""
-    from braidsim.core import interfaces as I
+    from braidsim.core.driver import tangents_missing
 
-    missing = I.first_missing(
-        record,
-        (I.derivatives_jvp, I.pair_gaps_jvp, I.pair_law_jvp, I.apply_transfer_jvp),
-        (
-            (I.contact_forces, I.contact_forces_jvp),
-            (I.friction_force, I.friction_force_jvp),
-            (I.wall_motion, I.wall_motion_jvp),
-        ),
-    )
+    missing = tangents_missing(record)
     if missing is None:
         return
     field, sub, fn = missing

@@ -23,7 +23,12 @@ from braidsim.core import (
     wall_motion,
 )
 from braidsim.core import layout as L
-from braidsim.core.interfaces import contact_forces
+from braidsim.core.interfaces import (
+    contact_force_rates,
+    contact_forces,
+    contact_onset_step,
+    contact_potential,
+)
 from braidsim.model import build_model
 from braidsim.params import load_scenario
 
@@ -120,7 +125,7 @@ def _free_carrier(friction: object, mu: float, v0: float) -> tuple[object, np.nd
     return rec, y0
 
 
-@pytest.mark.slow  # (the Coulomb-viscous law's own compile of the solver, ~30 s)
+@pytest.mark.slow  # (the Coulomb-viscous law's own compile of the solver, about 10 s)
 def test_viscous_friction_decays_the_speed_exponentially() -> None:
     """mu = 0: m x'' = -b x', so x' = v0 exp(-b t / m), x = x0 + v0 m / b (1 - exp(-b t / m))."""
     b, v0, T = 3.0, 0.2, 0.4
@@ -133,7 +138,7 @@ def test_viscous_friction_decays_the_speed_exponentially() -> None:
     assert raw.y[3] == pytest.approx(0.5 * m * v0 * v0 * (1 - decay**2), rel=1e-8)  # friction work
 
 
-@pytest.mark.slow  # (the Coulomb-viscous law's own compile of the solver, ~30 s)
+@pytest.mark.slow  # (the Coulomb-viscous law's own compile of the solver, about 10 s)
 def test_coulomb_friction_decelerates_at_mu_n_over_m() -> None:
     """b = 0, v >> v_hat: m x'' = -mu N, a constant deceleration while sliding."""
     mu, v0, T = 0.1, 0.5, 0.2
@@ -182,7 +187,7 @@ def test_measured_track_acceleration_bound_is_computed_once_and_holds() -> None:
     assert tr.accel_bound == pytest.approx(a * w * w, rel=1e-2)
 
 
-@pytest.mark.slow  # (its own compile of the solver for the measured track, ~30 s)
+@pytest.mark.slow  # (its own compile of the solver for the measured track, about 10 s)
 def test_a_run_on_the_measured_record_equals_the_run_on_the_harmonic(tmp_path: Path) -> None:
     """The paper-3.3 carrier on the record of its own track vibration (written to CSV in mm
     and read back): the same impacts as on the harmonic track."""
@@ -285,9 +290,9 @@ def test_class_constants_from_the_interpreter_equal_the_compiled_ones() -> None:
         build_model(load_scenario("paper-3.3").with_overrides({"simulation.dof": "xy"})).record,
         ImpactOscillator(1.2, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, law),
     ]
-    classes = {type(m) for m in models}
-    assert set(model_size.generic.impls) == classes
-    assert set(dissipation_index.generic.impls) == classes
+    # (a model added elsewhere, a test's or an extension's, registers both as well)
+    assert {type(m) for m in models} <= set(model_size.generic.impls)
+    assert set(model_size.generic.impls) == set(dissipation_index.generic.impls)
     for model in models:
         size = model_size.plain(model)
         assert size == tuple(model_size.py(model))
@@ -415,3 +420,45 @@ def test_sensitivities_name_the_part_without_tangents() -> None:
 
     with pytest.raises(InputError, match=r"model NoTangentModel has no tangents"):
         check_differentiable(NoTangentModel(1.0))
+
+
+def test_run_names_what_a_record_does_not_register_before_compiling() -> None:
+    """A law registered for its force alone, a model without its functions, tangents asked
+    of a law without its tangent: ``run`` names the record and the function at once (numba
+    would fail after compiling with a typing error of thousands of characters)."""
+    from braidsim.core.driver import Tangents
+
+    model = build_model(load_scenario("paper-3.1"), 0.01)
+    rec = model.record._replace(slot_law=_LawWithoutTangent(1e6))
+    with pytest.raises(ValueError, match=r"model: _LawWithoutTangent \(slot_law\) does not "):
+        run(rec, model.options, model.y0)
+
+    class BareModel(NamedTuple):
+        mass: float
+
+    with pytest.raises(
+        ValueError, match=r"model: the model BareModel does not register model_size"
+    ):
+        run(BareModel(1.0), model.options, np.zeros(2))
+
+    law = KelvinVoigtContact.for_restitution(5e7, 0.5, 1.2, allow_tension=True)
+    osc = ImpactOscillator(
+        1.2, 0.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, _KelvinVoigtNoTangent(*law)
+    )
+    y0 = np.zeros(state_size(osc, True))
+    directions = (np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 0)), np.ones(1))
+    tangents = Tangents([osc], *directions)
+    with pytest.raises(
+        ValueError,
+        match=r"tangents: _KelvinVoigtNoTangent \(law\) does not register contact_forces_jvp",
+    ):
+        run(osc, TIGHT, y0, tangents=tangents)
+
+
+class _KelvinVoigtNoTangent(KelvinVoigtContact):
+    """The Kelvin-Voigt law under another class, registered for everything a run needs but
+    its tangent."""
+
+
+for _fn in (contact_forces, contact_potential, contact_force_rates, contact_onset_step):
+    _fn.register(_KelvinVoigtNoTangent)(_fn.generic.impls[KelvinVoigtContact])

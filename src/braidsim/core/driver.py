@@ -381,6 +381,78 @@ def quadrature_prefix(model: Any, which: str) -> int:
     raise ValueError(f"quadratures: {which!r}; allowed 'dissipation' or 'friction'")
 
 
+#: what the solver calls for every model: the model functions of core.interfaces, and beside
+#: the function that gives a physics record its role (a contact law, an excitation) the
+#: others of that role
+_MODEL_FUNCTIONS = (
+    I.model_size,
+    I.derivatives,
+    I.pair_gaps,
+    I.pair_gap_accel,
+    I.pair_law,
+    I.pair_law_rates,
+    I.pair_onset_step,
+    I.free_accel_bound,
+    I.apply_transfer,
+    I.dissipation_index,
+    I.series_row,
+)
+_ROLE_FUNCTIONS = (
+    (I.contact_forces, I.contact_potential),
+    (I.contact_forces, I.contact_force_rates),
+    (I.contact_forces, I.contact_onset_step),
+    (I.wall_motion, I.wall_accel_bound),
+)
+_TANGENT_FUNCTIONS = (I.derivatives_jvp, I.pair_gaps_jvp, I.pair_law_jvp, I.apply_transfer_jvp)
+_TANGENT_ROLES = (
+    (I.contact_forces, I.contact_forces_jvp),
+    (I.friction_force, I.friction_force_jvp),
+    (I.wall_motion, I.wall_motion_jvp),
+)
+# the classes (a model's and its fields') found to give every function asked for, by what
+# was asked: a registration is never withdrawn, so the answer stays; a refusal is not kept
+# (the function may be registered later)
+_COMPLETE: set[tuple[str, tuple[type, ...]]] = set()
+
+
+def _first_missing(what: str, model: Any, functions: Any, roles: Any) -> Any:
+    """:func:`~braidsim.core.interfaces.first_missing`, with a yes kept per class."""
+    key = (what, (type(model), *map(type, model)))
+    if key in _COMPLETE:
+        return None
+    missing = I.first_missing(model, functions, roles)
+    if missing is None:
+        _COMPLETE.add(key)
+    return missing
+
+
+def model_incomplete(model: Any) -> str:
+    """Why the solver cannot run ``model`` ("" when it can): a function of the model, or of
+    a contact law or excitation in its fields, that is not registered (:func:`run` says so
+    before it compiles, where numba would fail after seconds of compiling with a typing
+    error of several thousand characters), or the model's series columns not described
+    (:func:`~braidsim.core.interfaces.describe_model`)."""
+    missing = _first_missing("run", model, _MODEL_FUNCTIONS, _ROLE_FUNCTIONS)
+    if missing is not None:
+        field, sub, fn = missing
+        if sub is None:
+            return f"the model {type(model).__name__} does not register {fn.__name__}"
+        return f"{type(sub).__name__} ({field}) does not register {fn.__name__}"
+    if not I.described(model):
+        return (
+            f"the model {type(model).__name__} has no series columns (call describe_model "
+            "for its class)"
+        )
+    return ""
+
+
+def tangents_missing(model: Any) -> tuple[str, Any, Any] | None:
+    """What ``model`` lacks to carry tangents (:func:`~braidsim.core.interfaces.first_missing`
+    of its four model tangents and of the tangent of each physics record's function), or
+    None."""
+    return _first_missing("tangents", model, _TANGENT_FUNCTIONS, _TANGENT_ROLES)
+
+
 # the classes (a model's and its fields') found to give every Taylor series: a registration
 # is never withdrawn, so the answer stays; a refusal is not kept (a series may be registered)
 _TAYLOR_CAPABLE: set[tuple[type, ...]] = set()
@@ -507,6 +579,19 @@ def run(
         sized beforehand, but the event rows are not: a contact resting for hours has a
         peak of its force at every wobble of the solution).
     """
+    why = model_incomplete(model)
+    if why:
+        raise ValueError(f"model: {why}")
+    if tangents is not None:
+        missing = tangents_missing(model)
+        if missing is not None:
+            field, sub, fn = missing
+            part = (
+                f"the model {type(model).__name__}"
+                if sub is None
+                else f"{type(sub).__name__} ({field})"
+            )
+            raise ValueError(f"tangents: {part} does not register {fn.__name__}")
     model = declared_model(model)
     opts = declared_options(opts)
     _, n_pairs, n_quads = model_sizes(model)

@@ -64,6 +64,12 @@ def first_missing(record: Any, model_functions: Any, roles: Any) -> tuple[str, A
     return None
 
 
+def described(model: Any) -> bool:
+    """Whether ``model`` (a record or its class) has its series columns described
+    (:func:`describe_model`)."""
+    return (model if isinstance(model, type) else type(model)) in _COLUMNS
+
+
 def series_columns(model: Any) -> tuple[str, ...]:
     """The columns of the sampled series of ``model`` (a record or its class)."""
     return _COLUMNS[model if isinstance(model, type) else type(model)]
@@ -125,7 +131,10 @@ def contact_onset_step(law, mass, v):
     """(h, q): a first step [s] for a contact that starts at approach speed ``v`` [m/s] on a
     body of ``mass`` [kg] (about 1/12 of the contact's duration), and the exponent q used to
     rescale that step when it is rejected, h_new = h err^(-1/q): the force grows as p^n after
-    onset, so for n not an integer the step's error grows as h^(n+1), q = n + 1. (For an
+    onset, so for n not an integer the step's error grows as h^(n+1), q = n + 1. The solver
+    also corrects that step's error estimate by q (``dopri5.onset_error_ratio``: the
+    embedded estimate misses the tau^n onset, 11.3 times in the speed for n = 3/2), so a
+    wrong q changes the accuracy of each contact's first step, not only its retries. (For an
     integer n the error is the method's regular one; the laws still return n + 1, which
     shrinks a rejected first step somewhat more than needed.)"""
     raise NotImplementedError
@@ -264,8 +273,9 @@ def series_row(model, t, y, modes, v0s, n_state, kind, row):
 # functions below give, each for its own record, coefficient k of its output from the
 # coefficients 0..k of its inputs; the caller calls them for k = 0, 1, 2, ... in turn, and
 # each keeps the coefficients it needs again in the rows of its work array ``S`` (shape
-# (SERIES_ROWS, >= order + 2); its rows are its own). A record without them is integrated
-# by the Runge-Kutta step only.
+# (SERIES_ROWS, >= order + 2); its rows are its own). A run asked for Taylor steps of a
+# record without them is refused before it starts (core.driver.taylor_capable names the
+# record and the function).
 
 SERIES_ROWS = 8  # rows of work a physics record's series may use
 TAYLOR_ROWS = 48  # rows of work a model's series may use
