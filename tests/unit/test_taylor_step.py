@@ -26,7 +26,14 @@ from braidsim.core import (
 )
 from braidsim.core import layout as L
 from braidsim.core.driver import taylor_capable
-from braidsim.core.interfaces import contact_forces, friction_force, friction_force_series
+from braidsim.core.interfaces import (
+    contact_force_rates,
+    contact_forces,
+    contact_onset_step,
+    contact_potential,
+    friction_force,
+    friction_force_series,
+)
 from braidsim.core.physics.friction import FRICTION_CODES
 from braidsim.model import build_model
 from braidsim.params import load_scenario
@@ -492,6 +499,23 @@ class _NoSeriesLaw(NamedTuple):
 def _no_series_forces(law, p, p_dot, v0):  # type: ignore[no-untyped-def]
     fk = law.stiffness * p
     return fk, 0.0, fk
+
+
+# (the rest of what a run needs of a contact law: the check of Taylor steps is the one that
+# fails)
+@contact_potential.register(_NoSeriesLaw)
+def _no_series_potential(law, p):  # type: ignore[no-untyped-def]
+    return 0.5 * law.stiffness * p * p
+
+
+@contact_force_rates.register(_NoSeriesLaw)
+def _no_series_rates(law, p, p_dot, p_ddot, v0, f_k, f_c):  # type: ignore[no-untyped-def]
+    return law.stiffness * p_dot, 0.0
+
+
+@contact_onset_step.register(_NoSeriesLaw)
+def _no_series_onset(law, mass, v):  # type: ignore[no-untyped-def]
+    return 0.1 * math.sqrt(mass / law.stiffness), 2.0
 
 
 class _NoReachFriction(NamedTuple):
