@@ -36,6 +36,11 @@ FloatSeq = Sequence[float] | np.ndarray
 """A vector given as a sequence or an array."""
 
 DEFAULT_REL_STEP = 1e-5
+STRUCTURE_RETRIES = 1
+"""Times the finite-difference step is cut by 10 where the perturbed runs do not make the
+base run's contacts (:func:`contact_structure`), before the first step's difference is
+taken as it is (once was enough for the clearance example's cross branch; the shipped paper
+study then takes 9.3 s of CPU against 8.5 s without the check)."""
 IMPACT_QUANTITIES = ("t", "velocity", "peak_force", "max_depth", "t_end")
 
 
@@ -189,6 +194,11 @@ def min_gaps(prep: Any, series: np.ndarray | None, n_state: int) -> np.ndarray:
     return out
 
 
+def contact_structure(episodes: np.ndarray) -> tuple[tuple[int, int], ...]:
+    """The contacts of a run in order: (pair, wall) of each episode."""
+    return tuple((int(p), int(w)) for p, w in zip(episodes["pair"], episodes["wall"], strict=True))
+
+
 def _episode_quantities(ep: np.ndarray) -> np.ndarray:
     return np.column_stack([ep[q] for q in IMPACT_QUANTITIES]) if ep.size else np.zeros((0, 5))
 
@@ -224,9 +234,35 @@ def fd_flow_map(
     if n == 4:  # (x, vx, y, vy)
         scale_y = np.array([Ls, Vs, Ls, Vs])
 
-    def runs(make: Any) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, float]]:
-        (a, b), d = make
-        sp, sm = a(), b()
+    structure = contact_structure(base.episodes)
+
+    # whether a cut step may still restore the base run's contacts in this map
+    retry = [True]
+
+    def runs(
+        at: Any, d: float
+    ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, np.ndarray, float]]:
+        # Where the two runs at +-d do not make the base run's contacts (a contact that
+        # appears, vanishes or splits in two at a depth minimum touching zero inside it),
+        # their difference is no derivative: on the clearance example's cross branch it
+        # made a multiplier jump from 1.17 to -1,367 and a false period doubling. The step
+        # is cut by 10 once (STRUCTURE_RETRIES). Where that does not help (an orbit at a grazing,
+        # whose free-flight family a boundary follows, touches the wall under any
+        # perturbation; a resting contact at its lift-off) the first step's difference
+        # stands, as before, and the map's other columns are not tried smaller (cutting in
+        # every column made 20 % more runs at the lift-off of paper-3.3's resting orbit).
+        d0 = d
+        sp0, sm0 = sp, sm = at(d), at(-d)
+        same = contact_structure(sp.episodes) == contact_structure(sm.episodes) == structure
+        tries = STRUCTURE_RETRIES if retry[0] else 0
+        while not same and tries > 0:
+            d *= 0.1
+            tries -= 1
+            sp, sm = at(d), at(-d)
+            same = contact_structure(sp.episodes) == contact_structure(sm.episodes) == structure
+        if not same:
+            retry[0] = False
+            sp, sm, d = sp0, sm0, d0
         dy = (sp.y1 - sm.y1) / (2 * d)
         dv = np.where(np.isfinite(sp.v0s1 - sm.v0s1), (sp.v0s1 - sm.v0s1) / (2 * d), 0.0)
         return dy, dv, (sp.episodes, sm.episodes, d)
@@ -234,18 +270,13 @@ def fd_flow_map(
     cols_y, cols_v = [], []
     cols_q: list[tuple[np.ndarray, np.ndarray, float] | None] = []
     for i in range(n):
-        d = rel * scale_y[i]
-        e = np.zeros(n)
-        e[i] = d
-        dy, dv, dq = runs(
-            (
-                (
-                    lambda e=e: advance(prep, t0, t1, y0 + e, modes, v0),
-                    lambda e=e: advance(prep, t0, t1, y0 - e, modes, v0),
-                ),
-                d,
-            )
-        )
+
+        def shifted_y(s: float, i: int = i) -> Segment:
+            e = np.zeros(n)
+            e[i] = s
+            return advance(prep, t0, t1, y0 + e, modes, v0)
+
+        dy, dv, dq = runs(shifted_y, rel * scale_y[i])
         cols_y.append(dy)
         cols_v.append(dv)
         cols_q.append(dq)
@@ -255,18 +286,13 @@ def fd_flow_map(
         if modes[j] == 0 or not math.isfinite(v0[j]):
             cols_q.append(None)
             continue
-        d = rel * abs(v0[j])
-        e = np.zeros(2)
-        e[j] = d
-        dy, dv, dq = runs(
-            (
-                (
-                    lambda e=e: advance(prep, t0, t1, y0, modes, v0 + e),
-                    lambda e=e: advance(prep, t0, t1, y0, modes, v0 - e),
-                ),
-                d,
-            )
-        )
+
+        def shifted_v0(s: float, j: int = j) -> Segment:
+            e = np.zeros(2)
+            e[j] = s
+            return advance(prep, t0, t1, y0, modes, v0 + e)
+
+        dy, dv, dq = runs(shifted_v0, rel * abs(v0[j]))
         jac_v0[:, j] = dy
         dv0_dv0[:, j] = dv
         cols_q.append(dq)
@@ -274,14 +300,13 @@ def fd_flow_map(
     dv0_dp = np.zeros((2, len(keys)))
     for j, key in enumerate(keys):
         p = float(values[key]) if key in values else float(system.value(key))
-        d = rel * max(abs(p), 1e-12)
 
         def at(s: float, key: str = key, p: float = p) -> Segment:
             vals = dict(values)
             vals[key] = p + s
             return advance(system.prepare(vals), t0, t1, y0, modes, v0)
 
-        dy, dv, dq = runs(((lambda at=at, d=d: at(d), lambda at=at, d=d: at(-d)), d))
+        dy, dv, dq = runs(at, rel * max(abs(p), 1e-12))
         jac_p[:, j] = dy
         dv0_dp[:, j] = dv
         cols_q.append(dq)
