@@ -62,6 +62,8 @@ def continue_(
         )
         for sp in b.special:
             sys.stdout.write(f"  {sp.type} at {b.key} = {sp.value:.6g}\n")
+        for note in b.notes:
+            sys.stdout.write(f"  note: {note}\n")
     for c in res.curves:
         what = c.name or c.type  # a grazing says which contact opens or appears
         end = f" (ends on a {c.end} of its orbit)" if c.end else ""

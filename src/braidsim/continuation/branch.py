@@ -38,6 +38,7 @@ multiplier -1), and continued away from lambda*.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -76,6 +77,14 @@ method at 1e-8 fails there erratically: on paper-3.3 at 4.5 pi rad/s the bracket
 LOCATE_RTOL = 1e-9
 """Bracket width, relative to the continuation's parameter scale |to - from|, to which
 fold, period-doubling and Neimark-Sacker points are located."""
+ZERO_FRACTION = 1e-4
+"""A located sign change of a test function is a zero (a bifurcation) only where |f| at the
+located point is at most this fraction of the change of f across the two branch points (and,
+along a chord, where the bracket closed): a zero located to a bracket of 1e-9 leaves about
+1e-9 of it, a pole (a multiplier jumping through infinity) as much as at the ends. On
+paper-3.3's resting branch at 4 pi rad/s (finite-difference map, max_step 0.03) a fold was
+reported at h_a = 0.12875 mm with multipliers -1.24 and -0.003, where a step had landed on
+another family of the same contacts; it is a note now."""
 
 
 def lam_of(o: Orbit, key: str) -> float:
@@ -145,6 +154,9 @@ class Branch:
         Why the continuation ended.
     children : list of Branch
         Branches switched to at period doublings.
+    notes : list of str
+        What the detection saw and did not report: a test function that changed sign
+        without a zero between two points (:meth:`Continuer._locate`).
     """
 
     key: str
@@ -155,6 +167,7 @@ class Branch:
     children: list[Branch] = field(default_factory=list)
     tangents: list[np.ndarray] = field(default_factory=list, repr=False)
     steps: list[float] = field(default_factory=list, repr=False)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def values(self) -> np.ndarray:
@@ -568,12 +581,12 @@ class Continuer:
         fb: float,
         trial: Callable[[float], tuple[Orbit, float | None]],
         xtol: float,
-    ) -> tuple[Orbit | None, float, float]:
+    ) -> tuple[Orbit | None, float, float, float]:
         """The Illinois variant of regula falsi on [0, 1] (Dowell, M. and Jarratt, P.
         (1971), BIT 11, 168-174, doi:10.1007/BF01934364): ``trial(t)`` gives the orbit at
         t and its test function. Returns (the trial orbit with the smallest |f|, the zero
-        of the final bracket's secant, the bracket's width); stops when the width is below
-        ``xtol`` or f vanishes."""
+        of the final bracket's secant, the bracket's width, that smallest |f|); stops when
+        the width is below ``xtol`` or f vanishes."""
         a, b = 0.0, 1.0
         best: Orbit | None = None
         fbest = math.inf
@@ -591,7 +604,7 @@ class Continuer:
             if abs(ft) < fbest:
                 best, fbest = o, abs(ft)
             if ft == 0.0:
-                return best, t, 0.0
+                return best, t, 0.0, 0.0
             if (ft > 0) == (fa > 0):
                 a, fa = t, ft
                 if side == -1:
@@ -605,7 +618,7 @@ class Continuer:
             if b - a < xtol:
                 break
         t_star = (a * fb - b * fa) / (fb - fa) if fb != fa else 0.5 * (a + b)
-        return best, float(t_star), float(b - a)
+        return best, float(t_star), float(b - a), float(fbest)
 
     def _locate(
         self,
@@ -616,14 +629,20 @@ class Continuer:
         fb: float,
         f: Callable[[Orbit], float | None],
         monotone: bool = True,
-    ) -> tuple[Orbit | None, float, float]:
+    ) -> tuple[Orbit | None, float, float, bool]:
         """Locate the zero of ``f`` between two branch points by bracketing along the
         branch. Where the branch is a graph over the parameter (no fold between them) the
         unknown is the parameter itself and each trial orbit is found by Newton's method
         at that fixed value (:meth:`at_value`) from the nearer end; otherwise (``monotone``
         False: a fold between them) the unknown is the position on the chord and the trial
         is corrected onto the branch on the hyperplane normal to the chord. Returns
-        (orbit, value [SI], bracket width [SI])."""
+        (orbit, value [SI], bracket width [SI], whether it is a zero): a sign change of
+        ``f`` is a zero only where the located point's |f| is at most :data:`ZERO_FRACTION`
+        of the change of ``f`` across the bracket. Where ``f`` changes sign through a pole
+        instead (a multiplier that jumps through infinity as a contact's depth minimum
+        touches zero inside a contact, which the contact structure does not show; or a
+        finite-difference map whose runs straddle such a touch), the search closes on the
+        pole with |f| as large as at the ends, or fails."""
         la, lb = float(Ua[-1]) * self.pscale, float(Ub[-1]) * self.pscale
         xtol_abs = LOCATE_RTOL * self.pscale
         if monotone and la != lb:
@@ -634,18 +653,20 @@ class Continuer:
                 o = self.at_value(sh, U0, lam)
                 return o, f(o)
 
-            o, t_star, w = self._illinois(fa, fb, trial, xtol_abs / abs(lb - la))
+            o, t_star, w, fo = self._illinois(fa, fb, trial, xtol_abs / abs(lb - la))
             if o is not None and w * abs(lb - la) <= 100 * xtol_abs:
-                return o, la + t_star * (lb - la), w * abs(lb - la)
+                zero = fo <= ZERO_FRACTION * abs(fb - fa)
+                return o, la + t_star * (lb - la), w * abs(lb - la), zero
 
         def on_chord(t: float) -> tuple[Orbit, float | None]:
             o = self._secant_point(sh, Ua, Ub, t)
             return o, f(o)
 
-        o, t_star, w = self._illinois(fa, fb, on_chord, 1e-9)
+        o, t_star, w, fo = self._illinois(fa, fb, on_chord, 1e-9)
         if o is None:
-            return None, 0.5 * (la + lb), abs(lb - la)
-        return o, lam_of(o, self.key), w * abs(lb - la)
+            return None, 0.5 * (la + lb), abs(lb - la), False
+        zero = w <= 1e-6 and fo <= ZERO_FRACTION * abs(fb - fa)
+        return o, lam_of(o, self.key), w * abs(lb - la), zero
 
     def _locate_grazing(self, oa: Orbit, ob: Orbit) -> tuple[Orbit | None, Orbit | None]:
         """Bisect in the parameter between two orbits of different contact structure. Each
@@ -815,34 +836,58 @@ class Continuer:
             # the parameter is stationary at a fold: regula falsi along the chord on the
             # tangent's parameter component (the bracket width bounds the value's error,
             # which is of second order in it)
-            of, lam, w = self._locate(
+            of, lam, w, zero = self._locate(
                 sh, Ua, Ub, float(ta[-1]), float(tb[-1]), f_fold, monotone=False
             )
-            br.special.append(
-                SpecialPoint("fold", lam, k, idx, of, "a multiplier crosses +1", tolerance=w)
-            )
+            if zero:
+                br.special.append(
+                    SpecialPoint("fold", lam, k, idx, of, "a multiplier crosses +1", tolerance=w)
+                )
+            else:
+                self._not_a_zero(br, "the branch turns back (a fold)", oa, ob)
         pa, pb = _test_pd(oa), _test_pd(ob)
         if pa * pb < 0 and _below_minus_one(oa) != _below_minus_one(ob):
-            op, lam, w = self._locate(sh, Ua, Ub, pa, pb, _test_pd, monotone)
-            br.special.append(
-                SpecialPoint(
-                    "period_doubling", lam, k, idx, op, "a multiplier crosses -1", tolerance=w
+            op, lam, w, zero = self._locate(sh, Ua, Ub, pa, pb, _test_pd, monotone)
+            if zero:
+                br.special.append(
+                    SpecialPoint(
+                        "period_doubling", lam, k, idx, op, "a multiplier crosses -1", tolerance=w
+                    )
                 )
-            )
+            else:
+                self._not_a_zero(br, "a real multiplier passes -1 (a period doubling)", oa, ob)
         na, nb = _test_ns(oa), _test_ns(ob)
         if na is not None and nb is not None and na * nb < 0:
-            on, lam, w = self._locate(sh, Ua, Ub, na, nb, _test_ns, monotone)
-            br.special.append(
-                SpecialPoint(
-                    "neimark_sacker",
-                    lam,
-                    k,
-                    idx,
-                    on,
-                    "a complex pair crosses the unit circle",
-                    tolerance=w,
+            on, lam, w, zero = self._locate(sh, Ua, Ub, na, nb, _test_ns, monotone)
+            if zero:
+                br.special.append(
+                    SpecialPoint(
+                        "neimark_sacker",
+                        lam,
+                        k,
+                        idx,
+                        on,
+                        "a complex pair crosses the unit circle",
+                        tolerance=w,
+                    )
                 )
-            )
+            else:
+                self._not_a_zero(br, "a complex pair crosses the unit circle", oa, ob)
+
+    def _not_a_zero(self, br: Branch, what: str, oa: Orbit, ob: Orbit) -> None:
+        """A note on ``br`` where a test function changed sign without a zero between two
+        points (:meth:`_locate`): no special point is reported there."""
+        la, lb = lam_of(oa, self.key), lam_of(ob, self.key)
+        ma = ", ".join(f"{m:.4g}" for m in oa.multipliers)
+        mb = ", ".join(f"{m:.4g}" for m in ob.multipliers)
+        br.notes.append(
+            f"between {self.key} = {la:.10g} and {lb:.10g} the test of '{what}' changes sign "
+            f"without a zero (multipliers {ma} -> {mb}): not reported as a bifurcation. A "
+            "multiplier jumps where a contact's depth minimum touches zero inside the orbit, "
+            "where the finite-difference map's runs straddle such a touch, or where the step "
+            "from one point to the next landed on another family of the same contacts; "
+            "method = exact and a smaller max_step tell which, and may find a bifurcation there"
+        )
 
 
 def continue_orbit(
@@ -941,19 +986,9 @@ def continue_orbit(
 def _join(back: Branch, fwd: Branch) -> Branch:
     pts = list(reversed(back.points[1:])) + fwd.points
     n_back = len(back.points) - 1
-    sps = []
-    for sp in back.special:
-        sps.append(
-            SpecialPoint(
-                sp.type, sp.value, sp.period, n_back - sp.index, sp.orbit, sp.detail, sp.other
-            )
-        )
-    for sp in fwd.special:
-        sps.append(
-            SpecialPoint(
-                sp.type, sp.value, sp.period, sp.index + n_back, sp.orbit, sp.detail, sp.other
-            )
-        )
+    # (each point as it was located, its tolerance kept, at its index on the joined branch)
+    sps = [dataclasses.replace(sp, index=n_back - sp.index) for sp in back.special]
+    sps += [dataclasses.replace(sp, index=sp.index + n_back) for sp in fwd.special]
     tans = [-t for t in reversed(back.tangents[1:])] + fwd.tangents
     return Branch(
         fwd.key,
@@ -963,6 +998,7 @@ def _join(back: Branch, fwd: Branch) -> Branch:
         f"{back.stop}; {fwd.stop}",
         back.children + fwd.children,
         tans,
+        notes=back.notes + fwd.notes,
     )
 
 

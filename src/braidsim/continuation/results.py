@@ -127,6 +127,7 @@ def branch_dataset(br: Branch, system_name: str = "") -> Any:
             "system": system_name,
             "base_values_json": json.dumps(base),
             "stop": br.stop,
+            "notes_json": json.dumps(br.notes),
             "braidsim_version": __version__,
         }
     )
@@ -253,6 +254,7 @@ def branch_json(br: Branch) -> dict[str, Any]:
         ],
         "special_points": [s.to_dict() for s in br.special],
         "stop": br.stop,
+        "notes": list(br.notes),
     }
 
 
