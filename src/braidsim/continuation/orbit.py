@@ -966,6 +966,34 @@ def seed_orbit(
             f"{transient_cycles:g} cycles at {where or 'the base values'} ({exc}); {hint}",
             t,
         ) from None
+    # the steady state must be near a period-k orbit, as documented: Newton's method also
+    # converges from a run that repeats with another period, or not at all, to an unstable
+    # period-k orbit far from anything the machine does (paper-3.3 at h_a = 0.12 mm: a
+    # period-1 orbit with |mu| = 4.2, 3.2 scales from the run)
+    shown = _simulated_period(system, values, t, y, modes, v0, period)
+    if shown is None or period % shown:
+        where = ", ".join(f"{k} = {v:g}" for k, v in values.items())
+        Ls, Vs = system.scales(values)
+        scale = np.tile([Ls, Vs], prep.n_coords)  # (the coordinates and speeds)
+        off = max(
+            float(np.abs((zi[: scale.size] - oi[: scale.size]) / scale).max())
+            for zi, oi in zip(z, orbit.z, strict=True)
+        )
+        if shown is not None or off > NEAR_DISTANCE:
+            what = (
+                f"repeats every {shown} cycles: set period = {shown}"
+                if shown is not None
+                else "does not repeat within 12 cycles (to 1e-4 of the length and speed "
+                "scales): lengthen transient_cycles, start from another value, or give a "
+                "seed state"
+            )
+            stab = "a stable" if orbit.stable else "an unstable"
+            raise ContinuationError(
+                f"the steady state simulated for {transient_cycles:g} cycles at "
+                f"{where or 'the base values'} is not near a period-{period} orbit (Newton's "
+                f"method found {stab} one {off:.3g} scales away from it): the motion {what}",
+                t,
+            )
     q = minimal_period(orbit, system)
     if q < period:
         where = ", ".join(f"{k} = {v:g}" for k, v in values.items())
@@ -976,6 +1004,15 @@ def seed_orbit(
             t,
         )
     return orbit
+
+
+NEAR_DISTANCE = 0.1
+"""Largest distance, in the length and speed scales, between the simulated steady state and
+the period-k orbit Newton's method found from it, for a run that does not repeat within its
+12 test cycles (a slowly attracting orbit, or a motion that hovers near an unstable one) to
+count as near that orbit. Measured on paper-3.3: the period-3 orbit the run at h_a = 0.12
+mm hovers near lies 0.041 scales from it, the unstable period-1 orbits Newton's method also
+finds from the runs at 0.12 and 0.15 mm 3.2 and 0.66 scales."""
 
 
 def minimal_period(orbit: Orbit, system: Any) -> int:
