@@ -19,7 +19,7 @@ import pytest
 import braidsim
 from braidsim.continuation import ScenarioSystem, seed_orbit
 from braidsim.continuation.branch import continue_orbit, orbit_at
-from braidsim.continuation.orbit import recut, solve_fixed
+from braidsim.continuation.orbit import ContinuationError, recut, solve_fixed
 from braidsim.continuation.results import (
     branch_dataset,
     open_branch,
@@ -55,12 +55,15 @@ def test_bouncing_orbit_is_periodic_and_stable(system, bouncing) -> None:
     assert np.allclose(seg.y1, o.z[0], rtol=0, atol=1e-12 * 0 + 1e-11)
 
 
-def test_exact_monodromy_matches_finite_differences(system) -> None:
-    """Multipliers of the exact variational map against the central-difference map, on an
-    unstable impacting orbit (h_a = 0.12 mm, one impact per cycle) and on the period-3 orbit
-    the paper's run settles near."""
+def test_exact_monodromy_matches_finite_differences(system, bouncing) -> None:
+    """Multipliers of the exact variational map against the central-difference map, on the
+    one-impact orbit at h_a = 0.12 mm next to its period doubling (continued from 0.1 mm: the
+    run at 0.12 mm hovers near a period-3 orbit, not near this one) and on that period-3
+    orbit."""
+    br = continue_orbit(system, bouncing, HA, 0.125e-3, method="fd", switch=False, max_points=30)
+    p1 = orbit_at(system, br, 0.12e-3, method="fd")
     for period in (1, 3):
-        o = seed_orbit(system, {HA: 0.12e-3}, period, method="fd")
+        o = p1 if period == 1 else seed_orbit(system, {HA: 0.12e-3}, period, method="fd")
         oe = solve_fixed(system, o.values, period, o.phase, o.cuts, o.z, "exact")
         mu_f = o.multipliers
         mu_e = oe.multipliers
@@ -385,3 +388,81 @@ def test_a_branch_ending_just_below_a_lift_off_ends_on_its_own_orbit(system) -> 
     assert br.stop.startswith("reached")
     assert all(o.profile.impacts == 0 for o in br.points)
     assert not br.special
+
+
+def _reported_points_are_zeros(br) -> None:
+    """Every fold and period doubling reported has its multiplier at +1 or -1."""
+    for sp in br.special:
+        if sp.type == "fold":
+            assert np.min(np.abs(sp.orbit.multipliers - 1.0)) < 1e-3, sp
+        if sp.type == "period_doubling":
+            assert np.min(np.abs(sp.orbit.multipliers + 1.0)) < 1e-3, sp
+
+
+def test_a_sign_change_without_a_zero_is_a_note_not_a_fold(system) -> None:
+    """paper-3.3's resting branch at 4 pi rad/s with the finite-difference map and long
+    steps: between 0.1273 and 0.1308 mm the step lands on another three-impact family (a
+    finer continuation shows the first ending at a grazing at 0.13013 mm, with no fold) and
+    the tangent's parameter component changes sign there without a zero (multipliers
+    0.005 +- 0.047i, then 2.98): a note, not a fold (it was reported as one, at 0.12875 mm
+    with multipliers -1.24 and -0.003)."""
+    rest = seed_orbit(system, {HA: 0.02e-3}, 1, method="fd")
+    assert system.value("horn_gear.angular_velocity") == pytest.approx(4 * math.pi)
+    br = continue_orbit(
+        system, rest, HA, 0.3e-3, method="fd", switch=False, max_points=80, step=0.01, max_step=0.03
+    )
+    assert not [s for s in br.special if s.type == "fold" and 0.1272e-3 < s.value < 0.1308e-3]
+    assert any("the branch turns back" in n and "without a zero" in n for n in br.notes)
+    _reported_points_are_zeros(br)
+
+
+def test_no_false_period_doubling_next_to_a_grazing_with_the_fd_map() -> None:
+    """A harmonically forced oscillator (m = k = 1, c = 0.1, Omega = 0.8) under a stiff
+    wall (Kelvin-Voigt, 1e6, restitution 0.8) at d = 0.5: its orbit without impacts has the
+    multipliers 0.0066 +- 0.675i for every forcing below the grazing one, F_g = d |k - m
+    Omega^2 + i c Omega|, so it cannot double its period. With the finite-difference map
+    the runs perturbed next to the grazing touched the wall where the base run did not,
+    and a period doubling was reported at F_g (1 - 9.5e-6) with a multiplier of -104; now
+    (the map's step cut where its runs do not make the base run's contacts, and a located
+    sign change kept only where it is a zero) the grazing is the first special point,
+    within 1e-6 of F_g."""
+    from braidsim.continuation import ModelSystem
+    from braidsim.core import ImpactOscillator, KelvinVoigtContact
+
+    m, k, c, w, d = 1.0, 1.0, 0.1, 0.8, 0.5
+    f_g = d * abs(complex(k - m * w * w, c * w))
+    law = KelvinVoigtContact.for_restitution(1e6, 0.8, m, allow_tension=True)
+    s = ModelSystem(ImpactOscillator(m, k, c, 0.9 * f_g, w, 0.0, math.inf, d, law), length_scale=d)
+    o = seed_orbit(s, {}, 1, transient_cycles=200, method="fd")
+    br = continue_orbit(
+        s,
+        o,
+        "force_amplitude",
+        1.2 * f_g,
+        method="fd",
+        switch=False,
+        max_points=30,
+        step=0.02,
+        max_step=0.05,
+    )
+    assert br.special and br.special[0].type == "grazing"
+    assert br.special[0].value == pytest.approx(f_g, rel=1e-6)
+    assert all(s.type != "period_doubling" for s in br.special)
+    # (an orbit closer to the wall than the map's smallest step, 1e-7 of the length scale,
+    # straddles it under every perturbation: its fd multipliers are not reliable, and the
+    # last one before the grazing here, 7e-8 m from the wall, shows 154)
+    below = [p for p in br.points if p.values["force_amplitude"] < f_g and p.profile.min_gap > 1e-6]
+    assert len(below) >= 10
+    assert all(np.abs(p.multipliers).max() < 0.676 for p in below)
+
+
+def test_a_seed_far_from_the_simulated_steady_state_is_refused(system) -> None:
+    """docs/continuation.md: a steady state that is not near a period-k orbit is exit code 1
+    (ContinuationError). At h_a = 0.12 mm the run from the scenario's start does not repeat
+    within 12 cycles; Newton's method still converged from it to an unstable period-1 orbit
+    (|mu| = 4.2) 3.2 scales away, which was returned; the period-3 orbit the run hovers near
+    (0.04 scales) is found."""
+    with pytest.raises(ContinuationError, match=r"not near a period-1 orbit .* unstable one"):
+        seed_orbit(system, {HA: 0.12e-3}, 1, method="fd")
+    o3 = seed_orbit(system, {HA: 0.12e-3}, 3, method="fd")
+    assert o3.period == 3
