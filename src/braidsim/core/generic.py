@@ -212,6 +212,9 @@ _CORE_FILES: tuple[str, ...] | None = None
 _FILE_HASHES: dict[str, tuple[tuple[int, int], bytes]] = {}
 #: every generic function declared (GenericFunction appends itself)
 _GENERICS: list[GenericFunction] = []
+#: the digest for each set of record classes, once per process (a process compiles what it
+#: loaded before any edit: numba's dispatchers keep their compiled code in memory)
+_DIGESTS: dict[frozenset[type], str] = {}
 
 
 def _file_hash(path: str) -> bytes:
@@ -261,10 +264,14 @@ def sources_digest(numba_types: Iterable[Any]) -> str:
     edited law's runs are compiled again. Content, not time stamps: a checkout that restores
     a file's content finds its compiled code again."""
     global _CORE_FILES
+    classes = frozenset(_record_classes(numba_types, set()))
+    known = _DIGESTS.get(classes)
+    if known is not None:
+        return known
     if _CORE_FILES is None:
         _CORE_FILES = tuple(sorted(str(p) for p in _CORE_DIR.rglob("*.py")))
     files = set(_CORE_FILES)
-    for cls in _record_classes(numba_types, set()):
+    for cls in classes:
         module = sys.modules.get(cls.__module__)
         if module is not None and getattr(module, "__file__", None):
             files.add(str(module.__file__))
@@ -276,7 +283,8 @@ def sources_digest(numba_types: Iterable[Any]) -> str:
     for path in sorted(files):
         h.update(path.encode())
         h.update(_file_hash(path))
-    return h.hexdigest()
+    digest = _DIGESTS[classes] = h.hexdigest()
+    return digest
 
 
 class _SourceAwareKey:
