@@ -237,7 +237,7 @@ def fd_flow_map(
     structure = contact_structure(base.episodes)
 
     # whether a cut step may still restore the base run's contacts in this map
-    retry = [True]
+    retry = True
 
     def runs(
         at: Any, d: float
@@ -251,17 +251,18 @@ def fd_flow_map(
         # perturbation; a resting contact at its lift-off) the first step's difference
         # stands, as before, and the map's other columns are not tried smaller (cutting in
         # every column made 20 % more runs at the lift-off of paper-3.3's resting orbit).
+        nonlocal retry
         d0 = d
         sp0, sm0 = sp, sm = at(d), at(-d)
         same = contact_structure(sp.episodes) == contact_structure(sm.episodes) == structure
-        tries = STRUCTURE_RETRIES if retry[0] else 0
+        tries = STRUCTURE_RETRIES if retry else 0
         while not same and tries > 0:
             d *= 0.1
             tries -= 1
             sp, sm = at(d), at(-d)
             same = contact_structure(sp.episodes) == contact_structure(sm.episodes) == structure
         if not same:
-            retry[0] = False
+            retry = False
             sp, sm, d = sp0, sm0, d0
         dy = (sp.y1 - sm.y1) / (2 * d)
         dv = np.where(np.isfinite(sp.v0s1 - sm.v0s1), (sp.v0s1 - sm.v0s1) / (2 * d), 0.0)

@@ -453,21 +453,14 @@ def tangents_missing(model: Any) -> tuple[str, Any, Any] | None:
     return _first_missing("tangents", model, _TANGENT_FUNCTIONS, _TANGENT_ROLES)
 
 
-# the classes (a model's and its fields') found to give every Taylor series: a registration
-# is never withdrawn, so the answer stays; a refusal is not kept (a series may be registered)
-_TAYLOR_CAPABLE: set[tuple[type, ...]] = set()
-
-
 def taylor_capable(model: Any) -> str:
     """Why ``model`` cannot take Taylor steps ("" when it can): the model must register
     :func:`~braidsim.core.interfaces.model_series`, its start, its reach and
     :func:`~braidsim.core.interfaces.pair_series_rows`, and each physics record in
     its fields (found by the role it plays: a contact law, a friction law, an excitation)
     the series of its function (a friction law also its reach)."""
-    classes = (type(model), *map(type, model))
-    if classes in _TAYLOR_CAPABLE:
-        return ""
-    missing = I.first_missing(
+    missing = _first_missing(
+        "taylor",
         model,
         (I.model_series, I.model_series_start, I.model_series_reach, I.pair_series_rows),
         (
@@ -478,15 +471,11 @@ def taylor_capable(model: Any) -> str:
         ),
     )
     if missing is None:
-        _TAYLOR_CAPABLE.add(classes)
         return ""
     field, sub, fn = missing
     if sub is None:
         return f"the model {type(model).__name__} gives no Taylor series ({fn.__name__})"
     return f"{type(sub).__name__} ({field}) gives no Taylor series ({fn.__name__})"
-
-
-_ONSET_CAPABLE: set[tuple[type, ...]] = set()
 
 
 def onset_capable(model: Any) -> bool:
@@ -495,10 +484,8 @@ def onset_capable(model: Any) -> bool:
     :func:`~braidsim.core.interfaces.model_onset_series` and its start, and each contact law
     in its fields the law's onset series. Where it cannot, a Taylor run starts each contact
     with a Runge-Kutta step. (A yes is kept per class, as in :func:`taylor_capable`.)"""
-    classes = (type(model), *map(type, model))
-    if classes in _ONSET_CAPABLE:
-        return True
-    missing = I.first_missing(
+    missing = _first_missing(
+        "onset",
         model,
         (I.model_onset_series, I.model_onset_start),
         (
@@ -506,8 +493,6 @@ def onset_capable(model: Any) -> bool:
             (I.contact_forces, I.contact_onset_power),
         ),
     )
-    if missing is None:
-        _ONSET_CAPABLE.add(classes)
     return missing is None
 
 
