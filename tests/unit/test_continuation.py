@@ -466,3 +466,34 @@ def test_a_seed_far_from_the_simulated_steady_state_is_refused(system) -> None:
         seed_orbit(system, {HA: 0.12e-3}, 1, method="fd")
     o3 = seed_orbit(system, {HA: 0.12e-3}, 3, method="fd")
     assert o3.period == 3
+
+
+@pytest.mark.parametrize("max_step", [0.05, 0.1])
+def test_grazing_from_the_impacting_side_is_where_the_impact_vanishes(max_step: float) -> None:
+    """The forced oscillator's impacting orbit continued down in F towards the grazing of
+    its orbit without impacts, F_g = d |k - m Omega^2 + i c Omega| (closed form, any wall):
+    the grazing is placed where the impact's depth extrapolates to zero, within 1e-6 of F_g
+    with the exact map (it was placed where Newton's method first failed on the stiff
+    wall's shallow impacts, 5.8e-4 and 1.3e-2 beyond F_g for these two step sizes)."""
+    from braidsim.continuation import ModelSystem
+    from braidsim.core import ImpactOscillator, KelvinVoigtContact
+
+    m, k, c, w, d = 1.0, 1.0, 0.1, 0.8, 0.5
+    f_g = d * abs(complex(k - m * w * w, c * w))
+    law = KelvinVoigtContact.for_restitution(1e6, 0.8, m, allow_tension=True)
+    s = ModelSystem(ImpactOscillator(m, k, c, 2 * f_g, w, 0.0, math.inf, d, law), length_scale=d)
+    o = seed_orbit(s, {}, 1, transient_cycles=200, method="exact")
+    assert o.profile.impacts == 1
+    br = continue_orbit(
+        s,
+        o,
+        "force_amplitude",
+        0.9 * f_g,
+        method="exact",
+        switch=False,
+        max_points=150,
+        step=0.02,
+        max_step=max_step,
+    )
+    (g,) = [sp for sp in br.special if sp.type == "grazing"]
+    assert g.value == pytest.approx(f_g, rel=1e-6)
