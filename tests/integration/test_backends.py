@@ -10,6 +10,7 @@ state vs Gauss-Legendre quadrature). At tight tolerances they must agree on ever
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -253,3 +254,29 @@ def test_scipy_backend_sees_a_wall_sweeping_past_within_a_step() -> None:
     assert len(sp.impacts) == len(cc.impacts)
     np.testing.assert_allclose(sp.impacts["t"], cc.impacts["t"], rtol=0, atol=1e-10)
     assert sp.final["x"] == pytest.approx(cc.final["x"], rel=1e-8)
+
+
+def test_scipy_backend_checks_a_record_with_a_law_of_ones_own() -> None:
+    """An extension's law (here the Kelvin-Voigt law, which has no scenario name) in the
+    scenario's record: the SciPy backend integrates the record it is given, and agrees with
+    the compiled core on it; a record of another class is refused."""
+    from braidsim.core import ImpactOscillator, KelvinVoigtContact, run
+    from braidsim.model import build_model
+
+    sc = load_scenario("paper-3.3")
+    model = build_model(sc, 0.05)
+    law = KelvinVoigtContact.for_restitution(2e7, 0.6, float(sc["carrier.mass"]))
+    rec = model.record._replace(track_law=law)
+    ref = simulate_scipy(sc, 0.05, record=rec, rtol=1e-11)
+    raw = run(rec, model.options._replace(rtol=1e-11, atol_position=1e-16), model.y0)
+    core_ep, sp_ep = raw.episodes, ref.episodes
+    assert core_ep.size == sp_ep.size >= 3
+    # (as the scenarios' runs above: to RTOL of each value)
+    np.testing.assert_allclose(sp_ep["t"], core_ep["t"], rtol=RTOL, atol=1e-12)
+    np.testing.assert_allclose(sp_ep["peak_force"], core_ep["peak_force"], rtol=RTOL)
+    # not the scenario's law: the peak forces differ from the Hertz run's
+    plain = simulate_scipy(sc, 0.05, rtol=1e-11)
+    assert not np.allclose(plain.episodes["peak_force"][:3], sp_ep["peak_force"][:3], rtol=1e-2)
+    osc = ImpactOscillator(1.0, 1.0, 0.0, 0.0, 0.0, 0.0, math.inf, 1e-3, law)
+    with pytest.raises(InputError, match=r"record: a ImpactOscillator; allowed a record of the "):
+        simulate_scipy(sc, 0.05, record=osc)

@@ -42,6 +42,7 @@ backends integrate identical parameters.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -640,6 +641,7 @@ def simulate_scipy(
     rtol: float = 1e-8,
     atol: float | Sequence[float] | None = None,
     windows: Sequence[tuple[float, float]] | None = None,
+    record: Any = None,
 ) -> ScipyResult:
     """Simulate one carrier with :func:`scipy.integrate.solve_ivp` (reference backend).
 
@@ -660,6 +662,13 @@ def simulate_scipy(
         ``simulation.atol_velocity`` [m/s] on velocities, as in the compiled solver.
     windows : sequence of (t0, t1), optional
         Extra windows [s] for the ranges (window 0 is the whole run).
+    record : CarrierX or CarrierXY, optional
+        The carrier's record of the compiled core to integrate instead of the scenario's,
+        of the same class (the scenario still gives the initial state, the duration, the
+        tolerances and the transfers): the scenario's record with a law, friction law or
+        excitation of one's own, ``build_model(sc).record._replace(track_law=MyLaw(...))``,
+        checked against this independent integration of the same functions (the backend
+        calls the record's registered implementations).
 
     Returns
     -------
@@ -674,6 +683,14 @@ def simulate_scipy(
     if not (0.0 < rtol < 1.0):
         raise InputError(f"rtol: {rtol!r} is out of range; allowed 0 < rtol < 1")
     model = build_model(sc, duration)
+    if record is not None:
+        if type(record) is not type(model.record):
+            raise InputError(
+                f"record: a {type(record).__name__}; allowed a record of the scenario's "
+                f"carrier class, {type(model.record).__name__} (the SciPy backend integrates "
+                "the carrier only)"
+            )
+        model = dataclasses.replace(model, record=record)
     from braidsim.simulate import run_windows
 
     W = run_windows(0.0, model.duration, windows)
