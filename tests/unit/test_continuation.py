@@ -453,7 +453,12 @@ def test_no_false_period_doubling_next_to_a_grazing_with_the_fd_map() -> None:
     # last one before the grazing here, 7e-8 m from the wall, shows 154)
     below = [p for p in br.points if p.values["force_amplitude"] < f_g and p.profile.min_gap > 1e-6]
     assert len(below) >= 10
-    assert all(np.abs(p.multipliers).max() < 0.676 for p in below)
+    assert all(np.abs(p.multipliers).max() < 0.676 and p.reliable for p in below)
+    # ... and says so: the orbits whose multipliers are off are flagged
+    for p in br.points:
+        if p.values["force_amplitude"] < f_g and np.abs(p.multipliers).max() > 0.676:
+            assert not p.reliable
+    assert any(not p.reliable for p in br.points)
 
 
 def test_a_seed_far_from_the_simulated_steady_state_is_refused(system) -> None:

@@ -56,9 +56,12 @@ def continue_(
         print_json(data)  # (summary.json's object: every key of the result, and the files)
         return
     for i, b in enumerate(res.branches):
-        n_st = int(sum(o.stable for o in b.points))
+        n_st = int(sum(o.stable and o.reliable for o in b.points))
+        n_un = int(sum(not o.reliable for o in b.points))
+        unsure = f" ({n_un} of unreliable finite-difference multipliers)" if n_un else ""
         sys.stdout.write(
-            f"branch {i} (period {b.period}): {len(b.points)} points, {n_st} stable; {b.stop}\n"
+            f"branch {i} (period {b.period}): {len(b.points)} points, {n_st} stable{unsure}; "
+            f"{b.stop}\n"
         )
         for sp in b.special:
             sys.stdout.write(f"  {sp.type} at {b.key} = {sp.value:.6g}\n")

@@ -834,6 +834,22 @@ class Continuer:
         """Folds, period doublings and Neimark-Sacker points between two orbits of one
         structure."""
         k = oa.period
+        if not (oa.reliable and ob.reliable):
+            # (a finite-difference map straddled a change of the contacts at one end: its
+            # multipliers and tangent are not the orbit's, and their sign changes say nothing)
+            if (
+                ta[-1] * tb[-1] < 0
+                or _test_pd(oa) * _test_pd(ob) < 0
+                or (_test_ns(oa) or 0.0) * (_test_ns(ob) or 0.0) < 0
+            ):
+                la, lb = lam_of(oa, self.key), lam_of(ob, self.key)
+                br.notes.append(
+                    f"between {self.key} = {la:.10g} and {lb:.10g} the finite-difference "
+                    "multipliers of an orbit closer to a wall than the map's step are not "
+                    "reliable: no fold, period doubling or Neimark-Sacker test there "
+                    "(method = exact tells)"
+                )
+            return
         # the parameter is monotone between the points unless a fold lies between them
         monotone = bool(ta[-1] * tb[-1] > 0)
         if ta[-1] * tb[-1] < 0:
@@ -944,18 +960,7 @@ def continue_orbit(
     system.check_key(key)
     lam0 = float(orbit.values.get(key, system.value(key)))
     if key not in orbit.values:
-        orbit = Orbit(
-            {**orbit.values, key: lam0},
-            orbit.period,
-            orbit.phase,
-            orbit.cuts,
-            orbit.z,
-            orbit.monodromy,
-            orbit.multipliers,
-            orbit.profile,
-            orbit.residual,
-            orbit.iterations,
-        )
+        orbit = dataclasses.replace(orbit, values={**orbit.values, key: lam0})
     if not math.isfinite(to) or to == lam0:
         raise InputError(
             f"continuation.to: {to!r} must differ from the start {lam0:g}; allowed another value"

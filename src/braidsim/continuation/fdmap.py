@@ -138,6 +138,9 @@ class FlowMap:
     episodes: np.ndarray
     min_gaps: np.ndarray
     modes0: tuple[int, int] = (0, 0)
+    # whether a column's runs at +-d made other contacts than the base run's at every step
+    # tried (fd_flow_map): its differences, hence its multipliers, are not derivatives
+    straddled: bool = False
     # per direction: the impact tables of its runs at +d and -d and d (None: no direction)
     episode_pairs: tuple[tuple[np.ndarray, np.ndarray, float] | None, ...] = field(
         default=(), repr=False, compare=False
@@ -325,4 +328,5 @@ def fd_flow_map(
         min_gaps=min_gaps(prep, base.series, n),
         modes0=modes,
         episode_pairs=tuple(cols_q),
+        straddled=not retry,
     )

@@ -431,6 +431,11 @@ class Orbit:
         Final scaled residual of Newton's method.
     iterations : int
         Newton iterations used.
+    reliable : bool
+        False where a finite-difference map's runs straddled a change of the contacts
+        (:attr:`braidsim.continuation.fdmap.FlowMap.straddled`: an orbit closer to a wall
+        than the map's smallest step): its monodromy and multipliers, hence ``stable``, are
+        not the orbit's. The exact map's are always reliable.
     """
 
     values: dict[str, float]
@@ -443,6 +448,7 @@ class Orbit:
     profile: Profile
     residual: float = 0.0
     iterations: int = 0
+    reliable: bool = True
 
     @property
     def segments(self) -> int:
@@ -485,6 +491,8 @@ class Shooter:
     method: str = "auto"
     pscale: float = 1.0
     evaluations: int = 0
+    # whether a map of the last residual's evaluation straddled a change of the contacts
+    straddled: bool = False
     key2: str | None = None
     pscale2: float = 1.0
     # the state scales of each cut (fixed for the shooter: its base values and cuts)
@@ -585,6 +593,7 @@ class Shooter:
         R = np.zeros(N)
         DR = np.zeros((N, U.size))
         Js = []
+        self.straddled = False
         n = 2 * prep.n_coords
         free = self.free
         keys = [k for k, _ in free]
@@ -600,6 +609,7 @@ class Shooter:
             except InputError as exc:  # a Newton iterate outside the map's domain (v0 <= 0)
                 raise ContinuationError(f"Newton left the map's domain ({exc})") from None
             self.evaluations += 1
+            self.straddled = self.straddled or bool(getattr(fm, "straddled", False))
             if tuple(fm.modes1) != tuple(cn.modes):
                 raise SectionChanged(
                     f"the contacts at cut {(j + 1) % m} changed from {cn.modes} to "
@@ -693,7 +703,9 @@ def finish(sh: Shooter, U: np.ndarray, res: float, its: int, Js: Sequence[np.nda
     prof = profile(
         sh.system, vals, tt[0], sh.period, z[0][:n], sh.cuts[0].modes, sh.cuts[0].v0s(z[0][n:])
     )
-    return Orbit(vals, sh.period, sh.phase, sh.cuts, tuple(z), M, mu, prof, res, its)
+    return Orbit(
+        vals, sh.period, sh.phase, sh.cuts, tuple(z), M, mu, prof, res, its, not sh.straddled
+    )
 
 
 def shooter_for(orbit: Orbit, system: Any, key: str | None, method: str, pscale: float) -> Shooter:

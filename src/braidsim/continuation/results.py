@@ -84,6 +84,7 @@ def branch_dataset(br: Branch, system_name: str = "") -> Any:
     data = {
         "value": ("point", col(lambda o: o.values[br.key])),
         "stable": ("point", np.array([o.stable for o in pts], dtype=np.int8)),
+        "reliable": ("point", np.array([o.reliable for o in pts], dtype=np.int8)),
         "multiplier_re": (("point", "multiplier"), mu.real),
         "multiplier_im": (("point", "multiplier"), mu.imag),
         "multiplier_abs": (("point", "multiplier"), np.abs(mu)),
@@ -244,6 +245,7 @@ def branch_json(br: Branch) -> dict[str, Any]:
             {
                 "value": float(o.values[br.key]),
                 "stable": bool(o.stable),
+                "multipliers_reliable": bool(o.reliable),
                 "multipliers": [[float(m.real), float(m.imag)] for m in o.multipliers],
                 "max_depth": f(o.profile.max_depth),
                 "min_gap": f(o.profile.min_gap),
