@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import hashlib
 import inspect
-import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -208,8 +207,8 @@ class _LinkOnlyCacheImpl(CompileResultCacheImpl):
 #: the core's own sources: every compiled function of the core may hold code of any of them
 _CORE_DIR = Path(__file__).resolve().parent
 _CORE_FILES: tuple[str, ...] | None = None
-#: file -> ((mtime_ns, size), blake2b of its bytes), read once per process and stamp
-_FILE_HASHES: dict[str, tuple[tuple[int, int], bytes]] = {}
+#: file -> blake2b of its bytes, read once per process (as the digests below)
+_FILE_HASHES: dict[str, bytes] = {}
 #: every generic function declared (GenericFunction appends itself)
 _GENERICS: list[GenericFunction] = []
 #: the digest for each set of record classes, once per process (a process compiles what it
@@ -218,22 +217,17 @@ _DIGESTS: dict[frozenset[type], str] = {}
 
 
 def _file_hash(path: str) -> bytes:
-    """blake2b of a source file's bytes (b"" where it cannot be read), kept per process for
-    as long as its mtime and size stay."""
-    try:
-        st = os.stat(path)
-    except OSError:
-        return b""
-    stamp = (st.st_mtime_ns, st.st_size)
+    """blake2b of a source file's bytes (b"" where it cannot be read), read once per
+    process: the core's files enter every digest, a new set of record classes reads only
+    its own files."""
     known = _FILE_HASHES.get(path)
-    if known is not None and known[0] == stamp:
-        return known[1]
-    try:
-        digest = hashlib.blake2b(Path(path).read_bytes(), digest_size=16).digest()
-    except OSError:
-        return b""
-    _FILE_HASHES[path] = (stamp, digest)
-    return digest
+    if known is None:
+        try:
+            known = hashlib.blake2b(Path(path).read_bytes(), digest_size=16).digest()
+        except OSError:
+            known = b""
+        _FILE_HASHES[path] = known
+    return known
 
 
 def _record_classes(numba_types: Iterable[Any], out: set[type]) -> set[type]:
