@@ -399,17 +399,36 @@ def _reported_points_are_zeros(br) -> None:
             assert np.min(np.abs(sp.orbit.multipliers + 1.0)) < 1e-3, sp
 
 
-def test_a_sign_change_without_a_zero_is_a_note_not_a_fold(system) -> None:
+def test_a_step_onto_another_family_is_halved_and_finds_the_doubling(system) -> None:
     """paper-3.3's resting branch at 4 pi rad/s with the finite-difference map and long
-    steps: between 0.1273 and 0.1308 mm the step lands on another three-impact family (a
-    finer continuation shows the first ending at a grazing at 0.13013 mm, with no fold) and
-    the tangent's parameter component changes sign there without a zero (multipliers
-    0.005 +- 0.047i, then 2.98): a note, not a fold (it was reported as one, at 0.12875 mm
-    with multipliers -1.24 and -0.003)."""
+    steps (max_step 0.03): the step from 0.1273 mm landed at 0.1308 mm on another family of
+    the same contacts, over a period doubling at 0.12850 mm, and the tangent's parameter
+    component changed sign there without a zero (multipliers 0.005 +- 0.047i, then 2.98;
+    it was once reported as a fold at 0.12875 mm with multipliers -1.24 and -0.003). The
+    step is now tried again halved: the doubling is found where a branch of steps of at
+    most 0.01 finds it (there 0.1285027349677 mm), and the family ends at its grazing at
+    0.13013 mm as that branch's does."""
     rest = seed_orbit(system, {HA: 0.02e-3}, 1, method="fd")
     assert system.value("horn_gear.angular_velocity") == pytest.approx(4 * math.pi)
     br = continue_orbit(
         system, rest, HA, 0.3e-3, method="fd", switch=False, max_points=80, step=0.01, max_step=0.03
+    )
+    assert not [s for s in br.special if s.type == "fold" and 0.1272e-3 < s.value < 0.1308e-3]
+    (pd,) = [s for s in br.special if s.type == "period_doubling"]
+    assert pd.value == pytest.approx(0.1285027349677e-3, rel=1e-9)
+    assert not br.notes
+    assert br.special[-1].type == "grazing"
+    assert br.special[-1].value == pytest.approx(0.13013e-3, rel=1e-4)
+    _reported_points_are_zeros(br)
+
+
+def test_a_sign_change_without_a_zero_is_a_note_not_a_fold(system, monkeypatch) -> None:
+    """The same branch with the halved retries turned off: the sign change without a zero
+    is a note naming both values and multipliers, not a fold."""
+    monkeypatch.setattr("braidsim.continuation.branch.RETRIES_WITHOUT_A_ZERO", 0)
+    rest = seed_orbit(system, {HA: 0.02e-3}, 1, method="fd")
+    br = continue_orbit(
+        system, rest, HA, 0.3e-3, method="fd", switch=False, max_points=72, step=0.01, max_step=0.03
     )
     assert not [s for s in br.special if s.type == "fold" and 0.1272e-3 < s.value < 0.1308e-3]
     assert any("the branch turns back" in n and "without a zero" in n for n in br.notes)
