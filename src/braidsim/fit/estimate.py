@@ -50,7 +50,7 @@ from braidsim.fit.problem import (
     Problem,
     single_problem,
 )
-from braidsim.fit.spec import FitSpec, FreeParameter
+from braidsim.fit.spec import TIME_OFFSET, FitSpec, FreeParameter
 from braidsim.params import Scenario, load_scenario
 from braidsim.units import to_si
 
@@ -408,9 +408,11 @@ def profile(
     delta = np.empty(points)
     u_others = np.delete(u_opt, i)
     for j, v in enumerate(grid):
-        sc = problem.scenario.with_overrides({key: float(v)})
+        # (the record's time offset is fixed on the problem, the others on its scenario)
+        off = float(v) if key == TIME_OFFSET else None
+        sc = problem.scenario if off is not None else problem.scenario.with_overrides({key: v})
         if others:
-            sub = problem.rebuild(sc, others, "exact" if problem.exact else "fd")
+            sub = problem.rebuild(sc, others, "exact" if problem.exact else "fd", off)
             lf = local_fit(sub, u_others, "record", max_nfev=max_nfev)
             r = sub.residuals(lf.u).r
         else:
@@ -658,6 +660,11 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
     scenario with its own overrides)."""
     items = _items(records)
     free = set(spec.keys)
+    if TIME_OFFSET in free and len(items) > 1:
+        raise InputError(
+            f"fit.free.{TIME_OFFSET}: one time offset for {len(items)} records; allowed with "
+            "one record (each record has its own trigger: fit them one by one)"
+        )
     parts = []
     for i, (rec, ov) in enumerate(items):
         for key in ov:
@@ -691,7 +698,7 @@ def _check_covers_an_impact(problem: Problem) -> None:
             tm = np.asarray(imp["t"], dtype=float)[
                 np.asarray(imp["pair"] == "track") & ~np.asarray(imp["initial"])
             ]
-            if tm.size and part.impacts.t[0] > tm[-1]:
+            if tm.size and part.impacts.t[0] + part.time_offset(part.u_start) > tm[-1]:
                 # (times in ms read as s put a list 1000 times later than the carrier's
                 # impacts: every listed one would be matched to a model impact seconds
                 # earlier, the fit ending at its bounds with residuals 1e5 times the noise)
@@ -703,7 +710,7 @@ def _check_covers_an_impact(problem: Problem) -> None:
                     "says (t [s] or t [ms]) and an impact list the scenario can reach"
                 )
             try:
-                part.model_values(start_run)
+                part.model_values(start_run, part.u_start)
             except SimulationError as exc:
                 raise InputError(
                     f"data (--data): at the start values {exc}; allowed an impact list the "
@@ -836,7 +843,7 @@ def _part_table(problem: Problem, u: np.ndarray) -> list[dict[str, Any]]:
     for part in _parts(problem):
         res = part.run(u)
         if isinstance(part, ImpactProblem):
-            model = part.model_values(res)
+            model = part.model_values(res, u)
             data = {"t": part.impacts.t, **part.impacts.columns}
             t = part.impacts.t
             kind = "impacts"
@@ -855,7 +862,11 @@ def _part_table(problem: Problem, u: np.ndarray) -> list[dict[str, Any]]:
             "noise": dict(part.sigma),
         }
         if not isinstance(part, ImpactProblem) and part.has_events:
-            row["pulses"] = (part.onsets, part._model_onsets(res)[0], part.record.sample_interval)
+            row["pulses"] = (
+                part.onsets,
+                part._model_onsets(res, u)[0],
+                part.record.sample_interval,
+            )
         out.append(row)
     return out
 
@@ -884,8 +895,8 @@ def fit_warnings(
         out.append(
             f"the residuals are {stats.residual_std:.3g} times the noise: the model does not "
             "explain the record to its noise (a fixed law or parameter, the record's units "
-            "or time origin), or the noise is not white (then give fit.noise); the "
-            "intervals assume it does"
+            "or time origin: free record.time_offset), or the noise is not white (then give "
+            "fit.noise); the intervals assume it does"
         )
     for part in parts:
         if "pulses" not in part:

@@ -34,6 +34,15 @@ the residuals, s^2 = sum r^2 / (n - k): only the ratios of the sigmas weight the
 scenario overrides, e.g. another initial speed), the residual vectors and Jacobians
 stacked, one covariance for the shared free parameters.
 
+*The record's time offset* (free key ``record.time_offset``, one record): the model's time
+of the record's t = 0, tau, so that sample i is the model at t_i + tau and an impact the
+record shows at t_dk is the model's at t_dk + tau. A record triggered a fraction of a sample
+late or early (unavoidable where the trigger is the first impact) otherwise leaves residuals
+of the size of the signal's change over that fraction, which the fit absorbs into the
+contact parameters. Its Jacobian column: d m_q / d tau, the model's time derivative (x': the
+sampled speed; the acceleration and force by central differences in tau, which move only
+the samples, not the run); for impact times -1 / sigma_t.
+
 Parameters are handled in the unit box u in [0, 1]^k (:class:`FreeParameter`).
 
 Jacobians
@@ -58,7 +67,7 @@ import numpy as np
 
 from braidsim.errors import InputError, SimulationError
 from braidsim.fit.data import ImpactList, Record, detect_pulses, noise_estimate
-from braidsim.fit.spec import FreeParameter
+from braidsim.fit.spec import TIME_OFFSET, FreeParameter, scenario_values
 from braidsim.params import Scenario
 from braidsim.result import Result
 
@@ -140,6 +149,8 @@ class Problem:
     noise : mapping, optional
         Sensor noise sigma_q [SI] per quantity; estimated from the record where absent.
     jacobian : {"auto", "exact", "fd"}
+    time_offset : float, optional
+        The record's time offset [s] where it is not free (a profile fixes it).
     """
 
     def __init__(
@@ -150,6 +161,7 @@ class Problem:
         quantities: Sequence[str],
         noise: Mapping[str, float] | None = None,
         jacobian: str = "auto",
+        time_offset: float = 0.0,
     ) -> None:
         for q in quantities:
             if q not in record.columns:
@@ -159,8 +171,14 @@ class Problem:
                 )
         self.scenario = scenario
         self.record = record
-        self.free = tuple(free)
-        self.keys = tuple(p.key for p in self.free)
+        self._set_free(free, time_offset)
+        for p in self.free:
+            if p.key == TIME_OFFSET and record.t[0] + p.low < 0:
+                raise InputError(
+                    f"fit.free.{TIME_OFFSET}: a lower bound of {p.low:g} s puts the record's "
+                    f"first sample (t = {record.t[0]:g} s) before the model's start at t = 0; "
+                    f"allowed >= {-record.t[0]:g} s"
+                )
         self.quantities = tuple(quantities)
         sig: dict[str, float] = {}
         for q in self.quantities:
@@ -192,6 +210,25 @@ class Problem:
 
     # -- parameters ------------------------------------------------------------------------
 
+    def _set_free(self, free: Sequence[FreeParameter], time_offset: float) -> None:
+        """The free parameters; which of them the scenario takes, and the time offset's."""
+        self.free = tuple(free)
+        self.keys = tuple(p.key for p in self.free)
+        #: the free keys the scenario takes (in order), and where the time offset is
+        self.scenario_keys = tuple(k for k in self.keys if k != TIME_OFFSET)
+        self.i_offset = self.keys.index(TIME_OFFSET) if TIME_OFFSET in self.keys else None
+        self.fixed_offset = float(time_offset)
+
+    def time_offset(self, u: np.ndarray) -> float:
+        """The record's time offset [s] at ``u``: the model's time of the record's t = 0."""
+        if self.i_offset is None:
+            return self.fixed_offset
+        return self.free[self.i_offset].from_unit(float(u[self.i_offset]))
+
+    def _scenario_columns(self) -> list[int]:
+        """The Jacobian's columns of :attr:`scenario_keys`."""
+        return [i for i, k in enumerate(self.keys) if k != TIME_OFFSET]
+
     def values(self, u: np.ndarray) -> dict[str, float]:
         """``{key: SI value}`` at the unit-box point ``u``."""
         return {p.key: p.from_unit(float(v)) for p, v in zip(self.free, u, strict=True)}
@@ -207,19 +244,21 @@ class Problem:
         return np.array([p.dp_du(float(v)) for p, v in zip(self.free, u, strict=True)])
 
     def scenario_at(self, u: np.ndarray) -> Scenario:
-        return self.scenario.with_overrides(self.values(u))
+        values = scenario_values(self.values(u))
+        return self.scenario.with_overrides(values) if values else self.scenario
 
     # -- model -----------------------------------------------------------------------------
 
     def run(self, u: np.ndarray, sensitivities: bool = False) -> Result:
-        """Simulate at ``u``, sampled at the record's times."""
+        """Simulate at ``u``, sampled at the record's times (shifted by the time offset)."""
         from braidsim.simulate import simulate
 
         self.evaluations += 1
         kw: dict[str, Any] = {}
+        sensitivities = sensitivities and bool(self.scenario_keys)
         if sensitivities:
-            kw["sensitivities"] = list(self.keys)
-        t = self.record.t
+            kw["sensitivities"] = list(self.scenario_keys)
+        t = self.record.t + self.time_offset(u)
         if sensitivities:
             try:
                 return simulate(
@@ -242,7 +281,7 @@ class Problem:
             **kw,
         )
 
-    def _record_r(self, res: Result) -> np.ndarray:
+    def _record_r(self, res: Result, u: np.ndarray) -> np.ndarray:
         m = np.concatenate([predict(res, q) / self.sigma[q] for q in self.quantities])
         if m.shape != self.data.shape:  # pragma: no cover - the solver samples every time
             raise SimulationError(f"the model gave {m.size} samples for {self.data.size}")
@@ -251,13 +290,34 @@ class Problem:
     def _record_J_exact(self, res: Result, u: np.ndarray) -> np.ndarray:
         from braidsim.sensitivity import SERIES_QUANTITIES
 
-        sens = res.sensitivity
-        S = np.asarray(sens.series)
-        blocks = [
-            S[:, :, SERIES_QUANTITIES.index(SENS_COLUMN[q])] / self.sigma[q]
+        J = np.zeros((self.data.size, len(self.keys)))
+        if self.scenario_keys:
+            S = np.asarray(res.sensitivity.series)
+            blocks = [
+                S[:, :, SERIES_QUANTITIES.index(SENS_COLUMN[q])] / self.sigma[q]
+                for q in self.quantities
+            ]
+            J[:, self._scenario_columns()] = np.vstack(blocks)
+        if self.i_offset is not None:
+            J[:, self.i_offset] = self._offset_column(res, u)
+        return J * self.dp_du(u)[None, :]
+
+    def _offset_column(self, res: Result, u: np.ndarray) -> np.ndarray:
+        """d r / d tau [1/s] of the record residuals: the model's time derivative at the
+        samples, the sampled speed for x; central differences in tau for the others (two
+        runs, whose steps are the same: the offset moves only the samples)."""
+        assert self.i_offset is not None
+        i = self.i_offset
+        cols: list[np.ndarray | None] = [
+            np.asarray(res.series["vx"], dtype=float) / self.sigma[q] if q == "x" else None
             for q in self.quantities
         ]
-        return np.vstack(blocks) * self.dp_du(u)[None, :]
+        if any(c is None for c in cols):
+            fd = self._fd(u, lambda v: self._record_r(self.run(v), v), None, columns=[i])
+            fd = fd[:, 0] / self.dp_du(u)[i]
+            n = self.n_t
+            cols = [c if c is not None else fd[j * n : (j + 1) * n] for j, c in enumerate(cols)]
+        return np.concatenate([c for c in cols if c is not None])
 
     def residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
         """Record residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""
@@ -267,40 +327,42 @@ class Problem:
         self,
         u: np.ndarray,
         jac: bool,
-        r_of: Callable[[Result], np.ndarray],
+        r_of: Callable[[Result, np.ndarray], np.ndarray],
         J_exact_of: Callable[[Result, np.ndarray], np.ndarray],
     ) -> Evaluation:
-        """The residuals ``r_of(run)`` of the run at ``u`` and, with ``jac``, their Jacobian:
-        exact from the run's sensitivities (``J_exact_of``) where the problem allows them
-        and they succeed, else by finite differences."""
+        """The residuals ``r_of(run, u)`` of the run at ``u`` and, with ``jac``, their
+        Jacobian: exact from the run's sensitivities (``J_exact_of``) where the problem
+        allows them and they succeed, else by finite differences."""
         u = np.asarray(u, dtype=float)
         if jac and self.exact:
             try:
                 res = self.run(u, sensitivities=True)
-                return Evaluation(u, r_of(res), J_exact_of(res, u), res)
+                return Evaluation(u, r_of(res, u), J_exact_of(res, u), res)
             except SimulationError as exc:
                 if not self._exact_failed(exc):
                     raise
         res = self.run(u)
-        r = r_of(res)
-        J = self._fd(u, lambda v: r_of(self.run(v)), r) if jac else None
+        r = r_of(res, u)
+        J = self._fd(u, lambda v: r_of(self.run(v), v), r) if jac else None
         return Evaluation(u, r, J, res)
 
     # -- events ----------------------------------------------------------------------------
 
-    def _model_onsets(self, res: Result) -> tuple[np.ndarray, np.ndarray]:
-        """Onsets [s] of the model's track impacts that the record would show (peak above
-        the pulse threshold), and their rows in ``res.impacts``."""
+    def _model_onsets(self, res: Result, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Onsets [s, the record's time] of the model's track impacts that the record would
+        show (peak above the pulse threshold), and their rows in ``res.impacts``."""
         imp = res.impacts
         rows = np.flatnonzero(np.asarray(imp["pair"] == "track") & ~np.asarray(imp["initial"]))
         peak = np.abs(np.asarray(imp["peak_force"], dtype=float))[rows]
         if self.event_quantity == "acceleration":
             peak = peak / res.model.record.mass
         keep = rows[peak > self.pulse_threshold]
-        return np.asarray(imp["t"], dtype=float)[keep], keep
+        return np.asarray(imp["t"], dtype=float)[keep] - self.time_offset(u), keep
 
-    def _event_parts(self, res: Result) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        tm, rows = self._model_onsets(res)
+    def _event_parts(
+        self, res: Result, u: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        tm, rows = self._model_onsets(res, u)
         td = self.onsets
         sig_t = self.record.sample_interval
         T = self.record.duration
@@ -309,8 +371,8 @@ class Problem:
         near = np.abs(tm[None, :] - td[:, None]).argmin(axis=1)
         return (tm[near] - td) / sig_t, near, tm, rows
 
-    def _event_r(self, res: Result) -> np.ndarray:
-        r_d, _, tm, _ = self._event_parts(res)
+    def _event_r(self, res: Result, u: np.ndarray) -> np.ndarray:
+        r_d, _, tm, _ = self._event_parts(res, u)
         td = self.onsets
         if tm.size == 0 or td.size == 0:
             extra = 0.0
@@ -320,11 +382,16 @@ class Problem:
         return np.concatenate([r_d, [extra]])
 
     def _event_J_exact(self, res: Result, u: np.ndarray) -> np.ndarray:
-        sens = res.sensitivity
-        dt = np.asarray(sens.impacts)[:, :, 0]  # (n_impacts, k): d t_onset / d key
-        _r_d, near, tm, rows = self._event_parts(res)
-        sig_t = self.record.sample_interval
+        n_imp = np.asarray(res.impacts["t"]).size
         k = len(self.keys)
+        # (n_impacts, k): d t_onset / d key, in the record's time; the offset's -1
+        dt = np.zeros((n_imp, k))
+        if self.scenario_keys:
+            dt[:, self._scenario_columns()] = np.asarray(res.sensitivity.impacts)[:, :, 0]
+        if self.i_offset is not None:
+            dt[:, self.i_offset] = -1.0
+        _r_d, near, tm, rows = self._event_parts(res, u)
+        sig_t = self.record.sample_interval
         J = np.zeros((self.onsets.size + 1, k))
         if tm.size:
             J[: self.onsets.size] = dt[rows[near]] / sig_t
@@ -368,37 +435,52 @@ class Problem:
 
     # -- finite differences ----------------------------------------------------------------
 
-    def _fd(self, u: np.ndarray, f: Any, r0: np.ndarray) -> np.ndarray:
-        """Central differences of ``f`` in the unit box (one-sided within h of a bound)."""
-        J = np.empty((r0.size, u.size))
+    def _fd(
+        self, u: np.ndarray, f: Any, r0: np.ndarray | None, columns: Sequence[int] | None = None
+    ) -> np.ndarray:
+        """Central differences of ``f`` in the unit box (one-sided within h of a bound), in
+        ``columns`` of u (all by default; ``r0``, f(u), may be None where they need none)."""
+        cols = range(u.size) if columns is None else columns
+        J = np.empty((0, 0))
         h = FD_STEP
-        for j in range(u.size):
+        for c, j in enumerate(cols):
             up, dn = u.copy(), u.copy()
             if u[j] + h > 1.0:
                 dn[j] -= h
-                J[:, j] = (r0 - f(dn)) / h
+                col = ((f(u) if r0 is None else r0) - f(dn)) / h
             elif u[j] - h < 0.0:
                 up[j] += h
-                J[:, j] = (f(up) - r0) / h
+                col = (f(up) - (f(u) if r0 is None else r0)) / h
             else:
                 up[j] += h
                 dn[j] -= h
-                J[:, j] = (f(up) - f(dn)) / (2 * h)
+                col = (f(up) - f(dn)) / (2 * h)
+            if not J.size:
+                J = np.empty((col.size, len(cols)))
+            J[:, c] = col
         return J
 
-    def rebuild(self, scenario: Scenario, free: Sequence[FreeParameter], jacobian: str) -> Problem:
-        """The same data and noise with another scenario and free set (profiles, laws)."""
-        return Problem(scenario, self.record, free, self.quantities, self.sigma, jacobian)
+    def rebuild(
+        self,
+        scenario: Scenario,
+        free: Sequence[FreeParameter],
+        jacobian: str,
+        time_offset: float | None = None,
+    ) -> Problem:
+        """The same data and noise with another scenario and free set (profiles, laws), and
+        the time offset fixed at ``time_offset`` where given (else this one's fixed one)."""
+        off = self.fixed_offset if time_offset is None else time_offset
+        return Problem(scenario, self.record, free, self.quantities, self.sigma, jacobian, off)
 
     def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
         """The finite-difference Jacobian d r / d u (the fallback, and the cross-check of the
         exact one), of the record or the event residuals."""
         u = np.asarray(u, dtype=float)
         if kind == "record":
-            r0 = self._record_r(self.run(u))
-            return self._fd(u, lambda v: self._record_r(self.run(v)), r0)
-        r0 = self._event_r(self.run(u))
-        return self._fd(u, lambda v: self._event_r(self.run(v)), r0)
+            r0 = self._record_r(self.run(u), u)
+            return self._fd(u, lambda v: self._record_r(self.run(v), v), r0)
+        r0 = self._event_r(self.run(u), u)
+        return self._fd(u, lambda v: self._event_r(self.run(v), v), r0)
 
 
 #: default noise of an impact list: onset times [s] ...
@@ -432,8 +514,9 @@ def match_impacts(td: np.ndarray, tm: np.ndarray) -> np.ndarray:
 class ImpactProblem(Problem):
     """The fit of ``free`` parameters of ``scenario`` to a measured impact list.
 
-    The model runs to 1.2 t_last + 10 ms (t_last the list's last onset), so that the last
-    impact ends and a model impact late against the list can still be matched.
+    The model runs to 1.2 t_last + 10 ms (t_last the list's last onset, plus the largest
+    time offset), so that the last impact ends and a model impact late against the list can
+    still be matched.
     """
 
     def __init__(
@@ -444,11 +527,11 @@ class ImpactProblem(Problem):
         quantities: Sequence[str] = (),
         noise: Mapping[str, float] | None = None,
         jacobian: str = "auto",
+        time_offset: float = 0.0,
     ) -> None:
         self.scenario = scenario
         self.impacts = record
-        self.free = tuple(free)
-        self.keys = tuple(p.key for p in self.free)
+        self._set_free(free, time_offset)
         chosen = [q for q in quantities if q in record.columns] or list(record.columns)
         self.quantities = ("t", *chosen)
         noise = noise or {}
@@ -458,7 +541,8 @@ class ImpactProblem(Problem):
             s = noise.get(q) or IMPACT_RELATIVE_NOISE * med
             sig[q] = float(s) if s > 0 else 1e-9
         self.sigma = sig
-        self.duration = 1.2 * record.duration + 0.01
+        latest = max([self.fixed_offset, *(p.high for p in self.free if p.key == TIME_OFFSET)])
+        self.duration = 1.2 * (record.duration + max(latest, 0.0)) + 0.01
         self.exact = _exact_jacobian(jacobian)
         self.jacobian_choice = jacobian
         self.notes: set[str] = set()
@@ -478,7 +562,8 @@ class ImpactProblem(Problem):
         from braidsim.simulate import simulate
 
         self.evaluations += 1
-        kw: dict[str, Any] = {"sensitivities": list(self.keys)} if sensitivities else {}
+        sensitivities = sensitivities and bool(self.scenario_keys)
+        kw: dict[str, Any] = {"sensitivities": list(self.scenario_keys)} if sensitivities else {}
         return simulate(
             self.scenario_at(u),
             duration=self.duration,
@@ -487,8 +572,9 @@ class ImpactProblem(Problem):
             **kw,
         )
 
-    def model_rows(self, res: Result) -> np.ndarray:
-        """Rows of ``res.impacts`` matched to the measured impacts (see :func:`match_impacts`).
+    def model_rows(self, res: Result, u: np.ndarray) -> np.ndarray:
+        """Rows of ``res.impacts`` matched to the measured impacts (see :func:`match_impacts`;
+        the model's onsets in the list's time, at the time offset of ``u``).
 
         Raises
         ------
@@ -503,14 +589,15 @@ class ImpactProblem(Problem):
                 f"the model gives {rows.size} track impacts up to t = {self.duration:g} s, "
                 f"fewer than the {n} of the impact list {self.impacts.source}"
             )
-        tm = np.asarray(imp["t"], dtype=float)[rows]
+        tm = np.asarray(imp["t"], dtype=float)[rows] - self.time_offset(u)
         return rows[match_impacts(self.impacts.t, tm)]
 
-    def model_values(self, res: Result) -> dict[str, np.ndarray]:
-        """The matched model impacts' values of each fitted quantity (SI)."""
+    def model_values(self, res: Result, u: np.ndarray) -> dict[str, np.ndarray]:
+        """The matched model impacts' values of each fitted quantity (SI; onsets in the
+        list's time)."""
         imp = res.impacts
-        rows = self.model_rows(res)
-        out = {"t": np.asarray(imp["t"], dtype=float)[rows]}
+        rows = self.model_rows(res, u)
+        out = {"t": np.asarray(imp["t"], dtype=float)[rows] - self.time_offset(u)}
         for q in self.quantities[1:]:
             v = np.asarray(imp[q], dtype=float)[rows]
             if q == "peak_force":
@@ -524,26 +611,33 @@ class ImpactProblem(Problem):
             out[q] = v
         return out
 
-    def _r_of(self, res: Result) -> np.ndarray:
-        m = self.model_values(res)
+    def _r_of(self, res: Result, u: np.ndarray) -> np.ndarray:
+        m = self.model_values(res, u)
         data = {"t": self.impacts.t, **self.impacts.columns}
         return np.concatenate([(m[q] - data[q]) / self.sigma[q] for q in self.quantities])
 
-    def _record_r(self, res: Result) -> np.ndarray:
-        return self._r_of(res)
+    def _record_r(self, res: Result, u: np.ndarray) -> np.ndarray:
+        return self._r_of(res, u)
 
     def _record_J_exact(self, res: Result, u: np.ndarray) -> np.ndarray:
         from braidsim.sensitivity import IMPACT_QUANTITIES
 
-        rows = self.model_rows(res)
-        S = np.asarray(res.sensitivity.impacts)[rows]  # (n, k, 5)
+        rows = self.model_rows(res, u)
         peak = np.asarray(res.impacts["peak_force"], dtype=float)[rows]
+        k = len(self.keys)
+        S = np.zeros((rows.size, k, len(IMPACT_QUANTITIES)))  # (n, k, 5)
+        if self.scenario_keys:
+            S[:, self._scenario_columns()] = np.asarray(res.sensitivity.impacts)[rows]
+        if self.i_offset is not None:
+            # (in the list's time a model onset moves back as the offset grows; the other
+            # quantities do not move)
+            S[:, self.i_offset, IMPACT_QUANTITIES.index("t")] = -1.0
         blocks = []
         fd_rows = []
         n = rows.size
         for i, q in enumerate(self.quantities):
             if q == "rebound_velocity":
-                blocks.append(np.zeros((n, len(self.keys))))
+                blocks.append(np.zeros((n, k)))
                 fd_rows.append(i)
                 continue
             b = S[:, :, IMPACT_QUANTITIES.index(q)] / self.sigma[q]
@@ -557,8 +651,8 @@ class ImpactProblem(Problem):
                 "of the Jacobian are central differences"
             )
             sl = np.concatenate([np.arange(i * n, (i + 1) * n) for i in fd_rows])
-            r0 = self._r_of(res)
-            Jfd = self._fd(u, lambda v: self._r_of(self.run(v)), r0)
+            r0 = self._r_of(res, u)
+            Jfd = self._fd(u, lambda v: self._r_of(self.run(v), v), r0)
             J[sl] = Jfd[sl]
         return J
 
@@ -575,16 +669,21 @@ class ImpactProblem(Problem):
         return False
 
     def rebuild(
-        self, scenario: Scenario, free: Sequence[FreeParameter], jacobian: str
+        self,
+        scenario: Scenario,
+        free: Sequence[FreeParameter],
+        jacobian: str,
+        time_offset: float | None = None,
     ) -> ImpactProblem:
+        off = self.fixed_offset if time_offset is None else time_offset
         return ImpactProblem(
-            scenario, self.impacts, free, self.quantities[1:], self.sigma, jacobian
+            scenario, self.impacts, free, self.quantities[1:], self.sigma, jacobian, off
         )
 
     def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
         u = np.asarray(u, dtype=float)
-        r0 = self._r_of(self.run(u))
-        return self._fd(u, lambda v: self._r_of(self.run(v)), r0)
+        r0 = self._r_of(self.run(u), u)
+        return self._fd(u, lambda v: self._r_of(self.run(v), v), r0)
 
 
 def single_problem(
@@ -686,8 +785,13 @@ class MultiProblem(Problem):
         return any(p.has_events for p in self.parts)
 
     def rebuild(
-        self, scenario: Scenario, free: Sequence[FreeParameter], jacobian: str
+        self,
+        scenario: Scenario,
+        free: Sequence[FreeParameter],
+        jacobian: str,
+        time_offset: float | None = None,
     ) -> MultiProblem:
+        # (one time offset for several records is refused: build_problem)
         parts = [
             p.rebuild(scenario.with_overrides(o) if o else scenario, free, jacobian)
             for p, o in zip(self.parts, self.part_overrides, strict=True)

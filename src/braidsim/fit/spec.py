@@ -14,6 +14,8 @@
 
     [fit]
     free = { "contact.track.restitution" = [0.2, 0.95], "track.clearance" = ["2 mm", "4 mm"] }
+                                         # "record.time_offset" = ["0 ms", "0.2 ms"]: the
+                                         # model's time of the record's t = 0 (one record)
     quantity = "x"                       # a column, or a list: ["x", "acceleration"];
                                          # an impact list fits t and all its columns
                                          # unless some (peak_force, velocity,
@@ -71,6 +73,15 @@ FIT_KEYS = (
     "max_evaluations",
 )
 JACOBIANS = ("auto", "exact", "fd")
+#: the free key of the record's time offset: the model's time of the record's t = 0 [s]
+TIME_OFFSET = "record.time_offset"
+
+
+def scenario_values(values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` without :data:`TIME_OFFSET`, the one free key that is not a scenario's."""
+    return {k: v for k, v in values.items() if k != TIME_OFFSET}
+
+
 GLOBALS = ("multistart", "differential_evolution", "none")
 
 
@@ -158,7 +169,7 @@ def _choice(where: str, value: Any, allowed: tuple[str, ...]) -> str:
 
 def _numeric_key(where: str, key: Any) -> Any:
     if not isinstance(key, str) or key not in SCHEMA:
-        hint = closest_hint(str(key), list(SCHEMA))
+        hint = closest_hint(str(key), [*SCHEMA, TIME_OFFSET])
         raise InputError(f"{where}: unknown scenario key {key!r}{hint}")
     spec = SCHEMA[key]
     if spec.kind != "float":
@@ -183,25 +194,29 @@ def free_parameters(
     start = dict(start or {})
     for key, bounds in free.items():
         where = f"fit.free.{key}"
-        spec = _numeric_key("fit.free", key)
+        offset = key == TIME_OFFSET
+        spec = None if offset else _numeric_key("fit.free", key)
+        unit = "s" if spec is None else spec.unit
         if not isinstance(bounds, list | tuple) or len(bounds) != 2:
             raise InputError(f"{where}: {bounds!r} is not allowed; allowed [low, high] with units")
-        lo = spec.check_number(to_si(where, bounds[0], spec.unit))
-        hi = spec.check_number(to_si(where, bounds[1], spec.unit))
+        lo, hi = (to_si(where, b, unit) for b in bounds)
+        if spec is not None:
+            lo, hi = spec.check_number(lo), spec.check_number(hi)
         if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
             raise InputError(f"{where}: [{lo:g}, {hi:g}] is not an interval; allowed low < high")
-        fp = FreeParameter(key, lo, hi, math.nan, spec.unit)
+        fp = FreeParameter(key, lo, hi, math.nan, unit)
         if key in start:
-            s = to_si(f"fit.start.{key}", start.pop(key), spec.unit)
+            s = to_si(f"fit.start.{key}", start.pop(key), unit)
             if not lo <= s <= hi:
                 raise InputError(
-                    f"fit.start.{key}: {s:g} {spec.unit} is out of range; allowed within the "
-                    f"bounds [{lo:g}, {hi:g}] {spec.unit}"
+                    f"fit.start.{key}: {s:g} {unit} is out of range; allowed within the "
+                    f"bounds [{lo:g}, {hi:g}] {unit}"
                 )
         else:
-            v = sc[key]
+            # (the offset starts at 0 where its bounds allow: the record taken as it is)
+            v = 0.0 if offset else sc[key]
             s = float(v) if v is not None and lo <= v <= hi else fp.from_unit(0.5)
-        out.append(FreeParameter(key, lo, hi, s, spec.unit))
+        out.append(FreeParameter(key, lo, hi, s, unit))
     if start:
         k = next(iter(start))
         raise InputError(f"fit.start.{k}: not a free parameter; allowed one of {', '.join(free)}")

@@ -27,9 +27,14 @@ def synthetic_record(
     quantities: Sequence[str] = ("acceleration",),
     seed: int | np.random.Generator | None = 0,
     overrides: Mapping[str, Any] | None = None,
+    time_offset: float | str = 0.0,
 ) -> Record:
     """Sample the simulated carrier at ``rate`` [Hz] from t = 1/rate to ``duration`` [s]
     and add white Gaussian noise of standard deviation ``noise[q]`` [SI] (none where absent).
+
+    ``time_offset`` [s, >= 0]: the model's time of the record's t = 0 (a sensor triggered
+    that late): sample i holds the model at t_i + time_offset, and is stamped t_i
+    (the fit's free key ``record.time_offset`` estimates it).
 
     ``duration``, ``rate`` and the noise levels are numbers in SI or strings with a unit
     (``"30 ms"``, ``"10 kHz"``, ``"20 m/s^2"``); ``noise`` has a key per recorded quantity
@@ -46,6 +51,9 @@ def synthetic_record(
         sc = sc.with_overrides(overrides)
     duration = time_value("duration", duration)  # a number in s or a string with a unit
     rate = to_si("rate", rate, "Hz")
+    offset = to_si("time_offset", time_offset, "s")
+    if not (math.isfinite(offset) and offset >= 0):
+        raise InputError(f"time_offset: {offset:g} s is out of range; allowed >= 0 s")
     if not (math.isfinite(rate) and rate > 0):
         raise InputError(f"rate: {rate:g} Hz is out of range; allowed > 0 Hz")
     if not duration * rate >= 3:
@@ -57,7 +65,7 @@ def synthetic_record(
     sigma = _noise(noise, qs)
     n = int(np.floor(duration * rate + 1e-9))
     t = np.arange(1, n + 1) / rate
-    res = simulate(sc, duration=float(t[-1]), sample_times=t, record_events=False)
+    res = simulate(sc, duration=float(t[-1] + offset), sample_times=t + offset, record_events=False)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     cols = {}
     for q in qs:

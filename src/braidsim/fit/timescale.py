@@ -21,7 +21,7 @@ import math
 from collections.abc import Sequence
 
 from braidsim.errors import InputError
-from braidsim.fit.spec import FreeParameter
+from braidsim.fit.spec import FreeParameter, scenario_values
 from braidsim.params import Scenario
 
 #: corners of the free parameters' box evaluated at most (2^10); with more free parameters,
@@ -52,7 +52,7 @@ def variants(
             try:
                 out.append(
                     scenario.with_overrides(
-                        {**point, "contact.track.model": law}, check_start=False
+                        {**scenario_values(point), "contact.track.model": law}, check_start=False
                     )
                 )
             except InputError:

@@ -1,0 +1,170 @@
+"""The record's time offset (free key ``record.time_offset``): a record whose t = 0 is not
+the model's, made by the simulator with a known offset and parameters. Its estimate and the
+other parameters' truth within their intervals, for a sampled record and an impact list;
+the exact Jacobian's offset column against central differences; its profile; the fitted
+scenario that runs; and the refusals."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+
+import numpy as np
+import pytest
+
+import braidsim
+from braidsim.errors import InputError
+from braidsim.fit import fit, parse_fit_spec
+from braidsim.fit.problem import Problem
+from braidsim.fit.synthetic import synthetic_record
+
+from .test_fit import _cli, _write_record
+from .test_fit_impacts import FREE2, TRUTH, impact_table, noise_of
+
+SC = "paper-3.1"
+OFFSET = 43e-6  # s: 0.43 of the 10-kHz sample interval
+FREE3 = {**FREE2, "record.time_offset": ["0 us", "100 us"]}
+
+
+@pytest.fixture(scope="module")
+def late_record():
+    """0.15 s of the paper-3.1 carrier's acceleration at 10 kHz, noise 20 m/s^2, its sensor
+    triggered 43 us after the model's t = 0."""
+    return synthetic_record(SC, 0.15, noise={"acceleration": 20.0}, seed=11, time_offset=OFFSET)
+
+
+def test_a_late_record_gives_the_offset_and_the_truth_within_the_intervals(late_record):
+    res = fit(SC, late_record, FREE3, quantity="acceleration", starts=3)
+    assert res.converged
+    truth = {**TRUTH, "record.time_offset": OFFSET}
+    for i, k in enumerate(res.keys):
+        lo, hi = res.stats.ci95[i]
+        assert lo <= truth[k] <= hi, (k, lo, truth[k], hi)
+    i = res.keys.index("record.time_offset")
+    assert res.stats.stderr[i] < 3e-6  # s, against the 100-us sample interval
+    assert res.stats.residual_std == pytest.approx(1.0, abs=0.1)
+    assert not res.warnings
+    # the same record with the offset not free: residuals 1.5 times the noise, said so, and
+    # a clearance interval off the truth (what the offset is for)
+    res0 = fit(SC, late_record, FREE2, quantity="acceleration", starts=3)
+    assert res0.stats.residual_std > 1.4
+    assert any("record.time_offset" in w for w in res0.warnings)
+    lo, hi = res0.stats.ci95[res0.keys.index("track.clearance")]
+    assert not lo <= TRUTH["track.clearance"] <= hi
+
+
+@pytest.mark.parametrize("quantities", [("acceleration",), ("x", "acceleration")])
+def test_the_offset_column_of_the_exact_jacobian_matches_central_differences(
+    late_record, quantities
+):
+    rec = late_record
+    if "x" in quantities:
+        rec = synthetic_record(SC, 0.05, quantities=quantities, time_offset=OFFSET)
+    sc = braidsim.load_scenario(SC)
+    spec = parse_fit_spec({"fit": {"free": FREE3, "quantity": list(quantities)}}, scenario=sc)
+    pr = Problem(sc, rec, spec.free, spec.quantities, jacobian="exact")
+    u = pr.u_start + 0.01
+    Je = pr.residuals(u, jac=True).J
+    Jf = pr.jacobian_fd(u)
+    assert Je is not None
+    # (the x rows' offset column is the sampled speed, exact; the acceleration's is itself
+    # central differences; next to a contact exit a_x has a kink: see test_fit)
+    assert np.all(np.linalg.norm(Je - Jf, axis=0) < 1e-2 * np.linalg.norm(Jf, axis=0))
+    if "x" in quantities:
+        n = rec.t.size
+        j = pr.keys.index("record.time_offset")
+        assert np.allclose(Je[:n, j], Jf[:n, j], rtol=1e-4, atol=1e-4 * np.abs(Jf[:n, j]).max())
+    Ee = pr.event_residuals(u, jac=True).J
+    Ef = pr.jacobian_fd(u, "events")
+    assert Ee is not None
+    assert np.allclose(Ee, Ef, rtol=1e-3, atol=1e-3 * np.abs(Ef).max())
+    # with the offset the only free key: no sensitivities asked of the simulator
+    only = parse_fit_spec(
+        {"fit": {"free": {"record.time_offset": ["0 us", "100 us"]}, "quantity": "acceleration"}},
+        scenario=sc,
+    )
+    p1 = Problem(sc, late_record, only.free, only.quantities, jacobian="exact")
+    u1 = p1.u_start + 0.01
+    J1 = p1.residuals(u1, jac=True).J
+    assert J1 is not None
+    assert np.allclose(J1, p1.jacobian_fd(u1), rtol=1e-8, atol=1e-8 * np.abs(J1).max())
+
+
+def test_the_offset_profile_agrees_with_its_interval(late_record):
+    res = fit(
+        SC,
+        late_record,
+        FREE3,
+        quantity="acceleration",
+        starts=2,
+        profile=["record.time_offset"],
+        profile_points=7,
+    )
+    (prof,) = res.profiles
+    lo, hi = prof.ci95
+    i = res.keys.index("record.time_offset")
+    clo, chi = res.stats.ci95[i]
+    assert lo == pytest.approx(clo, abs=0.2 * (chi - clo))
+    assert hi == pytest.approx(chi, abs=0.2 * (chi - clo))
+    assert prof.delta.min() > -1e-3
+
+
+def test_an_impact_list_two_ms_late():
+    tab = impact_table(n=6, seed=3)
+    tab["t [ms]"] = tab["t [ms]"] - 2.0
+    free = {**FREE2, "record.time_offset": ["0 ms", "5 ms"]}
+    res = fit(SC, tab, free, noise=noise_of(tab), starts=3)
+    assert res.converged
+    truth = {**TRUTH, "record.time_offset": 2e-3}
+    for i, k in enumerate(res.keys):
+        lo, hi = res.stats.ci95[i]
+        assert lo <= truth[k] <= hi, (k, lo, truth[k], hi)
+    # the list's onsets against the model's, in the list's time
+    t_model = res.parts[0]["model"]["t"]
+    assert np.all(np.abs(t_model - res.parts[0]["data"]["t"]) < 5e-4)
+
+
+def test_cli_fits_the_offset_and_writes_a_scenario_that_runs(tmp_path, capsys, late_record):
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        'scenario = "paper-3.1"\n[fit]\nfree = { "contact.track.restitution" = [0.3, 0.9], '
+        '"track.clearance" = ["2.5 mm", "3.5 mm"], "record.time_offset" = ["0 us", "100 us"] }\n'
+        'quantity = "acceleration"\nstarts = 2\n'
+    )
+    data = _write_record(tmp_path / "rec.csv", late_record)
+    out = tmp_path / "out"
+    code, stdout, err = _cli(
+        ["fit", str(spec), "--data", str(data), "--out", str(out), "--json"], capsys
+    )
+    assert code == 0, err
+    est = json.loads(stdout)["estimates"]["record.time_offset"]
+    assert est["ci95"][0] <= OFFSET <= est["ci95"][1]
+    text = (out / "fitted_scenario.toml").read_text()
+    assert "# record.time_offset = " in text
+    assert "time_offset" not in "".join(ln for ln in text.splitlines() if not ln.startswith("#"))
+    tomllib.loads(text)
+    code, stdout, err = _cli(["run", str(out / "fitted_scenario.toml"), "--json"], capsys)
+    assert code == 0, err
+
+
+def test_bad_offsets_are_refused_in_one_line(late_record):
+    sc = braidsim.load_scenario(SC)
+    # a lower bound that puts the first sample (t = 0.1 ms) before the model's t = 0
+    spec = parse_fit_spec(
+        {"fit": {"free": {**FREE2, "record.time_offset": ["-1 ms", "1 ms"]}}}, scenario=sc
+    )
+    with pytest.raises(InputError, match=r"record.time_offset: .* allowed >= -0.0001 s"):
+        Problem(sc, late_record, spec.free, ("acceleration",))
+    # one offset for two records
+    with pytest.raises(InputError, match=r"one time offset for 2 records"):
+        fit(SC, [late_record, late_record], FREE3, quantity="acceleration")
+    with pytest.raises(InputError, match=r"fit.free.record.time_offset: .* not an interval"):
+        parse_fit_spec({"fit": {"free": {"record.time_offset": ["1 ms", "0 ms"]}}}, scenario=sc)
+    with pytest.raises(InputError, match=r"time_offset: -1e-05 s is out of range"):
+        synthetic_record(SC, 0.01, time_offset="-10 us")
+
+
+def test_a_misspelt_offset_key_is_named():
+    sc = braidsim.load_scenario(SC)
+    with pytest.raises(InputError, match=r"unknown scenario key 'record.time_ofset'.*time_offset"):
+        parse_fit_spec({"fit": {"free": {"record.time_ofset": [0, 1e-4]}}}, scenario=sc)
