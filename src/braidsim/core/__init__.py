@@ -23,8 +23,9 @@ here (``braidsim.core`` and its public modules), never from ``braidsim.core.solv
 
 from braidsim import startup
 from braidsim.core import layout
-from braidsim.core.driver import RawRun, SeriesOverflow, run, state_size
+from braidsim.core.driver import RawRun, SeriesOverflow, model_sizes, run, state_size
 from braidsim.core.interfaces import (
+    apply_transfer,
     derivatives,
     pair_gaps,
     pair_law,
@@ -64,11 +65,13 @@ __all__ = [
     "RegularizedFriction",
     "SeriesOverflow",
     "TrackHarmonics",
+    "apply_transfer",
     "contact_quantities",
     "derivatives",
     "gaps_along",
     "horn_gear_state",
     "layout",
+    "model_sizes",
     "pair_gaps",
     "pair_law",
     "quadrature_names",

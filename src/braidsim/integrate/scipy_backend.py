@@ -9,13 +9,19 @@ purposes:
   ``tests/integration/test_backends.py``;
 * the baseline of the speed benchmarks (``benchmarks/bench_simulate.py``).
 
-The equations are those of :mod:`braidsim.core.models.carrier` (x radial, y tangential; walls
-at x = h(t), h(t) + eps_g and y = s(t), s(t) + eps_h; ``docs/model.md`` explains how they read
-the paper). A contact present at t = 0 (or right after a transfer) with an overlap is released
-elastically (v0 = inf) unless ``contact.initial_impact_velocity`` is set; a carrier exactly on
-a wall and moving into it starts in contact with its rate latched. A transfer at
-``transfer.times`` maps the carrier from the wall it leans on to the far wall:
-x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr.
+The equations are the model record's registered implementations: :func:`simulate_scipy`
+integrates a scenario's carrier (:mod:`braidsim.core.models.carrier`: x radial, y tangential;
+walls at x = h(t), h(t) + eps_g and y = s(t), s(t) + eps_h; ``docs/model.md`` explains how they
+read the paper), :func:`integrate_scipy` any model record the compiled solver runs (the
+impact oscillator, a model of one's own), from the same arguments as
+:func:`braidsim.core.run`. A pair's events come from its gaps to its two walls
+(``pair_gaps``). A contact present at t = 0 (or right after a transfer) with an overlap is
+released elastically (v0 = inf) unless the model's ``initial_impact_velocity`` is set; a body
+exactly on a wall and moving into it starts in contact with its rate latched (at least
+``min_impact_velocity``). A transfer (at ``transfer.times`` for a scenario) is the model's
+``apply_transfer`` (the carrier: from the wall it leans on to the far wall,
+x - h -> eps_g - (x - h), x' -> 2 h' - x' + v_tr); the contacts of the pairs it names start
+anew.
 
 Method: one :func:`~scipy.integrate.solve_ivp` call per contact mode, with terminal events
 at contact onset (free pair: gap to each wall crosses zero downwards) and exit (penetration
@@ -55,13 +61,14 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
 from braidsim.core import (
+    apply_transfer,
     contact_quantities,
     derivatives,
+    model_sizes,
     pair_gaps,
     pair_law,
-    state_size,
-    wall_motion,
 )
+from braidsim.core import layout as L
 from braidsim.core.layout import EPISODE_DTYPE
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
@@ -71,7 +78,7 @@ from braidsim.result import impacts_frame, ranges_dict
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["ScipyResult", "simulate_scipy"]
+__all__ = ["ScipyResult", "integrate_scipy", "simulate_scipy"]
 
 N_SUB = 8  # interior samples of the dense output per step for the extremes
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
@@ -87,31 +94,30 @@ class _Equations:
     """The model's functions from the compiled core's own definitions (one definition of the
     physics serves both backends), called from Python on plain floats and arrays."""
 
-    def __init__(self, model: Model) -> None:
-        r = model.record
+    def __init__(self, record: Any) -> None:
+        r = record
         self.record = r
-        self.two_dof = model.two_dof
-        self.eps = (float(r.track_clearance), float(r.slot_clearance))
+        n_coords, self.n_pairs, _ = model_sizes(r)
         self.vmin = float(r.min_impact_velocity)
         self.vinit = float(r.initial_impact_velocity)
-        self.transfer_speed = float(r.transfer_speed)
-        self.n_state = state_size(r, energy=False)
+        self.n_state = 2 * n_coords
         self._derivs = derivatives.implementation(type(r))
         self._gaps = pair_gaps.implementation(type(r))
-        self._track = wall_motion.implementation(type(r.track))
         self._law = pair_law.implementation(type(r))
+        self._transfer = apply_transfer.implementation(type(r))
 
-    def track_h(self, t: float) -> tuple[float, float]:
-        """h(t) [m] and h'(t) [m/s] of the track walls."""
-        h, hd, _ = self._track(self.record.track, t)
-        return h, hd
-
-    def pair_state(
+    def gaps(
         self, t: float, y: np.ndarray | Sequence[float], pair: int
-    ) -> tuple[float, float]:
-        """(u, u') of the carrier relative to the inner/rear wall of ``pair``."""
-        g_in, _, rate = self._gaps(self.record, pair, t, np.asarray(y, dtype=float))
-        return g_in, rate
+    ) -> tuple[float, float, float]:
+        """(g_in, g_out, rate) of ``pair``: its gaps to the inner/rear and the outer/front
+        wall [m] and the rate of the first [m/s]."""
+        g_in, g_out, rate = self._gaps(self.record, pair, t, np.asarray(y, dtype=float))
+        return float(g_in), float(g_out), float(rate)
+
+    def transfer(self, t: float, y: np.ndarray) -> int:
+        """Apply the model's transfer to ``y`` in place; the number of leading pairs whose
+        contacts start anew."""
+        return int(self._transfer(self.record, t, y))
 
     def unclamped_force(self, t: float, y: np.ndarray, pair: int, mode: int, v0: float) -> float:
         """F_k + F_c [N] of ``pair`` in contact mode ``mode``: the force before the law's
@@ -157,13 +163,11 @@ class _Equations:
         downwards at the event; ``event.tag = (pair, side)``, side 0 for the clamp.
         """
         events: list[Any] = []
-        npair = 2 if self.two_dof else 1
-        for pair in range(npair):
+        for pair in range(self.n_pairs):
             mode = mt if pair == 0 else ms
-            eps = self.eps[pair]
             sides = (-1, 1) if mode == 0 else (mode,)
             for side in sides:
-                ev = _make_event(self, pair, side, mode, eps)
+                ev = _make_event(self, pair, side, mode)
                 events.append(ev)
             if mode != 0 and self.law_clamps(pair):
                 events.append(_make_clamp_event(self, pair, mode, v0[pair], watch[pair]))
@@ -176,27 +180,14 @@ class _Equations:
         return contact_quantities(self.record, pair, t, Y, mode, v0)
 
 
-def _make_event(eq: _Equations, pair: int, side: int, mode: int, eps: float) -> Any:
-    if mode == 0:
-        if side < 0:
+def _make_event(eq: _Equations, pair: int, side: int, mode: int) -> Any:
+    # free: the gap to the wall of ``side`` closing; in contact: the penetration into it
+    # (minus that gap) closing
+    j = 0 if side < 0 else 1
+    sign = 1.0 if mode == 0 else -1.0
 
-            def ev(t: float, y: np.ndarray) -> float:
-                return eq.pair_state(t, y, pair)[0]
-
-        else:
-
-            def ev(t: float, y: np.ndarray) -> float:
-                return eps - eq.pair_state(t, y, pair)[0]
-
-    elif side < 0:
-
-        def ev(t: float, y: np.ndarray) -> float:
-            return -eq.pair_state(t, y, pair)[0]
-
-    else:
-
-        def ev(t: float, y: np.ndarray) -> float:
-            return eq.pair_state(t, y, pair)[0] - eps
+    def ev(t: float, y: np.ndarray) -> float:
+        return sign * eq.gaps(t, y, pair)[j]
 
     ev.terminal = True  # type: ignore[attr-defined]
     ev.direction = -1.0  # type: ignore[attr-defined]
@@ -267,8 +258,9 @@ class ScipyResult:
 
     Attributes
     ----------
-    model : Model
-        The model integrated (from :func:`braidsim.build_model`).
+    model : Model or model record
+        The model integrated: from :func:`braidsim.build_model` (:func:`simulate_scipy`), or
+        the record (:func:`integrate_scipy`).
     episodes : np.ndarray
         Contact episodes, records of :data:`braidsim.core.layout.EPISODE_DTYPE`.
     windows : np.ndarray
@@ -281,15 +273,18 @@ class ScipyResult:
         ``method``, ``rtol``, ``wall_time`` [s] and ``solve_ivp_time`` [s] (the part of the wall
         time spent integrating, the rest being the peak search, quadrature and bookkeeping).
     final : Mapping[str, float]
-        Final state ``t, x, vx, y, vy``.
+        Final state: ``t, x, vx, y, vy`` for a carrier, ``t`` for another model.
+    state : np.ndarray
+        The final state vector (coordinates and speeds, as :func:`braidsim.core.run`'s).
     """
 
-    model: Model
+    model: Any
     episodes: np.ndarray
     windows: np.ndarray
     ranges: np.ndarray
     stats: Mapping[str, Any]
     final: Mapping[str, float]
+    state: np.ndarray = field(default_factory=lambda: np.zeros(0))
     backend: str = "scipy"
     _cache: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -310,14 +305,28 @@ class ScipyResult:
 # =======================================================================================
 
 
+@dataclass(frozen=True)
+class _Setup:
+    """What one run integrates: the model record, its start, end and transfers [s], the
+    solver's step limits, and the scenario's model (None for a record alone)."""
+
+    record: Any
+    y0: np.ndarray
+    duration: float
+    transfer_times: np.ndarray
+    max_step: float
+    max_steps: int
+    model: Model | None = None
+
+
 class _Run:
     """State of one SciPy run: modes, latched speeds, open episodes, ranges."""
 
     def __init__(
-        self, model: Model, windows: np.ndarray, method: str, rtol: float, atol: Any
+        self, setup: _Setup, windows: np.ndarray, method: str, rtol: float, atol: Any
     ) -> None:
-        self.model = model
-        self.eq = _Equations(model)
+        self.setup = setup
+        self.eq = _Equations(setup.record)
         self.W = windows
         self.R = np.empty((windows.shape[0], 2, 4, 2))
         self.R[..., 0] = np.inf
@@ -325,8 +334,8 @@ class _Run:
         self.method = method
         self.rtol = rtol
         self.atol = atol
-        self.hmax = float(model.options.max_step)
-        self.max_steps = int(model.options.max_steps)
+        self.hmax = float(setup.max_step)
+        self.max_steps = int(setup.max_steps)
         self.modes = [0, 0]
         self.v0 = [1.0, 1.0]
         # the clamp crossing each contact waits for: -1 falling, +1 rising, 0 not known yet
@@ -346,21 +355,20 @@ class _Run:
 
     @property
     def npair(self) -> int:
-        return 2 if self.eq.two_dof else 1
+        return self.eq.n_pairs
 
     # ---- contacts at t = 0 and after a transfer ---------------------------------------
     def start_contacts(self, t: float, y: np.ndarray, npair: int) -> None:
         """The solver's start policy (see :mod:`braidsim.core.solver.loop`)."""
         eq = self.eq
         for pair in range(npair):
-            u, ud = eq.pair_state(t, y, pair)
-            eps = eq.eps[pair]
+            g_in, g_out, ud = eq.gaps(t, y, pair)
             mode = 0
             p = pd = 0.0
-            if u < 0.0 or (u == 0.0 and ud < 0.0):
-                mode, p, pd = -1, -u, -ud
-            elif u > eps or (u == eps and ud > 0.0):
-                mode, p, pd = 1, u - eps, ud
+            if g_in < 0.0 or (g_in == 0.0 and ud < 0.0):
+                mode, p, pd = -1, -g_in, -ud
+            elif g_out < 0.0 or (g_out == 0.0 and ud > 0.0):
+                mode, p, pd = 1, -g_out, ud
             self.modes[pair] = mode
             if mode == 0:
                 continue
@@ -493,13 +501,12 @@ class _Run:
     # ---- the main loop -------------------------------------------------------------------
     def run(self) -> tuple[float, np.ndarray]:
         eq = self.eq
-        model = self.model
-        nd = 4 if eq.two_dof else 2
-        y = model.y0[:nd].astype(float).copy()
+        setup = self.setup
+        y = np.asarray(setup.y0, dtype=float)[: eq.n_state].copy()
         t = 0.0
-        t_end = model.duration
+        t_end = setup.duration
         self.start_contacts(t, y, self.npair)
-        transfers = [float(tt) for tt in model.transfer_times if 0.0 < tt < t_end]
+        transfers = [float(tt) for tt in setup.transfer_times if 0.0 < tt < t_end]
         itr = 0
         last_event_t = -1.0
         same_time = 0
@@ -538,10 +545,17 @@ class _Run:
                 self.stats["min_step"] = min(self.stats["min_step"], float(np.diff(sol.t).min()))
             if self.stats["steps"] > self.max_steps:
                 # the compiled solver's message: the smallest step, and what to change
-                from braidsim.core.layout import ST_MAX_STEPS
                 from braidsim.simulate import failure_message
 
-                raise SimulationError(failure_message(ST_MAX_STEPS, t, self.model, self.stats), t)
+                if setup.model is not None:
+                    msg = failure_message(L.ST_MAX_STEPS, t, setup.model, self.stats)
+                else:
+                    msg = (
+                        f"the step budget (max_steps = {self.max_steps}) was exhausted at "
+                        f"t = {t:.9g} s (smallest step {self.stats['min_step']:.3g} s); raise "
+                        "max_steps or the model's min_impact_velocity"
+                    )
+                raise SimulationError(msg, t)
             if sol.status < 0:
                 raise SimulationError(
                     f"solve_ivp ({self.method}) failed at t = {sol.t[-1]:.9g} s: {sol.message}",
@@ -595,7 +609,7 @@ class _Run:
 
     def _switch(self, t: float, y: np.ndarray, pair: int, side: int) -> None:
         eq = self.eq
-        _, ud = eq.pair_state(t, y, pair)
+        ud = eq.gaps(t, y, pair)[2]
         rate = -ud if side < 0 else ud  # penetration rate into this wall
         if self.modes[pair] == 0:
             vlat = max(rate, eq.vmin)
@@ -614,22 +628,19 @@ class _Run:
             self.modes[pair] = 0
 
     def _transfer(self, t: float, y: np.ndarray) -> None:
-        """Transfer to the next horn gear: the wall the carrier leans on becomes the far wall."""
-        eq = self.eq
+        """The model's transfer (the carrier's to the next horn gear: the wall it leans on
+        becomes the far wall); the contacts of the pairs it names end and start anew."""
         self.stats["transfers"] += 1
-        ep = self.open[0]
-        if ep is not None:
-            ep.t_end = t
-            ep.end_reason = 2
-            self.open[0] = None
-        h, hd = eq.track_h(t)
-        eps = eq.eps[0]
-        xr = min(max(y[0] - h, 0.0), eps)
-        y[0] = h + eps - xr
-        y[1] = 2.0 * hd - y[1] + eq.transfer_speed
-        self.modes[0] = 0
-        self.clamp_watch[0] = 0
-        self.start_contacts(t, y, 1)
+        k = self.eq.transfer(t, y)
+        for pair in range(k):
+            ep = self.open[pair]
+            if ep is not None:
+                ep.t_end = t
+                ep.end_reason = 2
+                self.open[pair] = None
+            self.modes[pair] = 0
+            self.clamp_watch[pair] = 0
+        self.start_contacts(t, y, k)
 
 
 def simulate_scipy(
@@ -668,7 +679,8 @@ def simulate_scipy(
         tolerances and the transfers): the scenario's record with a law, friction law or
         excitation of one's own, ``build_model(sc).record._replace(track_law=MyLaw(...))``,
         checked against this independent integration of the same functions (the backend
-        calls the record's registered implementations).
+        calls the record's registered implementations). A model of another class:
+        :func:`integrate_scipy`.
 
     Returns
     -------
@@ -687,17 +699,102 @@ def simulate_scipy(
         if type(record) is not type(model.record):
             raise InputError(
                 f"record: a {type(record).__name__}; allowed a record of the scenario's "
-                f"carrier class, {type(model.record).__name__} (the SciPy backend integrates "
-                "the carrier only)"
+                f"carrier class, {type(model.record).__name__} (another model: "
+                "integrate_scipy(record, options, y0))"
             )
         model = dataclasses.replace(model, record=record)
     from braidsim.simulate import run_windows
 
     W = run_windows(0.0, model.duration, windows)
+    setup = _Setup(
+        model.record,
+        model.y0,
+        model.duration,
+        np.asarray(model.transfer_times, dtype=float),
+        float(model.options.max_step),
+        int(model.options.max_steps),
+        model,
+    )
+    res = _integrate(setup, W, method, rtol, atol, model.options)
+    y = res.state
+    final = {
+        "t": res.final["t"],
+        "x": float(y[0]),
+        "vx": float(y[1]),
+        "y": float(y[2]) if y.size > 2 else float(sc["initial.y"]),
+        "vy": float(y[3]) if y.size > 2 else float(sc["initial.vy"]),
+    }
+    return dataclasses.replace(res, model=model, final=final)
+
+
+def integrate_scipy(
+    record: Any,
+    options: L.SolverOptions,
+    y0: np.ndarray | Sequence[float],
+    *,
+    transfer_times: Sequence[float] | np.ndarray = (),
+    method: str = "DOP853",
+    rtol: float | None = None,
+    atol: float | Sequence[float] | None = None,
+    windows: Sequence[tuple[float, float]] | None = None,
+) -> ScipyResult:
+    """Integrate any model record of the compiled core with
+    :func:`scipy.integrate.solve_ivp`, from the arguments of :func:`braidsim.core.run`: a
+    model of one's own (or the impact oscillator) checked against an independent
+    integration of its registered functions.
+
+    Parameters
+    ----------
+    record : model record
+        What :func:`braidsim.core.run` takes (its class registers ``model_size``,
+        ``derivatives``, ``pair_gaps``, ``pair_law`` and ``apply_transfer``).
+    options : SolverOptions
+        ``t_end`` [s], ``max_step`` [s] and ``max_steps``; ``rtol``, ``atol_position`` [m]
+        and ``atol_velocity`` [m/s] unless given here.
+    y0 : array
+        The initial state; its first 2 n_coords entries are used (coordinates and speeds).
+    transfer_times : sequence of float
+        Times [s] of the model's transfers (``apply_transfer``).
+    method, rtol, atol, windows
+        As for :func:`simulate_scipy` (``rtol`` default: the options').
+
+    Returns
+    -------
+    ScipyResult
+        Its ``model`` the record, ``final`` holds ``t``, ``state`` the final state vector.
+    """
+    rtol = float(options.rtol) if rtol is None else rtol
+    if not (0.0 < rtol < 1.0):
+        raise InputError(f"rtol: {rtol!r} is out of range; allowed 0 < rtol < 1")
+    if not (math.isfinite(options.t_end) and options.t_end > 0):
+        raise InputError(f"options.t_end: {options.t_end!r} s is out of range; allowed > 0 s")
+    from braidsim.simulate import run_windows
+
+    W = run_windows(0.0, float(options.t_end), windows)
+    setup = _Setup(
+        record,
+        np.asarray(y0, dtype=float),
+        float(options.t_end),
+        np.asarray(transfer_times, dtype=float),
+        float(options.max_step),
+        int(options.max_steps),
+    )
+    return _integrate(setup, W, method, rtol, atol, options)
+
+
+def _integrate(
+    setup: _Setup,
+    W: np.ndarray,
+    method: str,
+    rtol: float,
+    atol: float | Sequence[float] | None,
+    options: L.SolverOptions,
+) -> ScipyResult:
+    """One run of :class:`_Run`, its episodes, ranges and statistics."""
     if atol is None:
-        ax, av = float(model.options.atol_position), float(model.options.atol_velocity)
-        atol = [ax, av, ax, av] if model.two_dof else [ax, av]
-    run = _Run(model, W, method, rtol, atol)
+        ax, av = float(options.atol_position), float(options.atol_velocity)
+        atol = [ax, av] * (model_sizes(setup.record)[0])
+    run = _Run(setup, W, method, rtol, atol)
     t0 = time.perf_counter()
     t, y = run.run()
     wall = time.perf_counter() - t0
@@ -706,11 +803,4 @@ def simulate_scipy(
     stats.update(
         {"method": method, "rtol": rtol, "wall_time": wall, "solve_ivp_time": run.solve_time}
     )
-    final = {
-        "t": float(t),
-        "x": float(y[0]),
-        "vx": float(y[1]),
-        "y": float(y[2]) if y.size > 2 else float(sc["initial.y"]),
-        "vy": float(y[3]) if y.size > 2 else float(sc["initial.vy"]),
-    }
-    return ScipyResult(model, EP, W, run.R, stats, final)
+    return ScipyResult(setup.record, EP, W, run.R, stats, {"t": float(t)}, np.asarray(y))
