@@ -192,6 +192,57 @@ def test_design_command_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[
     assert code == 2 and "SPEC" in err
 
 
+def step_budget_example(tmp_path: Path, max_steps: int) -> Path:
+    """A tiny study (2-cycle proxy, no extras) of machine16.toml with
+    ``simulation.max_steps`` among its overrides."""
+    m = tomllib.loads((ROOT / "examples" / "machine16.toml").read_text())
+    m.setdefault("overrides", {})["simulation.max_steps"] = max_steps
+    mp = tmp_path / "machine.toml"
+    mp.write_text(to_toml(m))
+    spec = tiny_example(
+        tmp_path,
+        levers={"enabled": False},
+        proxy_check={"profiles": 0},
+        sensitivity={"enabled": False},
+        speed_limit={"enabled": False},
+    )
+    data = tomllib.loads(spec.read_text())
+    data["machine_spec"] = str(mp)
+    data["design"]["optimizer"]["cycles"] = 2
+    data["design"]["robust"].update({"samples": 1, "check_samples": 2, "check_cycles": 2})
+    spec.write_text(to_toml(data))
+    return spec
+
+
+@pytest.mark.parametrize(
+    "max_steps,stage",
+    [
+        (
+            2000,
+            "the constant-speed run of the machine over 2 transfer cycles "
+            "(design.optimizer.cycles)",
+        ),
+        (4000, "the full run of the machine at constant speed"),
+    ],
+)
+def test_numerical_failure_of_a_run_the_study_needs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], max_steps: int, stage: str
+) -> None:
+    """A step budget too small for the constant-speed proxy run (2000), or only for the full
+    run (4000): exit 1 with the run, the carrier, the time and what to change, as `braidsim
+    machine` says it; no report (it was an internal error: a KeyError, an AssertionError)."""
+    spec = step_budget_example(tmp_path, max_steps)
+    out = tmp_path / "report"
+    code, stdout, err = run_cli(capsys, "design", str(spec), "--out", str(out))
+    assert code == 1 and stdout == ""
+    last = err.strip().splitlines()[-1]
+    assert last.startswith(f"braidsim: error: simulation failed: {stage}: carrier A0: "), err
+    assert f"simulation.max_steps = {max_steps} exhausted at t = " in last
+    assert "raise simulation.max_steps" in last and "internal error" not in err
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".report.")]
+
+
 def test_report_is_whole_or_absent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A failure while writing leaves no directory behind."""
     spec = load_design_spec(

@@ -286,12 +286,28 @@ class Evaluation:
         Carrier -> number of carriers it stands for.
     error : str
         The numerical failure, if any ("" otherwise).
+    error_time : float
+        Simulated time of that failure [s] (NaN when none or unknown).
     """
 
     metrics: dict[str, float]
     run: MachineRun | None
     weights: dict[str, int]
     error: str = ""
+    error_time: float = math.nan
+
+    def required(self, what: str) -> Evaluation:
+        """This evaluation, or the :class:`~braidsim.errors.SimulationError` of its failed run
+        prefixed with ``what`` (for the runs a study cannot go on without: a candidate's
+        failure only costs it the :data:`PENALTY`)."""
+        if self.run is None:
+            # the run's own message names the carrier, the time and the scenario keys to
+            # change; in a design those keys live in the machine spec's [overrides]
+            raise SimulationError(
+                f"{what}: {self.error} (scenario keys: the machine spec's [overrides])",
+                self.error_time,
+            )
+        return self
 
 
 def evaluate(
@@ -331,7 +347,7 @@ def evaluate(
         run = run_machine(spec, duration=T, workers=workers, frames=0)
     except SimulationError as exc:
         bad = dict.fromkeys(METRIC_KEYS, math.nan)
-        return Evaluation(bad, None, weights, str(exc))
+        return Evaluation(bad, None, weights, str(exc), exc.time)
     return Evaluation(metrics(run, weights), run, weights)
 
 

@@ -245,7 +245,15 @@ def run_design(
     timings: dict[str, float] = {}
 
     t = time.perf_counter()
-    baseline = evaluate(base, mpath, None, cycles=cycles).metrics
+    # the study compares everything with these runs: if one fails there is nothing to report
+    baseline = (
+        evaluate(base, mpath, None, cycles=cycles)
+        .required(
+            f"the constant-speed run of the machine over {cycles:g} transfer cycles "
+            "(design.optimizer.cycles)"
+        )
+        .metrics
+    )
     fid = None
     if spec.proxy_profiles > 0:
         profs = random_profiles(spec, spec.proxy_profiles, spec.proxy_seed)
@@ -296,8 +304,12 @@ def run_design(
     say("full machine runs: constant speed and optimised profile")
     t = time.perf_counter()
     fw = W if full_workers is None else full_workers
-    before = evaluate(base, mpath, None, full=True, workers=fw)
-    after = evaluate(base, mpath, opt.profile, full=True, workers=fw)
+    before = evaluate(base, mpath, None, full=True, workers=fw).required(
+        "the full run of the machine at constant speed"
+    )
+    after = evaluate(base, mpath, opt.profile, full=True, workers=fw).required(
+        "the full run of the machine with the optimised profile"
+    )
     timings["full_runs"] = time.perf_counter() - t
     red = reductions(before.metrics, after.metrics)
     prod = {f"before_{k}": v for k, v in _production(before).items()}
