@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -115,6 +116,39 @@ def test_a_speed_that_presses_the_carriers_through_the_clearance_is_refused() ->
     naming machine.speed and the largest speed the clearance allows (it named initial.x)."""
     with pytest.raises(braidsim.InputError, match=r"machine\.speed: .* allowed below 7243 rad/s"):
         parse_machine_spec(one_carrier(0.3, speed="1e9 rpm"))
+
+
+def test_a_clearance_the_yarn_tension_alone_closes_is_refused_naming_the_clearance() -> None:
+    """At 3e-5 mm of clearance the yarn tension alone presses the resting carrier deeper than
+    the clearance, so no speed, not even 0, allows the rest start: refused naming
+    track.clearance and its least value (it named machine.speed, "allowed below 0 rad/s",
+    and called the whole load centrifugal). The least value stated is allowed."""
+
+    def spec(clearance: str, speed: str = "120 rpm") -> dict[str, Any]:
+        d = one_carrier(0.3, speed=speed)
+        d["overrides"] = {"track.clearance": clearance}
+        return d
+
+    with pytest.raises(braidsim.InputError) as exc:
+        parse_machine_spec(spec("0.00003 mm"))
+    msg = str(exc.value)
+    assert msg.startswith("track.clearance: 3e-05 mm is less than the ")
+    assert "yarn tension T1 cos(phi)" in msg and "centrifugal m r_c omega^2" in msg
+    least = re.fullmatch(r".*; allowed >= ([0-9.e+-]+) mm", msg)
+    assert least is not None, msg
+    parse_machine_spec(spec(f"{least.group(1)} mm"))  # the value stated is allowed
+    # a clearance that the tension alone leaves open: the speed is to blame, and its limit
+    # (stated rounded down) is allowed
+    with pytest.raises(braidsim.InputError) as exc:
+        parse_machine_spec(spec("0.01 mm", speed="2000 rpm"))
+    msg = str(exc.value)
+    top = re.fullmatch(
+        r"machine\.speed: .*yarn tension.*plus centrifugal.*allowed below (\S+) "
+        r"rad/s",
+        msg,
+    )
+    assert top is not None, msg
+    parse_machine_spec(spec("0.01 mm", speed=f"{top.group(1)} rad/s"))
 
 
 def test_every_transfer_against_closed_forms() -> None:

@@ -233,27 +233,55 @@ class MachineSpec:
         return replace(self, duration=time_value("duration", duration))
 
 
+def _round_sig(x: float, up: bool, digits: int = 4) -> float:
+    """``x`` > 0 rounded to ``digits`` significant digits, upwards or downwards (a limit that a
+    message states must itself be allowed)."""
+    q = 10.0 ** (math.floor(math.log10(x)) - digits + 1)
+    return (math.ceil if up else math.floor)(x / q) * q
+
+
 def _rest_start(sc: Scenario) -> dict[str, float]:
     """initial.* for a carrier at rest on the inner wall under the load at t = 0.
 
     Static equilibrium K delta^n = T1 cos(phi) + m r_c omega(0)^2 on the inner wall, which
     moves with the track: x0 = h(0) - delta, dx0/dt = h'(0). With two DOFs the carrier rides
-    in the middle of the slot clearance at the slot speed r_c omega(0)."""
+    in the middle of the slot clearance at the slot speed r_c omega(0).
+
+    A deflection delta larger than the track clearance is refused: naming machine.speed and
+    the speed below which it fits when the centrifugal part is to blame, else (the yarn
+    tension alone presses the carrier deeper than the clearance, so no speed helps) naming
+    track.clearance and its least value at this speed."""
     model = build_model(sc, 1.0)
     om0, s0 = horn_gear_state(model.horn_gear, 0.0)
     rec = model.record
-    load = rec.load_x + rec.mass_radius * om0 * om0
+    centrifugal = rec.mass_radius * om0 * om0
+    load = rec.load_x + centrifugal
     delta = (load / model.track.stiffness) ** (1.0 / model.track.exponent) if load > 0 else 0.0
     clearance = sc["track.clearance"]
     if delta > clearance:
         # (no machine runs so fast: 1e9 rpm was refused naming initial.x, a key the rest
         # start derives, and the speeds in between ran with absurd forces)
+        parts = []
+        if rec.load_x > 0.0:
+            parts.append(f"yarn tension T1 cos(phi) {rec.load_x:.4g} N")
+        if centrifugal > 0.0:
+            parts.append(f"centrifugal m r_c omega^2 {centrifugal:.4g} N at {om0:g} rad/s")
+        what = " plus ".join(parts)
         spare = model.track.stiffness * clearance**model.track.exponent - rec.load_x
-        top = math.sqrt(spare / rec.mass_radius) if spare > 0 and rec.mass_radius > 0 else 0.0
+        if spare > 0.0 and rec.mass_radius > 0.0:
+            top = _round_sig(math.sqrt(spare / rec.mass_radius), up=False)
+            raise InputError(
+                f"machine.speed: {om0:g} rad/s presses each carrier {delta * 1e3:.3g} mm into "
+                f"the inner wall at rest (its load: {what}), more than the track clearance of "
+                f"{clearance * 1e3:g} mm; allowed below {top:.4g} rad/s"
+            )
+        # the yarn tension alone is too much: no speed, not even 0, satisfies the rest start
+        least = _round_sig(delta * 1e3, up=True)
         raise InputError(
-            f"machine.speed: {om0:g} rad/s presses each carrier {delta * 1e3:.3g} mm into the "
-            f"inner wall at rest (its centrifugal load m r_c omega^2), more than the track "
-            f"clearance of {clearance * 1e3:g} mm; allowed below {top:.4g} rad/s"
+            f"track.clearance: {clearance * 1e3:g} mm is less than the {least:.4g} mm each "
+            f"carrier is pressed into the inner wall at rest (its load: {what}; the yarn "
+            f"tension alone presses it deeper than the clearance at any speed); allowed >= "
+            f"{least:.4g} mm"
         )
     h0, hd0, _ = wall_motion.py(rec.track, 0.0)
     out = {"initial.x": float(h0 - delta), "initial.vx": float(hd0)}
