@@ -447,6 +447,52 @@ def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
         parse_design_spec({"machine_spec": str(prof)})
 
 
+def test_tolerances_the_machine_refuses_are_refused_before_the_study() -> None:
+    """A tolerance on a key the machine sets, a range whose end the machine refuses, or
+    drawn sets it refuses stop the spec with one line naming design.robust.tolerances (they
+    were accepted and failed half-way, naming machine.speed or the pitch radius)."""
+
+    def tol(**tols: list[float]) -> dict[str, Any]:
+        return spec_table(robust={"tolerances": tols})
+
+    cases = [
+        (
+            tol(**{"horn_gear.angular_velocity": [0.8, 1.2]}),
+            r"^design\.robust\.tolerances\.horn_gear\.angular_velocity: set by the machine "
+            r"\(machine\.speed\).*; allowed a scenario key the machine does not set",
+        ),
+        (
+            tol(**{"carrier.turning_radius": [0.8, 1.2]}),
+            r"^design\.robust\.tolerances\.carrier\.turning_radius: set by the machine "
+            r"\(machine\.pitch_radius\)",
+        ),
+        (
+            tol(**{"initial.vx": [0.0, 1.0]}),
+            r"^design\.robust\.tolerances\.initial\.vx: set by the machine "
+            r'\(machine\.start = "rest"\)',
+        ),
+        (
+            tol(**{"track.clearance": [1e-5, 1e-5]}),
+            r"^design\.robust\.tolerances\.track\.clearance: x \[1e-05, 1e-05\] gives "
+            r"track\.clearance = 3e-08 m at its low end, which this machine refuses "
+            r"\(track\.clearance: .*allowed >= [0-9.]+ mm\); allowed a range",
+        ),
+        # each end passes alone (a clearance just above the resting deflection; a higher
+        # tension on the nominal clearance), not together: a drawn set presses the carrier
+        # through the clearance
+        (
+            tol(**{"track.clearance": [3e-4, 3e-4], "yarn.tension_horizontal": [1.0, 2.0]}),
+            r"^design\.robust\.tolerances: parameter set \d+ of design\.robust\.samples "
+            r"\(.*yarn\.tension_horizontal = .*\) is refused by this machine",
+        ),
+    ]
+    for table, msg in cases:
+        with pytest.raises(InputError, match=msg):
+            parse_design_spec(table)
+    # the narrow clearance with the default tolerances of the others is allowed
+    assert parse_design_spec(tol(**{"track.clearance": [3e-4, 3e-4]}))
+
+
 def test_toml_writer_round_trips() -> None:
     t = {
         "name": 'a "quoted" name',

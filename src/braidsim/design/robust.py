@@ -129,6 +129,19 @@ def check_tolerances(sc: Scenario, tolerances: Sequence[Tolerance]) -> None:
                 )
 
 
+def robust_sets(
+    sc: Scenario, options: RobustOptions
+) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
+    """The parameter sets of a study: the optimiser's (``options.samples``, seed ``seed``)
+    and the held-out ones (``options.check_samples``, seed ``seed + 1``); the spec's check
+    and the study draw them here, so that they check what runs."""
+    R = options
+    return (
+        draw_samples(sc, R.tolerances, R.samples, R.seed),
+        draw_samples(sc, R.tolerances, R.check_samples, R.seed + 1),
+    )
+
+
 def draw_samples(
     sc: Scenario, tolerances: Sequence[Tolerance], n: int, seed: int
 ) -> list[dict[str, float]]:

@@ -44,7 +44,10 @@ and says what to study. Every quantity is a number in SI or a string with units:
     seed = 1
     check_cycles = 32
     [design.robust.tolerances]         # key = [low, high] factors on the nominal value
-    "track.clearance" = [0.8, 1.3]     # (absolute values for track.vibration_phase)
+    "track.clearance" = [0.8, 1.3]     # (absolute values for track.vibration_phase); not a
+                                       # key the machine sets (machine.speed, the pitch
+                                       # radius, initial.* at rest), and every drawn set
+                                       # must be a machine the machine spec accepts
 
     [design.levers]                    # compare the paper's levers on the held-out sets
     enabled = true
@@ -97,17 +100,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from braidsim.batch import local_processes
 from braidsim.design.drive import Drive
 from braidsim.design.evaluate import OBJECTIVES, check_objective, check_pair, machine_for
 from braidsim.design.optimise import OptimizerOptions
 from braidsim.design.profiles import Limits, ProfileFamily
-from braidsim.design.robust import RobustOptions, Tolerance, check_tolerances
+from braidsim.design.robust import RobustOptions, Tolerance, check_tolerances, robust_sets
 from braidsim.design.sensitivity import DEFAULT_LEVERS, Lever, make_levers
 from braidsim.design.speed_limits import SpeedLimitOptions
 from braidsim.errors import InputError
 from braidsim.machine.spec import TOP_KEYS as MACHINE_TOP_KEYS
-from braidsim.machine.spec import MachineSpec
+from braidsim.machine.spec import MachineSpec, machine_entry
+from braidsim.params import SCHEMA
 from braidsim.specfile import check_keys, expect_table, parse_toml, read_text, read_toml_file
 from braidsim.units import to_si
 
@@ -500,6 +506,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     _check_runs(table, mpath, machine, sensitivity, speed_limit)
     drive = _drive(d.get("drive", {}))
     robust = _robust(d.get("robust", {}), machine.scenario)
+    _check_tolerances(table, mpath, machine, robust)
     lv = expect_table("design.levers", d.get("levers", {}))
     check_keys("design.levers.", lv, LEVER_KEYS)
     ef = expect_table("design.levers.effort", lv.get("effort", {}))
@@ -606,6 +613,50 @@ def _check_runs(
                 f"design.speed_limit: the machine cannot run at {w:g} rad/s ({exc}); allowed: "
                 "set the speed with [machine] speed, or enabled = false"
             ) from None
+
+
+def _check_tolerances(
+    table: dict[str, Any], path: Path | None, machine: MachineSpec, robust: RobustOptions
+) -> None:
+    """Refuse, before the study, a tolerance the machine would refuse half-way: on a key the
+    machine sets (its speed, its radius, the rest start), a range whose end the machine
+    refuses (a clearance the resting carrier is pressed through), or a drawn parameter set
+    it refuses (ends that pass alone but not together)."""
+    for t in robust.tolerances:
+        where = f"design.robust.tolerances.{t.key}"
+        entry = machine_entry(t.key, machine.start)
+        if entry is not None:
+            raise InputError(
+                f"{where}: set by the machine ({entry}), the same for every sample; allowed a "
+                "scenario key the machine does not set, e.g. track.clearance"
+            )
+        rng = f"{'x ' if t.relative else ''}[{t.low:g}, {t.high:g}]"
+        for end, v in zip(
+            ("low", "high"),
+            t.values(float(machine.scenario[t.key]), np.array([0.0, 1.0])),
+            strict=True,
+        ):
+            try:
+                machine_for(table, path, overrides={t.key: float(v)})
+            except InputError as exc:
+                raise InputError(
+                    f"{where}: {rng} gives {t.key} = {v:g} {SCHEMA[t.key].unit} at its {end} "
+                    f"end, which this machine refuses ({exc}); allowed a range the machine "
+                    "accepts at both ends"
+                ) from None
+    for sets, what in zip(
+        robust_sets(machine.scenario, robust), ("samples", "check_samples"), strict=True
+    ):
+        for i, over in enumerate(sets):
+            try:
+                machine_for(table, path, overrides=over)
+            except InputError as exc:
+                drawn = ", ".join(f"{k} = {v:.4g}" for k, v in over.items())
+                raise InputError(
+                    f"design.robust.tolerances: parameter set {i + 1} of design.robust.{what} "
+                    f"({drawn}) is refused by this machine ({exc}); allowed narrower ranges "
+                    "(or another design.robust.seed)"
+                ) from None
 
 
 def load_design_spec(path: str | Path) -> DesignSpec:

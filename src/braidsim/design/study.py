@@ -34,8 +34,8 @@ from braidsim.design.robust import (
     LeverResult,
     compare_levers,
     default_moves,
-    draw_samples,
     improvement,
+    robust_sets,
 )
 from braidsim.design.sensitivity import (
     Lever,
@@ -275,7 +275,7 @@ def run_design(
         drag,
     )
     R = spec.robust
-    opt_sets = draw_samples(m.scenario, R.tolerances, R.samples, R.seed)
+    opt_sets, check = robust_sets(m.scenario, R)
     say(
         f"optimising ({spec.family.name}, {spec.objective} of {spec.pair}, {R.statistic} over "
         f"{len(opt_sets) or 1} parameter sets, maxiter {spec.optimizer.maxiter}, "
@@ -322,7 +322,6 @@ def run_design(
     result.drive_after = drive.figures(opt.profile)
 
     t = time.perf_counter()
-    check = draw_samples(m.scenario, R.tolerances, R.check_samples, R.seed + 1)
     say(
         f"robustness: {len(check)} held-out parameter sets, {R.check_cycles:g} cycles, "
         "constant speed and optimised profile"

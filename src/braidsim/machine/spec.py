@@ -96,6 +96,26 @@ BRAID_KEYS = ("mandrel_radius", "take_up_speed", "braid_angle")
 ANIMATION_KEYS = ("enabled", "duration", "frames", "fps", "dpi")
 STARTS = ("rest", "scenario")
 MACHINE_SET_KEYS = ("transfer.times", "transfer.period", "transfer.first")
+#: scenario keys that the machine sets for every carrier -> the entry that sets them
+SET_BY_MACHINE = {
+    "carrier.turning_radius": "machine.pitch_radius",
+    "horn_gear.angular_velocity": "machine.speed",
+    "horn_gear.speed_profile": "machine.speed_profile",
+    "horn_gear.speed_harmonics": "machine.speed_profile",
+    **dict.fromkeys(MACHINE_SET_KEYS, "the transfers of each carrier"),
+}
+#: scenario keys that the rest start (machine.start = "rest") sets for every carrier
+REST_START_KEYS = ("initial.x", "initial.vx", "initial.y", "initial.vy")
+
+
+def machine_entry(key: str, start: str = "rest") -> str | None:
+    """The machine spec's entry that sets scenario key ``key`` for every carrier (None when
+    the machine leaves it to the scenario); ``start`` is the machine's ``machine.start``."""
+    if key in SET_BY_MACHINE:
+        return SET_BY_MACHINE[key]
+    if start == "rest" and key in REST_START_KEYS:
+        return 'machine.start = "rest"'
+    return None
 
 
 def _int(where: str, value: Any, low: int, high: int) -> int:
