@@ -420,6 +420,10 @@ def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
             r"design\.robust\.tolerances\.contact\.track\.restitution: 1\.1",
         ),
         (spec_table(levers={"effort": {"paint": 1}}), "design.levers.effort.paint"),
+        (
+            spec_table(levers={"effort": {"profile": 0}}),
+            r"^design\.levers\.effort\.profile: 0 is out of range; allowed > 0 and <= 100$",
+        ),
         (spec_table(optimizer={"maxiter": -1}), "design.optimizer.maxiter"),
         (spec_table(limits={"max_jerk": "3 m"}), "design.limits.max_jerk"),
         (spec_table(speed_limit={"threshold": "3 W"}), "design.speed_limit.threshold"),

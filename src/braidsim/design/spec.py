@@ -51,7 +51,8 @@ and says what to study. Every quantity is a number in SI or a string with units:
 
     [design.levers]                    # compare the paper's levers on the held-out sets
     enabled = true
-    [design.levers.effort]             # assumed effort, 1 (a setting) to 5 (a redesign)
+    [design.levers.effort]             # assumed effort, 1 (a setting) to 5 (a redesign);
+                                       # allowed > 0 and <= 100
     profile = 2
 
     [design.optimizer]                 # scipy.optimize.differential_evolution
@@ -515,7 +516,9 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     for k, v in ef.items():
         e = _float(f"design.levers.effort.{k}", v)
         if not 0.0 < e <= 100.0:
-            raise InputError(f"design.levers.effort.{k}: {e:g} is out of range; allowed 0 to 100")
+            raise InputError(
+                f"design.levers.effort.{k}: {e:g} is out of range; allowed > 0 and <= 100"
+            )
         efforts[k] = e
     return DesignSpec(
         name,
