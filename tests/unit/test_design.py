@@ -412,7 +412,14 @@ def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
         (spec_table(objectiv="peak_force"), "design.objectiv: unknown key"),
         (spec_table(objective="loudness"), "design.objective"),
         (spec_table(pair="carrier"), "design.pair"),
-        (spec_table(drive={"max_torque": "-1 N m"}), "design.drive.max_torque"),
+        (
+            spec_table(drive={"max_torque": "-150 N m"}),
+            r"^design\.drive\.max_torque: -150 N m is out of range; allowed > 0 N m$",
+        ),
+        (
+            spec_table(drive={"tensioner_mass": "-5 g"}),
+            r"^design\.drive\.tensioner_mass: -0\.005 kg is out of range; allowed >= 0 kg$",
+        ),
         (spec_table(drive={"gear_inertia": "3 kg"}), "design.drive.gear_inertia"),
         (spec_table(robust={"statistic": "median"}), "design.robust.statistic"),
         (

@@ -73,6 +73,17 @@ GEAR_RADIUS_FACTOR = 1.15
 """Outer radius of a horn gear over its pitch radius (estimate)."""
 GEAR_THICKNESS = 0.025
 """Steel thickness of a horn gear with its spur gear [m] (estimate)."""
+DRIVE_UNITS = {
+    "gear_inertia": "kg m^2",
+    "motor_inertia": "kg m^2",
+    "gear_ratio": "",
+    "max_torque": "N m",
+    "max_rms_torque": "N m",
+    "max_power": "W",
+    "tensioner_mass": "kg",
+    "drag_torque": "N m",
+}
+"""Unit of each drive parameter in messages (SI)."""
 
 
 def gear_inertia_estimate(pitch_radius: float) -> float:
@@ -116,18 +127,25 @@ class Drive:
     drag_torque: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("motor_inertia", "tensioner_mass"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v >= 0.0):
-                raise InputError(f"design.drive.{name}: {v!r} is out of range; allowed >= 0")
-        for name in ("gear_ratio", "max_torque", "max_rms_torque", "max_power"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0.0):
-                raise InputError(f"design.drive.{name}: {v!r} is out of range; allowed > 0")
-        for name in ("gear_inertia", "drag_torque"):
-            v = getattr(self, name)
-            if v is not None and not (math.isfinite(v) and v >= 0.0):
-                raise InputError(f"design.drive.{name}: {v!r} is out of range; allowed >= 0")
+        for name, v, positive in (
+            ("motor_inertia", self.motor_inertia, False),
+            ("tensioner_mass", self.tensioner_mass, False),
+            ("gear_ratio", self.gear_ratio, True),
+            ("max_torque", self.max_torque, True),
+            ("max_rms_torque", self.max_rms_torque, True),
+            ("max_power", self.max_power, True),
+            ("gear_inertia", self.gear_inertia, False),
+            ("drag_torque", self.drag_torque, False),
+        ):
+            if v is None:  # gear_inertia, drag_torque: estimated, measured
+                continue
+            if not (math.isfinite(v) and (v > 0.0 if positive else v >= 0.0)):
+                unit = DRIVE_UNITS[name]
+                u = f" {unit}" if unit else ""
+                raise InputError(
+                    f"design.drive.{name}: {v:g}{u} is out of range; allowed "
+                    f"{'>' if positive else '>='} 0{u}"
+                )
 
     def to_dict(self) -> dict[str, Any]:
         return {
