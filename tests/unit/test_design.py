@@ -431,7 +431,18 @@ def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
             spec_table(levers={"effort": {"profile": 0}}),
             r"^design\.levers\.effort\.profile: 0 is out of range; allowed > 0 and <= 100$",
         ),
-        (spec_table(optimizer={"maxiter": -1}), "design.optimizer.maxiter"),
+        (
+            spec_table(optimizer={"maxiter": -1}),
+            r"^design\.optimizer\.maxiter: -1 is out of range; allowed an integer from 0 to",
+        ),
+        (
+            spec_table(optimizer={"maxiter": "many"}),
+            r"^design\.optimizer\.maxiter: 'many' is not an integer; allowed an integer from",
+        ),
+        (
+            spec_table(optimizer={"popsize": 2.5}),
+            r"^design\.optimizer\.popsize: 2\.5 is not an integer; allowed an integer from",
+        ),
         (spec_table(limits={"max_jerk": "3 m"}), "design.limits.max_jerk"),
         (spec_table(speed_limit={"threshold": "3 W"}), "design.speed_limit.threshold"),
         ({"name": "t", "design": {}}, "machine_spec: missing"),

@@ -104,7 +104,12 @@ class OptimizerOptions:
             ("workers", self.workers, 1, 256),
         )
         for name, v, lo, hi in checks:
-            if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise InputError(
+                    f"design.optimizer.{name}: {v!r} is not an integer; allowed an integer from "
+                    f"{lo} to {hi}"
+                )
+            if not lo <= v <= hi:
                 raise InputError(
                     f"design.optimizer.{name}: {v!r} is out of range; allowed an integer from "
                     f"{lo} to {hi}"
