@@ -173,6 +173,13 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], object]) -> Pat
 
 
 MARKER = ".braidsim-output"
+#: the command that writes each kind of output directory whose kind is not its name
+OUTPUT_COMMANDS = {
+    "machine report": "machine",
+    "design report": "design",
+    "paper report": "paper",
+    "continuation": "continue",
+}
 
 
 @contextmanager
@@ -240,7 +247,8 @@ def check_output_directory(path: str | Path, kind: str = "output") -> None:
         ok = False
     if ok:
         return
-    verb = kind.removeprefix("analysis-")  # the analysis verbs mark "analysis-<verb>"
+    # the marker holds the kind, which earlier outputs keep; the message names the command
+    verb = OUTPUT_COMMANDS.get(kind, kind.removeprefix("analysis-"))  # "analysis-<verb>"
     raise InputError(
         f"--out: {str(p)!r} is not empty and is not an earlier output of `braidsim {verb}`; "
         "allowed: a new or empty directory, or an earlier output to replace"

@@ -293,6 +293,37 @@ def test_run_out_refuses_an_unrelated_folder(capsys, tmp_path) -> None:
     assert (d / "series.csv").is_file() and (d / "series.nc").is_file()
 
 
+def test_out_refusal_names_the_command_that_writes_the_output(tmp_path) -> None:
+    """The refusal of a foreign --out names the command whose earlier output it would
+    replace, a command that exists (it said `braidsim machine report`)."""
+    from braidsim.cli import _register
+    from braidsim.cli.common import app
+    from braidsim.continuation.study import REPORT_KIND as CONTINUE
+    from braidsim.design.report import REPORT_KIND as DESIGN
+    from braidsim.errors import InputError
+    from braidsim.fit.report import REPORT_KIND as FIT
+    from braidsim.io import check_output_directory
+    from braidsim.machine.report import REPORT_KIND as MACHINE
+    from braidsim.paper.report import OUTPUT_KIND as PAPER
+
+    _register()
+    commands = {cmd.name or cmd.callback.__name__ for cmd in app.registered_commands}
+    (tmp_path / "notes.txt").write_text("mine")
+    kinds = {
+        MACHINE: "machine",
+        DESIGN: "design",
+        PAPER: "paper",
+        CONTINUE: "continue",
+        FIT: "fit",
+        "run": "run",
+        "analysis-basins": "basins",
+    }
+    for kind, verb in kinds.items():
+        assert verb in commands
+        with pytest.raises(InputError, match=f"earlier output of `braidsim {verb}`;"):
+            check_output_directory(tmp_path, kind)
+
+
 def test_out_creates_missing_folders_only_when_it_writes(capsys, tmp_path) -> None:
     """docs/guarantees.md: folders missing above --out are made like ``mkdir -p``, and a
     refused command makes none."""
