@@ -151,6 +151,36 @@ def test_a_clearance_the_yarn_tension_alone_closes_is_refused_naming_the_clearan
     parse_machine_spec(spec("0.01 mm", speed=f"{top.group(1)} rad/s"))
 
 
+def test_spec_frames_have_the_limit_of_the_frames_option(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """animation.frames as --frames (docs/guarantees.md): 0 is no animation, up to 10 000,
+    raised by BRAIDSIM_MAX_FRAMES (the spec allowed 1 to 2000)."""
+
+    def spec(frames: Any) -> dict[str, Any]:
+        return {**one_carrier(0.05), "animation": {"frames": frames}}
+
+    assert parse_machine_spec(spec(3000)).animation.frames == 3000
+    none = parse_machine_spec(spec(0))
+    assert none.animation.frames == 0
+    assert run_machine(none, workers=1).frame_times.size == 0
+    with pytest.raises(
+        braidsim.InputError,
+        match=r"^animation\.frames: 1\.5e\+04 frames "
+        r"exceeds the limit of 1e\+04 frames; .*BRAIDSIM_MAX_FRAMES",
+    ):
+        parse_machine_spec(spec(15000))
+    for bad in (-1, 2.5, True):
+        with pytest.raises(
+            braidsim.InputError,
+            match=r"^animation\.frames: .* allowed an "
+            r"integer >= 0 \(0: no animation\)",
+        ):
+            parse_machine_spec(spec(bad))
+    monkeypatch.setenv("BRAIDSIM_MAX_FRAMES", "20000")
+    assert parse_machine_spec(spec(15000)).animation.frames == 15000
+
+
 def test_every_transfer_against_closed_forms() -> None:
     """Outside references for each complete transfer of one carrier (no track vibration):
 

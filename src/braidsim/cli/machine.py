@@ -61,7 +61,8 @@ def machine(
 
     with progress_status(f"simulating every carrier of {s.name}", quiet=json_):
         run = run_machine(s, duration=dur, workers=workers, frames=frames)
-    what = "tables, figures and the animation (machine.gif)" if frames != 0 else "the report"
+    gif = frames != 0 and s.animation.enabled and run.frame_times.size > 0
+    what = "tables, figures and the animation (machine.gif)" if gif else "the report"
     with progress_status(f"writing {what} into {out}", quiet=json_):
         data = write_report(run, out, animation=frames != 0)
     if json_:

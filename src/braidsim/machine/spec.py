@@ -37,7 +37,8 @@ Format (every quantity a number in SI or a string with units)::
     [animation]                             # optional
     enabled = true
     duration = "1 s"                        # default: the run, at most one revolution
-    frames = 48
+    frames = 48                             # 0: no animation; at most 10 000 (raised by
+                                            # BRAIDSIM_MAX_FRAMES), as for --frames
     fps = 12
     dpi = 80
 
@@ -56,6 +57,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from braidsim import limits
 from braidsim.core import horn_gear_state, wall_motion
 from braidsim.errors import InputError
 from braidsim.machine.geometry import (
@@ -155,7 +157,7 @@ class AnimationOptions:
     duration : float or None
         Time span animated from t = 0 [s] (None: the run, at most one revolution).
     frames : int
-        Number of frames.
+        Number of frames (0: no animation).
     fps : int
         Frames per second of the GIF.
     dpi : int
@@ -477,10 +479,18 @@ def parse_machine_spec(data: Mapping[str, Any], path: Path | None = None) -> Mac
     if not isinstance(enabled, bool):
         raise InputError(f"animation.enabled: {enabled!r} is not allowed; allowed true or false")
     a_dur = _positive("animation.duration", anim["duration"], "s") if "duration" in anim else None
+    frames = anim.get("frames", 48)
+    if isinstance(frames, bool) or not isinstance(frames, int) or frames < 0:
+        raise InputError(
+            f"animation.frames: {frames!r} is not allowed; allowed an integer >= 0 "
+            "(0: no animation)"
+        )
+    # the same limit as --frames (docs/guarantees.md), raisable by BRAIDSIM_MAX_FRAMES
+    limits.check("frames", frames, "animation.frames")
     animation = AnimationOptions(
         enabled,
         a_dur,
-        _int("animation.frames", anim.get("frames", 48), 1, 2000),
+        frames,
         _int("animation.fps", anim.get("fps", 12), 1, 60),
         _int("animation.dpi", anim.get("dpi", 80), 20, 300),
     )
