@@ -243,6 +243,26 @@ def test_numerical_failure_of_a_run_the_study_needs(
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".report.")]
 
 
+def test_progress_only_on_a_terminal(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """docs/cli.md: nothing is drawn on stderr when it is not a terminal (captured here), so
+    a failure is its one line; on a terminal (as braidsim.cli.progress decides) the stages
+    are shown (they were written whatever stderr was)."""
+    spec = step_budget_example(tmp_path, 4000)
+    code, _, err = run_cli(capsys, "design", str(spec), "--out", str(tmp_path / "a"))
+    assert code == 1 and err.count("\n") == 1, err
+    assert err.startswith("braidsim: error: simulation failed: ")
+    from braidsim.cli import progress
+
+    monkeypatch.setattr(progress, "enabled", lambda quiet=False: not quiet)
+    code, _, err = run_cli(capsys, "design", str(spec), "--out", str(tmp_path / "b"))
+    assert code == 1 and err.startswith("optimising (dip, score of both"), err
+    assert "  generation 0: best " in err and "full machine runs" in err
+    code, _, err = run_cli(capsys, "design", str(spec), "--out", str(tmp_path / "c"), "--json")
+    assert code == 1 and err.count("\n") == 1, err
+
+
 def test_report_is_whole_or_absent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A failure while writing leaves no directory behind."""
     spec = load_design_spec(

@@ -35,6 +35,7 @@ def design(
     import sys
 
     from braidsim.batch import local_processes
+    from braidsim.cli.progress import enabled as progress_enabled
     from braidsim.design import load_design_spec, run_design, write_report
     from braidsim.design.report import REPORT_KIND, percent_se
     from braidsim.errors import InputError
@@ -51,8 +52,12 @@ def design(
         )
     check_output_directory(out, REPORT_KIND)  # fail before the study, not after it
 
+    # progress only where someone watches, as for every command (docs/cli.md): a terminal
+    # on stderr and no --json
+    show = progress_enabled(quiet=json_)
+
     def say(line: str) -> None:
-        if not json_:
+        if show:
             sys.stderr.write(line + "\n")
             sys.stderr.flush()
 
