@@ -263,6 +263,28 @@ def test_progress_only_on_a_terminal(
     assert code == 1 and err.count("\n") == 1, err
 
 
+def test_report_of_a_constant_result_with_the_levers_off(tmp_path: Path) -> None:
+    """Limits no dip fits in: the optimiser keeps constant speed and the report says so (it
+    described a plateau at 1 x the mean with ramps); with the levers off, the Morris table
+    has a heading of its own (it came under "## The other levers")."""
+    spec = tiny_example(
+        tmp_path,
+        limits={"max_acceleration": "1 rad/s^2", "max_jerk": "10 rad/s^3"},
+        levers={"enabled": False},
+        proxy_check={"profiles": 0},
+        speed_limit={"enabled": False},
+    )
+    res = run_design(load_design_spec(spec))
+    assert res.optimisation.profile.is_constant and res.morris is not None
+    write_report(res, tmp_path / "r")
+    md = (tmp_path / "r" / "report.md").read_text()
+    profile = md.split("## The optimised profile", 1)[1].split("\n## ", 1)[0]
+    assert "the result is **constant speed**" in profile
+    assert "plateau" not in profile and "ramp" not in profile
+    assert "## The other levers" not in md
+    assert "## Sensitivity to the machine's parameters\n\nRanked by Morris mu*" in md
+
+
 def test_report_is_whole_or_absent(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A failure while writing leaves no directory behind."""
     spec = load_design_spec(

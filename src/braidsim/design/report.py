@@ -959,7 +959,22 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
     L = spec.limits
     lines += ["## The optimised profile", ""]
     pr = prof.params
-    if prof.has_dip:
+    if prof.is_constant:
+        # the optimiser keeps constant speed exactly when no feasible candidate beat it; a
+        # plateau "at 1 x the mean" with ramps would describe a dip that is not there
+        lines += [
+            f"Family `{prof.family}`: the result is **constant speed** (the mean speed over "
+            "the whole cycle, no dip): no candidate within the limits did better than "
+            "constant speed on the proxy objective, so constant speed is kept exactly.",
+            "",
+        ]
+    elif prof.has_dip and pr["level"] == 1.0:
+        lines += [
+            f"Family `{prof.family}`: no dip (its plateau is at the mean speed); the "
+            "harmonics below shape the speed.",
+            "",
+        ]
+    elif prof.has_dip:
         lines += [
             f"Family `{prof.family}`. Slow plateau at {pr['level']:.4g} x the mean speed "
             f"({pr['level'] * m.mean_speed * rpm:.4g} rpm) from phase {pr['start']:+.4g} of the "
@@ -1046,7 +1061,8 @@ def markdown(res: DesignResult, data: dict[str, Any], figures: list[str]) -> str
         ]
     if res.morris is not None:
         mor = res.morris
-        lines += ["## The other levers", ""]
+        # a sensitivity study of the machine's parameters, not the levers compared above
+        lines += ["## Sensitivity to the machine's parameters", ""]
         nominal = {o.profile: o.nominal[spec.figure] for o in res.oat}
         lines += [
             f"Ranked by Morris mu* (mean |elementary effect| over each lever's range, "
