@@ -515,6 +515,26 @@ def test_tolerances_the_machine_refuses_are_refused_before_the_study() -> None:
     assert parse_design_spec(tol(**{"track.clearance": [3e-4, 3e-4]}))
 
 
+def test_spec_docstring_states_the_measured_drag_torque() -> None:
+    """The spec format's drag_torque is the default the study measures for
+    examples/design16.toml ((dissipated + friction power) / mean speed of the constant-speed
+    proxy run, as run_design builds the drive model); it said 1.8 N m."""
+    import re
+
+    import braidsim.design.spec as ds
+
+    m = re.search(r'drag_torque = "([0-9.]+) N m" +# default: measured', ds.__doc__ or "")
+    assert m is not None
+    spec = parse_design_spec(
+        tomllib.loads((ROOT / "examples" / "design16.toml").read_text()),
+        ROOT / "examples" / "design16.toml",
+    )
+    assert spec.drive.drag_torque is None  # the default: measured
+    b = evaluate(spec.machine_table, spec.machine_path, None, cycles=spec.optimizer.cycles)
+    drag = (b.metrics["dissipated_power"] + b.metrics["friction_power"]) / spec.machine.mean_speed
+    assert float(m.group(1)) == pytest.approx(drag, rel=0.005)
+
+
 def test_toml_writer_round_trips() -> None:
     t = {
         "name": 'a "quoted" name',

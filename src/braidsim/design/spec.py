@@ -34,7 +34,9 @@ and says what to study. Every quantity is a number in SI or a string with units:
     max_rms_torque = "48 N m"
     max_power = "3 kW"
     tensioner_mass = "50 g"
-    drag_torque = "1.8 N m"            # default: the carriers' losses at constant speed
+    drag_torque = "1.94 N m"           # default: measured, (dissipated + friction power)
+                                       # / mean speed of the constant-speed proxy run (this
+                                       # value for examples/design16.toml)
 
     [design.robust]                    # braidsim.design.robust
     samples = 8                        # parameter sets of the objective (0: nominal only)
