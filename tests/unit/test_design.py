@@ -398,6 +398,26 @@ def spec_table(**design: Any) -> dict[str, Any]:
     return {"name": "t", "machine_spec": str(MACHINE16), "design": design}
 
 
+def test_the_held_out_draw_has_a_seed_of_its_own() -> None:
+    """design.robust.check_seed draws the held-out sets anew with the optimiser's unchanged
+    (default seed + 1, as before), so that another draw checks the same optimum; the
+    optimiser's own seed is refused (its own sets would flatter it)."""
+    from braidsim.design.robust import draw_samples, robust_sets
+
+    base = parse_design_spec(spec_table())
+    other = parse_design_spec(spec_table(robust={"check_seed": 5}))
+    sc = base.machine.scenario
+    assert base.robust.held_out_seed == base.robust.seed + 1
+    assert other.robust.held_out_seed == 5
+    assert other.robust.to_dict()["check_seed"] == 5
+    opt0, check0 = robust_sets(sc, base.robust)
+    opt5, check5 = robust_sets(sc, other.robust)
+    assert opt5 == opt0 and check5 != check0
+    assert check5 == draw_samples(sc, other.robust.tolerances, len(check5), 5)
+    with pytest.raises(InputError, match=r"^design\.robust\.check_seed: 1 is the optimiser's"):
+        parse_design_spec(spec_table(robust={"check_seed": 1}))
+
+
 def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
     s = parse_design_spec(spec_table())
     assert s.objective == "score" and s.pair == "both" and s.family.name == "dip"

@@ -206,7 +206,7 @@ def _robust(res: DesignResult) -> dict[str, Any]:
         **res.robust.stats(),
         "values": res.robust.values.tolist(),
         "check_cycles": res.spec.robust.check_cycles,
-        "seed": res.spec.robust.seed + 1,
+        "seed": res.spec.robust.held_out_seed,
     }
 
 
@@ -831,7 +831,7 @@ def _robust_lines(res: DesignResult) -> list[str]:
         st = res.robust.stats()
         out += [
             f"Improvement 1 - J(profile)/J(constant) measured on {st['samples']} *other* "
-            f"parameter sets (seed {R.seed + 1}, {R.check_cycles:g}-cycle runs, every set "
+            f"parameter sets (seed {R.held_out_seed}, {R.check_cycles:g}-cycle runs, every set "
             f"against constant speed on the same machine): median "
             f"{percent_se(st, 'median_improvement')}, 5th percentile "
             f"{percent_se(st, 'p5_improvement')} (+- a bootstrap standard error: what "

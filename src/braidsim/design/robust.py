@@ -133,12 +133,12 @@ def robust_sets(
     sc: Scenario, options: RobustOptions
 ) -> tuple[list[dict[str, float]], list[dict[str, float]]]:
     """The parameter sets of a study: the optimiser's (``options.samples``, seed ``seed``)
-    and the held-out ones (``options.check_samples``, seed ``seed + 1``); the spec's check
+    and the held-out ones (``options.check_samples``, seed ``held_out_seed``); the spec's check
     and the study draw them here, so that they check what runs."""
     R = options
     return (
         draw_samples(sc, R.tolerances, R.samples, R.seed),
-        draw_samples(sc, R.tolerances, R.check_samples, R.seed + 1),
+        draw_samples(sc, R.tolerances, R.check_samples, R.held_out_seed),
     )
 
 
@@ -179,8 +179,12 @@ class RobustOptions:
     quantile : float
         The quantile of the ratio with ``statistic = "quantile"``.
     seed : int
+        Seed of the optimiser's sets.
     check_cycles : float
         Run length of the held-out check [transfer cycles].
+    check_seed : int or None
+        Seed of the held-out sets (None: ``seed + 1``); another draw of them checks the
+        same optimum on other sets (:attr:`held_out_seed`).
     """
 
     tolerances: tuple[Tolerance, ...] = DEFAULT_TOLERANCES
@@ -190,6 +194,12 @@ class RobustOptions:
     quantile: float = 0.9
     seed: int = 1
     check_cycles: float = 32.0
+    check_seed: int | None = None
+
+    @property
+    def held_out_seed(self) -> int:
+        """The seed of the held-out sets: ``check_seed``, else ``seed + 1``."""
+        return self.seed + 1 if self.check_seed is None else self.check_seed
 
     def __post_init__(self) -> None:
         if self.statistic not in STATISTICS:
@@ -200,6 +210,11 @@ class RobustOptions:
         if not 0.0 < self.quantile < 1.0:
             raise InputError(
                 f"design.robust.quantile: {self.quantile:g} is out of range; allowed 0 to 1"
+            )
+        if self.check_seed is not None and self.check_seed == self.seed:
+            raise InputError(
+                f"design.robust.check_seed: {self.check_seed} is the optimiser's seed "
+                "(design.robust.seed); allowed another (the held-out sets must be other sets)"
             )
         if not (math.isfinite(self.check_cycles) and 1.0 <= self.check_cycles <= 10000.0):
             raise InputError(
@@ -216,6 +231,7 @@ class RobustOptions:
             "quantile": self.quantile,
             "seed": self.seed,
             "check_cycles": self.check_cycles,
+            "check_seed": self.held_out_seed,
             "sampling": "Latin hypercube (scipy.stats.qmc), numpy default_rng(seed)",
         }
 

@@ -45,6 +45,8 @@ and says what to study. Every quantity is a number in SI or a string with units:
     quantile = 0.9
     seed = 1
     check_cycles = 32
+    check_seed = 2                     # of the held-out sets (default seed + 1): another
+                                       # draw checks the same optimum on other sets
     [design.robust.tolerances]         # key = [low, high] factors on the nominal value
     "track.clearance" = [0.8, 1.3]     # (absolute values for track.vibration_phase); not a
                                        # key the machine sets (machine.speed, the pitch
@@ -167,6 +169,7 @@ ROBUST_KEYS = (
     "quantile",
     "seed",
     "check_cycles",
+    "check_seed",
     "tolerances",
 )
 LEVER_KEYS = ("enabled", "effort")
@@ -587,6 +590,9 @@ def _robust(table: Any, sc: Any) -> RobustOptions:
         _float("design.robust.quantile", rt.get("quantile", dflt.quantile)),
         _int("design.robust.seed", rt.get("seed", dflt.seed), 0, 2**31 - 2),
         _float("design.robust.check_cycles", rt.get("check_cycles", dflt.check_cycles)),
+        None
+        if rt.get("check_seed") is None
+        else _int("design.robust.check_seed", rt["check_seed"], 0, 2**31 - 1),
     )
 
 
