@@ -50,7 +50,7 @@ from braidsim.fit.problem import (
     Problem,
     single_problem,
 )
-from braidsim.fit.spec import TIME_OFFSET, FitSpec, FreeParameter
+from braidsim.fit.spec import TIME_OFFSET, FitSpec, FreeParameter, per_record_offsets
 from braidsim.params import Scenario, load_scenario
 from braidsim.units import to_si
 
@@ -454,16 +454,16 @@ def fit_law(
     its result, problem (``base`` rebuilt), local fit and the end points of its global
     stage."""
     sc = spec.scenario.with_overrides({"contact.track.model": law})
-    pr = base.rebuild(sc, spec.free, spec.jacobian)
+    pr = base.rebuild(sc, base.free, spec.jacobian)
     J = pr.residuals(pr.u_start, jac=True).J
     assert J is not None
     norms = np.sqrt(np.sum(J * J, axis=0))
     used = [
         p
-        for p, nrm in zip(spec.free, norms, strict=True)
+        for p, nrm in zip(base.free, norms, strict=True)
         if nrm > UNINFORMED * max(norms.max(), 1e-300)
     ]
-    if len(used) != len(spec.free):
+    if len(used) != len(base.free):
         pr = base.rebuild(sc, used, spec.jacobian)
     pr.use_events = spec.events
     lf, ends = fit_problem(
@@ -660,11 +660,16 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
     scenario with its own overrides)."""
     items = _items(records)
     free = set(spec.keys)
-    if TIME_OFFSET in free and len(items) > 1:
-        raise InputError(
-            f"fit.free.{TIME_OFFSET}: one time offset for {len(items)} records; allowed with "
-            "one record (each record has its own trigger: fit them one by one)"
-        )
+    several = len(items) > 1
+    free_parameters = spec.free
+    if TIME_OFFSET in free and several:
+        # (each record has its trigger: one offset each, record[i].time_offset)
+        free_parameters = per_record_offsets(spec.free, len(items))
+        if TIME_OFFSET in spec.profile:
+            raise InputError(
+                f"fit.profile: {TIME_OFFSET} stands for {len(items)} offsets with "
+                f"{len(items)} records; allowed a profile of it with one record"
+            )
     parts = []
     for i, (rec, ov) in enumerate(items):
         for key in ov:
@@ -674,7 +679,17 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
                     "(e.g. initial.vx)"
                 )
         sc = spec.scenario.with_overrides(ov) if ov else spec.scenario
-        parts.append(single_problem(sc, rec, spec.free, spec.quantities, spec.noise, spec.jacobian))
+        parts.append(
+            single_problem(
+                sc,
+                rec,
+                free_parameters,
+                spec.quantities,
+                spec.noise,
+                spec.jacobian,
+                i if several else None,
+            )
+        )
     if len(parts) == 1 and not items[0][1]:
         return parts[0]
     return MultiProblem(spec.scenario, parts, [ov for _, ov in items])

@@ -38,9 +38,10 @@ the residuals, s^2 = sum r^2 / (n - k): only the ratios of the sigmas weight the
 scenario overrides, e.g. another initial speed), the residual vectors and Jacobians
 stacked, one covariance for the shared free parameters.
 
-*The record's time offset* (free key ``record.time_offset``, one record): the model's time
-of the record's t = 0, tau, so that sample i is the model at t_i + tau and an impact the
-record shows at t_dk is the model's at t_dk + tau. A record triggered a fraction of a sample
+*The record's time offset* (free key ``record.time_offset``; with several records one each,
+``record[i].time_offset``): the model's time of the record's t = 0, tau, so that sample i
+is the model at t_i + tau and an impact the record shows at t_dk is the model's at
+t_dk + tau. A record triggered a fraction of a sample
 late or early (unavoidable where the trigger is the first impact) otherwise leaves residuals
 of the size of the signal's change over that fraction, which the fit absorbs into the
 contact parameters. Its Jacobian column: d m_q / d tau, the model's time derivative (x': the
@@ -71,7 +72,7 @@ import numpy as np
 
 from braidsim.errors import InputError, SimulationError
 from braidsim.fit.data import ImpactList, Record, detect_pulses, noise_estimate, pulse_levels
-from braidsim.fit.spec import TIME_OFFSET, FreeParameter, scenario_values
+from braidsim.fit.spec import FreeParameter, is_offset, offset_key, scenario_values
 from braidsim.params import Scenario
 from braidsim.result import Result
 
@@ -159,6 +160,10 @@ class Problem:
     jacobian : {"auto", "exact", "fd"}
     time_offset : float, optional
         The record's time offset [s] where it is not free (a profile fixes it).
+    part : int, optional
+        The record's index among several fitted together (:class:`MultiProblem`): its
+        offset is the free key ``record[part].time_offset``, and the others' offsets are
+        free keys it does not depend on.
     """
 
     def __init__(
@@ -170,6 +175,7 @@ class Problem:
         noise: Mapping[str, float] | None = None,
         jacobian: str = "auto",
         time_offset: float = 0.0,
+        part: int | None = None,
     ) -> None:
         for q in quantities:
             if q not in record.columns:
@@ -179,11 +185,12 @@ class Problem:
                 )
         self.scenario = scenario
         self.record = record
-        self._set_free(free, time_offset)
+        self._set_free(free, time_offset, part)
         for p in self.free:
-            if p.key == TIME_OFFSET and record.t[0] + p.low < 0:
+            if p.key == self.offset_key and record.t[0] + p.low < 0:
                 raise InputError(
-                    f"fit.free.{TIME_OFFSET}: a lower bound of {p.low:g} s puts the record's "
+                    f"fit.free.{offset_key(None)}: a lower bound of {p.low:g} s puts the record "
+                    f"{record.source}'s "
                     f"first sample (t = {record.t[0]:g} s) before the model's start at t = 0; "
                     f"allowed >= {-record.t[0]:g} s"
                 )
@@ -219,13 +226,18 @@ class Problem:
 
     # -- parameters ------------------------------------------------------------------------
 
-    def _set_free(self, free: Sequence[FreeParameter], time_offset: float) -> None:
-        """The free parameters; which of them the scenario takes, and the time offset's."""
+    def _set_free(
+        self, free: Sequence[FreeParameter], time_offset: float, part: int | None = None
+    ) -> None:
+        """The free parameters; which of them the scenario takes, and this record's time
+        offset (``part``: its index among several records)."""
         self.free = tuple(free)
         self.keys = tuple(p.key for p in self.free)
-        #: the free keys the scenario takes (in order), and where the time offset is
-        self.scenario_keys = tuple(k for k in self.keys if k != TIME_OFFSET)
-        self.i_offset = self.keys.index(TIME_OFFSET) if TIME_OFFSET in self.keys else None
+        self.part = part
+        self.offset_key = offset_key(part)
+        #: the free keys the scenario takes (in order), and where this record's offset is
+        self.scenario_keys = tuple(k for k in self.keys if not is_offset(k))
+        self.i_offset = self.keys.index(self.offset_key) if self.offset_key in self.keys else None
         self.fixed_offset = float(time_offset)
 
     def time_offset(self, u: np.ndarray) -> float:
@@ -236,7 +248,13 @@ class Problem:
 
     def _scenario_columns(self) -> list[int]:
         """The Jacobian's columns of :attr:`scenario_keys`."""
-        return [i for i, k in enumerate(self.keys) if k != TIME_OFFSET]
+        return [i for i, k in enumerate(self.keys) if not is_offset(k)]
+
+    def _columns(self) -> list[int]:
+        """The Jacobian's columns this record's residuals depend on: the scenario's keys
+        and its own offset (another record's offset moves none of its residuals)."""
+        own = [] if self.i_offset is None else [self.i_offset]
+        return sorted(self._scenario_columns() + own)
 
     def values(self, u: np.ndarray) -> dict[str, float]:
         """``{key: SI value}`` at the unit-box point ``u``."""
@@ -323,7 +341,7 @@ class Problem:
         ]
         if any(c is None for c in cols):
             fd = self._fd(u, lambda v: self._record_r(self.run(v), v), None, columns=[i])
-            fd = fd[:, 0] / self.dp_du(u)[i]
+            fd = fd[:, i] / self.dp_du(u)[i]
             n = self.n_t
             cols = [c if c is not None else fd[j * n : (j + 1) * n] for j, c in enumerate(cols)]
         return np.concatenate([c for c in cols if c is not None])
@@ -469,11 +487,12 @@ class Problem:
         self, u: np.ndarray, f: Any, r0: np.ndarray | None, columns: Sequence[int] | None = None
     ) -> np.ndarray:
         """Central differences of ``f`` in the unit box (one-sided within h of a bound), in
-        ``columns`` of u (all by default; ``r0``, f(u), may be None where they need none)."""
-        cols = range(u.size) if columns is None else columns
+        ``columns`` of u (by default those the residuals depend on, :meth:`_columns`; the
+        others are 0); ``r0``, f(u), may be None where they need none."""
+        cols = self._columns() if columns is None else columns
         J = np.empty((0, 0))
         h = FD_STEP
-        for c, j in enumerate(cols):
+        for j in cols:
             up, dn = u.copy(), u.copy()
             if u[j] + h > 1.0:
                 dn[j] -= h
@@ -486,8 +505,10 @@ class Problem:
                 dn[j] -= h
                 col = (f(up) - f(dn)) / (2 * h)
             if not J.size:
-                J = np.empty((col.size, len(cols)))
-            J[:, c] = col
+                J = np.zeros((col.size, u.size))
+            J[:, j] = col
+        if not J.size:
+            J = np.zeros(((f(u) if r0 is None else r0).size, u.size))
         return J
 
     def rebuild(
@@ -500,7 +521,9 @@ class Problem:
         """The same data and noise with another scenario and free set (profiles, laws), and
         the time offset fixed at ``time_offset`` where given (else this one's fixed one)."""
         off = self.fixed_offset if time_offset is None else time_offset
-        return Problem(scenario, self.record, free, self.quantities, self.sigma, jacobian, off)
+        return Problem(
+            scenario, self.record, free, self.quantities, self.sigma, jacobian, off, self.part
+        )
 
     def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
         """The finite-difference Jacobian d r / d u (the fallback, and the cross-check of the
@@ -558,10 +581,11 @@ class ImpactProblem(Problem):
         noise: Mapping[str, float] | None = None,
         jacobian: str = "auto",
         time_offset: float = 0.0,
+        part: int | None = None,
     ) -> None:
         self.scenario = scenario
         self.impacts = record
-        self._set_free(free, time_offset)
+        self._set_free(free, time_offset, part)
         chosen = [q for q in quantities if q in record.columns] or list(record.columns)
         self.quantities = ("t", *chosen)
         noise = noise or {}
@@ -571,7 +595,7 @@ class ImpactProblem(Problem):
             s = noise.get(q) or IMPACT_RELATIVE_NOISE * med
             sig[q] = float(s) if s > 0 else 1e-9
         self.sigma = sig
-        latest = max([self.fixed_offset, *(p.high for p in self.free if p.key == TIME_OFFSET)])
+        latest = max([self.fixed_offset, *(p.high for p in self.free if p.key == self.offset_key)])
         self.duration = 1.2 * (record.duration + max(latest, 0.0)) + 0.01
         self.exact = _exact_jacobian(jacobian)
         self.jacobian_choice = jacobian
@@ -707,7 +731,7 @@ class ImpactProblem(Problem):
     ) -> ImpactProblem:
         off = self.fixed_offset if time_offset is None else time_offset
         return ImpactProblem(
-            scenario, self.impacts, free, self.quantities[1:], self.sigma, jacobian, off
+            scenario, self.impacts, free, self.quantities[1:], self.sigma, jacobian, off, self.part
         )
 
     def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
@@ -723,14 +747,15 @@ def single_problem(
     quantities: Sequence[str],
     noise: Mapping[str, float] | None,
     jacobian: str,
+    part: int | None = None,
 ) -> Problem:
-    """The problem of one record of either kind."""
+    """The problem of one record of either kind (``part``: its index among several)."""
     if isinstance(record, ImpactList):
-        return ImpactProblem(scenario, record, free, quantities, noise, jacobian)
+        return ImpactProblem(scenario, record, free, quantities, noise, jacobian, 0.0, part)
     qs = [q for q in quantities if q in record.columns or q not in _IMPACT_NAMES] or list(
         record.columns
     )
-    return Problem(scenario, record, free, qs, noise, jacobian)
+    return Problem(scenario, record, free, qs, noise, jacobian, 0.0, part)
 
 
 _IMPACT_NAMES = ("t", "peak_force", "velocity", "rebound_velocity")
@@ -751,8 +776,7 @@ class MultiProblem(Problem):
         self.parts = list(parts)
         self.part_overrides = [dict(o) for o in overrides]
         first = self.parts[0]
-        self.free = first.free
-        self.keys = first.keys
+        self._set_free(first.free, 0.0)
         self.quantities = tuple(dict.fromkeys(q for p in self.parts for q in p.quantities))
         self.jacobian_choice = first.jacobian_choice
         self.notes = first.notes
@@ -822,9 +846,10 @@ class MultiProblem(Problem):
         jacobian: str,
         time_offset: float | None = None,
     ) -> MultiProblem:
-        # (one time offset for several records is refused: build_problem)
+        # (a time offset is fixed only where it is one record's: a profile of the offsets
+        # of several is refused, build_problem)
         parts = [
-            p.rebuild(scenario.with_overrides(o) if o else scenario, free, jacobian)
+            p.rebuild(scenario.with_overrides(o) if o else scenario, free, jacobian, time_offset)
             for p, o in zip(self.parts, self.part_overrides, strict=True)
         ]
         return MultiProblem(scenario, parts, self.part_overrides)

@@ -26,7 +26,7 @@ import numpy as np
 
 from braidsim.fit.data import IMPACT_UNITS, QUANTITY_UNITS, Record
 from braidsim.fit.estimate import FitResult
-from braidsim.fit.spec import TIME_OFFSET, FitSpec, scenario_values
+from braidsim.fit.spec import FitSpec, is_offset, scenario_values
 from braidsim.io import json_safe
 
 REPORT_KIND = "fit"
@@ -207,7 +207,7 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
             flat[key] = _plain(v)
     flat["contact.track.model"] = res.law
     duration = max(float(np.max(np.asarray(part["t"]))) for part in res.parts)
-    duration += max(float(res.values.get(TIME_OFFSET, 0.0)), 0.0)
+    duration += max([0.0, *(float(v) for k, v in res.values.items() if is_offset(k))])
     if not isinstance(res.record, Record) or len(res.parts) > 1:
         duration = 1.2 * duration + 0.01  # the impact lists' runs (see ImpactProblem)
     flat["simulation.duration"] = f"{duration!r} s"
@@ -223,11 +223,11 @@ def fitted_scenario_toml(res: FitResult, spec: FitSpec) -> str:
         f"# {_describe(res)}; fitted {', '.join(res.quantities)}",
     ]
     for i, k in enumerate(res.keys):
-        unit = "s" if k == TIME_OFFSET else SCHEMA[k].unit
+        unit = "s" if is_offset(k) else SCHEMA[k].unit
         head.append(
             f"# {k} = {res.stats.values[i]:.6g} +- {res.stats.stderr[i]:.3g} {unit} (1 se)".rstrip()
         )
-    if TIME_OFFSET in res.keys:
+    if any(is_offset(k) for k in res.keys):
         head.append(
             "# (the record's t = 0 is the model's t = record.time_offset: the record's "
             "times plus it are this scenario's)"

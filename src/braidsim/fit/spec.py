@@ -15,7 +15,8 @@
     [fit]
     free = { "contact.track.restitution" = [0.2, 0.95], "track.clearance" = ["2 mm", "4 mm"] }
                                          # "record.time_offset" = ["0 ms", "0.2 ms"]: the
-                                         # model's time of the record's t = 0 (one record)
+                                         # model's time of the record's t = 0 (several
+                                         # records: one each, record[i].time_offset)
     quantity = "x"                       # a column, or a list: ["x", "acceleration"];
                                          # an impact list fits t and all its columns
                                          # unless some (peak_force, velocity,
@@ -42,7 +43,7 @@ stop with one line naming the entry and what is allowed.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -73,13 +74,37 @@ FIT_KEYS = (
     "max_evaluations",
 )
 JACOBIANS = ("auto", "exact", "fd")
-#: the free key of the record's time offset: the model's time of the record's t = 0 [s]
+#: the free key of the record's time offset: the model's time of the record's t = 0 [s];
+#: with several records it stands for one offset each, ``record[i].time_offset``
 TIME_OFFSET = "record.time_offset"
 
 
+def offset_key(record: int | None) -> str:
+    """The free key of the time offset of record ``record`` (None: the one record's)."""
+    return TIME_OFFSET if record is None else f"record[{record}].time_offset"
+
+
+def is_offset(key: str) -> bool:
+    """Whether ``key`` is a record's time offset (not a scenario key)."""
+    return key == TIME_OFFSET or (key.startswith("record[") and key.endswith("].time_offset"))
+
+
+def per_record_offsets(free: Sequence[FreeParameter], n: int) -> tuple[FreeParameter, ...]:
+    """``free`` with :data:`TIME_OFFSET` replaced by one offset per record of ``n``, each
+    with its bounds and start, in its place."""
+    out: list[FreeParameter] = []
+    for p in free:
+        if p.key == TIME_OFFSET:
+            out += [FreeParameter(offset_key(i), p.low, p.high, p.start, p.unit) for i in range(n)]
+        else:
+            out.append(p)
+    return tuple(out)
+
+
 def scenario_values(values: Mapping[str, Any]) -> dict[str, Any]:
-    """``values`` without :data:`TIME_OFFSET`, the one free key that is not a scenario's."""
-    return {k: v for k, v in values.items() if k != TIME_OFFSET}
+    """``values`` without the records' time offsets, the free keys that are not a
+    scenario's."""
+    return {k: v for k, v in values.items() if not is_offset(k)}
 
 
 GLOBALS = ("multistart", "differential_evolution", "none")
