@@ -154,3 +154,28 @@ def test_an_output_given_as_a_link_replaces_the_links_target(tmp_path):
     flink.symlink_to(target)
     atomic_write_text(flink, '{"a": 1}')
     assert flink.is_symlink() and target.read_text() == '{"a": 1}'
+
+
+@pytest.mark.parametrize(
+    "half_loaded", [("multiprocessing", "multiprocessing.process"), ("logging",)]
+)
+def test_a_signal_during_the_first_import_of_a_module_is_the_interruption(
+    restore_logging_and_hooks, monkeypatch, half_loaded
+):
+    """The handler once imported multiprocessing: a signal landing while the main flow was
+    importing it for the first time gave the half-loaded module, and the handler's
+    AttributeError was reported as an internal error (exit 1) instead of SIGINT (130)."""
+    import types
+    from importlib.machinery import ModuleSpec
+
+    from braidsim.cli.common import _on_signal
+
+    for name in half_loaded:
+        half = types.ModuleType(name)  # as the import system holds it mid-way: no names yet
+        half.__spec__ = ModuleSpec(name, None)
+        half.__spec__._initializing = True  # type: ignore[attr-defined]
+        monkeypatch.setitem(sys.modules, name, half)
+    with pytest.raises(Interrupted) as info, signals_handled():
+        _on_signal(signal.SIGINT, None)
+    assert info.value.signum == signal.SIGINT
+    assert _RECEIVED and _RECEIVED[0] is info.value

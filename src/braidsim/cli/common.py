@@ -193,12 +193,33 @@ class Interrupted(KeyboardInterrupt):
         self.signum = signum
 
 
+def _loaded(name: str) -> Any:
+    """The module ``name`` if it is fully imported, else None; never imports it.
+
+    A signal handler runs between two bytecodes of whatever the main thread does, which may
+    be the first import of that very module: ``import`` in the handler then hands back the
+    half-executed module (its names not yet defined), and the handler failed on it
+    (``partially initialized module 'multiprocessing' has no attribute
+    'active_children'``, reported as an internal error instead of the interruption).
+    """
+    mod = sys.modules.get(name)
+    if mod is None or getattr(getattr(mod, "__spec__", None), "_initializing", False):
+        return None
+    return mod
+
+
 def _end_children() -> None:
     """Kill this process's worker processes (pools, a local Dask cluster) so none outlives
-    an interrupted command; a pool then reports them dead instead of waiting for them."""
-    import multiprocessing
+    an interrupted command; a pool then reports them dead instead of waiting for them.
 
-    for child in multiprocessing.active_children():
+    Only through a fully imported :mod:`multiprocessing` (:func:`_loaded`): while it is
+    not, no worker can have been started by it.
+    """
+    process = _loaded("multiprocessing.process")  # where active_children is defined
+    active = getattr(process, "active_children", None)
+    if active is None:
+        return
+    for child in active():
         child.kill()
 
 
@@ -208,13 +229,16 @@ def _quiet_shutdown() -> None:
     connections and lost tasks (with tracebacks) as it closes, and an asyncio coroutine cut
     off by the signal (zarr's or Dask's) warns that it was never awaited when it is freed:
     in 4 of 25 interrupted sweeps on 2 workers before this."""
-    import logging
-    import warnings
-
-    logging.disable(logging.CRITICAL)
-    warnings.filterwarnings(
-        "ignore", message="coroutine .* was never awaited", category=RuntimeWarning
-    )
+    # (taken only if already imported, :func:`_loaded`: not loaded, nothing has logged and
+    # no cluster is there to silence; numpy, always imported before, imports warnings)
+    logging = _loaded("logging")
+    if logging is not None:
+        logging.disable(logging.CRITICAL)
+    warnings = _loaded("warnings")
+    if warnings is not None:
+        warnings.filterwarnings(
+            "ignore", message="coroutine .* was never awaited", category=RuntimeWarning
+        )
 
 
 _RECEIVED: list[Interrupted] = []  # the signal this command received, once one arrived
@@ -233,10 +257,15 @@ def _on_signal(signum: int, frame: Any) -> None:
     # ignore further signals while we stop: the first one decides the exit code
     for sig in _SIGNALS:
         signal.signal(sig, signal.SIG_IGN)
-    _quiet_shutdown()
-    _end_children()
+    # recorded first: whatever happens next, the command ends as interrupted by it
+    # (signal_decides), not on a failure of the clean-up below
     stop = Interrupted(signum)
     _RECEIVED.append(stop)
+    try:
+        _quiet_shutdown()
+        _end_children()
+    except Exception:  # (a clean-up that fails must not take the signal's place)
+        pass
     raise stop
 
 
