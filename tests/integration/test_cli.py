@@ -366,3 +366,45 @@ def test_the_package_imports_no_click_of_its_own() -> None:
         if re.search(r"^\s*(import click\b|from click\b)", p.read_text(), re.MULTILINE)
     ]
     assert offenders == []
+
+
+@pytest.mark.parametrize(
+    ("terminal", "extra", "drawn"),
+    [
+        (True, [], True),
+        (True, ["--json"], False),
+        (False, [], False),
+        (True, ["--no-progress"], False),
+    ],
+)
+def test_sweep_draws_progress_only_where_someone_watches(
+    capsys, tmp_path, monkeypatch, terminal: bool, extra: list[str], drawn: bool
+) -> None:
+    """docs/cli.md: no progress with --json, nor on a piped or redirected stderr (the final
+    bar line of a sweep ended up in ``2>err.txt``), as for every other verb."""
+    import braidsim.sweep
+
+    asked: list[bool] = []
+
+    def fake_run_sweep(spec, out, *, progress, **kwargs):
+        asked.append(progress)
+        return {
+            "store": str(out),
+            "runs": 1,
+            "dims": {"h_a": 1},
+            "runs_computed": 1,
+            "elapsed_s": 0.1,
+            "executor": "local",
+            "failed_runs": 0,
+        }
+
+    monkeypatch.setattr(braidsim.sweep, "run_sweep", fake_run_sweep)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: terminal)
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        'scenario = "paper-3.1"\nduration = "0.004 s"\n[[axes]]\n'
+        'key = "track.vibration_amplitude"\nvalues = ["0.05 mm"]\n'
+    )
+    code, _, err = run_cli(capsys, "sweep", str(spec), "--out", str(tmp_path / "s.zarr"), *extra)
+    assert code == 0, err
+    assert asked == [drawn]

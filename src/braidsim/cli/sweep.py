@@ -45,6 +45,7 @@ def sweep(
 ) -> None:
     """Run a parameter study: every run of SPEC into the zarr store --out (resumable)."""
     from braidsim.cli.common import Interrupted, signal_decides
+    from braidsim.cli.progress import enabled
     from braidsim.io import check_output_target
     from braidsim.sweep import SweepError, export_netcdf, load_spec, run_sweep
 
@@ -79,7 +80,8 @@ def sweep(
                 processes=processes,
                 workers=workers,
                 scheduler=scheduler,
-                progress=not no_progress,
+                # drawn only where someone watches, as every verb's (progress.enabled)
+                progress=not no_progress and enabled(quiet=json_),
             )
     except SweepError as exc:
         fail(f"sweep failed: {exc}; {resume_hint()}", 1)
