@@ -36,6 +36,24 @@ def _prefix(p: Path) -> str:
     return f".{p.name}.braidsim-{os.getpid()}-"
 
 
+def _gone(pid: int) -> bool:
+    """Whether process ``pid`` no longer exists (one we may not signal exists)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except PermissionError:
+        pass
+    return False
+
+
+def _stale_temporary(name: str) -> bool:
+    """Whether ``name`` is a hidden temporary (:func:`_prefix`) of a braidsim process that
+    is gone."""
+    m = re.fullmatch(r"\..+\.braidsim-(\d+)-.*", name)
+    return m is not None and _gone(int(m.group(1)))
+
+
 def remove_stale(p: Path) -> int:
     """Remove the hidden temporaries beside ``p`` left by braidsim processes that are gone
     (killed before they could clean up); return how many."""
@@ -49,14 +67,8 @@ def remove_stale(p: Path) -> int:
         m = pat.fullmatch(e.name)
         if m is None:
             continue
-        pid = int(m.group(1))
-        try:
-            os.kill(pid, 0)
-            continue  # alive: another braidsim is writing
-        except ProcessLookupError:
-            pass
-        except PermissionError:
-            continue
+        if not _gone(int(m.group(1))):
+            continue  # alive (or not ours to signal): another braidsim is writing
         if e.is_dir() and not e.is_symlink():
             shutil.rmtree(e, ignore_errors=True)
         else:
@@ -172,7 +184,15 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], object]) -> Pat
     return p
 
 
+#: the file that marks a folder as braidsim's output: its kind on the first line, then
+#: :data:`WRITTEN_HEADER` and every file and folder braidsim wrote in it, one relative path
+#: (``/``-separated) a line. A marker of only its kind (an output of a braidsim that did not
+#: list) stands, as it did then, for an output whose content is all braidsim's
 MARKER = ".braidsim-output"
+WRITTEN_HEADER = (
+    "# written by braidsim, relative to this folder (a re-run replaces the folder only "
+    "while it holds nothing else):"
+)
 #: the command that writes each kind of output directory whose kind is not its name
 OUTPUT_COMMANDS = {
     "machine report": "machine",
@@ -187,8 +207,10 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     """Build a whole output directory under a temporary name, then rename it into place.
 
     Yields the temporary directory (a sibling of ``path``, so the final rename stays on one
-    file system). On success a marker file naming ``kind`` is added and the directory is
-    renamed to ``path``; a previous output of the same kind at ``path`` is replaced. On any
+    file system). On success a marker file (:data:`MARKER`) naming ``kind`` and listing
+    every file and folder written is added and the directory is renamed to ``path``; a
+    previous output of the same kind at ``path`` is replaced, unless it holds something
+    braidsim did not write there (:func:`check_output_directory`). On any
     error the temporary directory is removed and ``path`` is left as it was: the output is
     complete or absent, never half-written. A symbolic link at ``path`` is followed: its
     target is the output replaced.
@@ -197,7 +219,7 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     ------
     InputError
         ``path`` exists and is not an empty directory or an earlier output of ``kind``
-        (we never delete what we did not write).
+        holding only what braidsim wrote (we never delete what we did not write).
     """
     p = _target(path)
     check_output_directory(p, kind)
@@ -207,7 +229,8 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     mark = len(WRITTEN)  # the files written inside are parts of this output, not outputs
     try:
         yield tmp
-        (tmp / MARKER).write_text(kind + "\n", encoding="utf-8")
+        listed = "".join(f"{rel}\n" for rel in _entries(tmp))
+        (tmp / MARKER).write_text(f"{kind}\n{WRITTEN_HEADER}\n{listed}", encoding="utf-8")
         os.chmod(tmp, DIR_MODE)  # mkdtemp makes 0700
         if p.exists():
             check_output_directory(p, kind)
@@ -225,9 +248,57 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     WRITTEN.append(p)
 
 
+def _entries(
+    folder: Path, keep: Callable[[str], bool] = lambda rel: True, prefix: str = ""
+) -> Iterator[str]:
+    """The files and folders under ``folder``, as ``/``-separated paths relative to it
+    (after ``prefix``), sorted, each folder before its content; links are not followed, and
+    a folder ``keep`` refuses is named but not entered. The folder's own marker is left
+    out."""
+    for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+        if not prefix and entry.name == MARKER:
+            continue
+        rel = prefix + entry.name
+        yield rel
+        if keep(rel) and entry.is_dir() and not entry.is_symlink():
+            yield from _entries(entry, keep, rel + "/")
+
+
+def _read_marker(folder: Path) -> tuple[str, set[str] | None] | None:
+    """The kind and the listed paths of the marker in ``folder`` (None for a marker that
+    lists none), or None when it has no readable marker."""
+    marker = folder / MARKER
+    try:
+        if not marker.is_file():
+            return None
+        lines = marker.read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return None
+    if len(lines) > 1 and lines[1] == WRITTEN_HEADER:
+        return lines[0].strip(), set(lines[2:])
+    if len(lines) == 1:  # an earlier braidsim's: its kind only
+        return lines[0].strip(), None
+    return None
+
+
+def _not_written_by_us(folder: Path, listed: set[str]) -> str | None:
+    """The first path under ``folder`` that braidsim did not write there (not in
+    ``listed``, nor a hidden temporary of a braidsim process that is gone), or None."""
+
+    def ours(rel: str) -> bool:
+        return rel in listed or _stale_temporary(rel.rsplit("/", 1)[-1])
+
+    for rel in _entries(folder, keep=ours):
+        if not ours(rel):
+            return rel
+    return None
+
+
 def check_output_directory(path: str | Path, kind: str = "output") -> None:
     """Raise :class:`InputError` unless ``path`` is absent, an empty directory, or an earlier
-    output of ``kind`` (marked by :data:`MARKER`)."""
+    output of ``kind`` (marked by :data:`MARKER`) that holds only what braidsim wrote in it:
+    a file or folder of the user's in it (``notes.txt``, another command's ``--out``) would
+    be deleted with the output it replaces."""
     from braidsim.errors import InputError
 
     p = Path(path)
@@ -240,19 +311,22 @@ def check_output_directory(path: str | Path, kind: str = "output") -> None:
         )
     if not any(p.iterdir()):
         return
-    marker = p / MARKER
-    try:
-        ok = marker.is_file() and marker.read_text(encoding="utf-8").strip() == kind
-    except (OSError, UnicodeDecodeError):
-        ok = False
-    if ok:
-        return
+    marked = _read_marker(p)
     # the marker holds the kind, which earlier outputs keep; the message names the command
     verb = OUTPUT_COMMANDS.get(kind, kind.removeprefix("analysis-"))  # "analysis-<verb>"
-    raise InputError(
-        f"--out: {str(p)!r} is not empty and is not an earlier output of `braidsim {verb}`; "
-        "allowed: a new or empty directory, or an earlier output to replace"
-    )
+    if marked is None or marked[0] != kind:
+        raise InputError(
+            f"--out: {str(p)!r} is not empty and is not an earlier output of `braidsim {verb}`; "
+            "allowed: a new or empty directory, or an earlier output to replace"
+        )
+    listed = marked[1]
+    foreign = None if listed is None else _not_written_by_us(p, listed)
+    if foreign is not None:
+        raise InputError(
+            f"--out: {str(p)!r} is an earlier output of `braidsim {verb}`, but "
+            f"{str(p / foreign)!r} in it was not written there by braidsim and would be "
+            "deleted with it; move that out of the folder, or choose another --out"
+        )
 
 
 def json_safe(obj: Any) -> Any:

@@ -324,6 +324,24 @@ def test_out_refusal_names_the_command_that_writes_the_output(tmp_path) -> None:
             check_output_directory(tmp_path, kind)
 
 
+def test_rerun_refuses_to_delete_the_users_file_in_its_out(capsys, tmp_path) -> None:
+    """``echo x > run1/notes.txt; braidsim run ... --out run1`` deleted notes.txt (exit 0,
+    no message): it is refused with one line naming it, and replaced once it is moved."""
+    d = tmp_path / "run1"
+    argv = ["run", "paper-3.2", "--duration", "0.01 s", "--out", str(d)]
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    (d / "notes.txt").write_text("x")
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{str(d / 'notes.txt')!r} in it was not written there by braidsim" in err
+    assert "choose another --out" in err
+    assert (d / "notes.txt").read_text() == "x"
+    (d / "notes.txt").unlink()
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 0, err
+
+
 def test_out_creates_missing_folders_only_when_it_writes(capsys, tmp_path) -> None:
     """docs/guarantees.md: folders missing above --out are made like ``mkdir -p``, and a
     refused command makes none."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 
 import numpy as np
@@ -45,7 +46,7 @@ def test_atomic_directory_is_whole_or_absent(tmp_path):
     with atomic_directory(out, "paper report") as tmp:
         (tmp / "a.txt").write_text("1")
     assert (out / "a.txt").read_text() == "1"
-    assert (out / MARKER).read_text().strip() == "paper report"
+    assert (out / MARKER).read_text().splitlines()[0] == "paper report"
     mode = stat.S_IMODE(os.stat(out).st_mode)
     assert mode & 0o055 == 0o055 & ~_umask()  # readable like an ordinary directory
     # an earlier output of the same kind is replaced as a whole
@@ -56,6 +57,51 @@ def test_atomic_directory_is_whole_or_absent(tmp_path):
     with pytest.raises(RuntimeError), atomic_directory(out, "paper report") as tmp:
         raise RuntimeError("x")
     assert (out / "b.txt").read_text() == "2"
+
+
+def test_an_earlier_output_holding_the_users_files_is_not_replaced(tmp_path):
+    """A re-run deleted what the user had put in an earlier output (``notes.txt``, another
+    command's --out inside it): it is refused, naming the first such path, and the folder
+    is left as it was; an output holding only what braidsim wrote is replaced whole."""
+    out = tmp_path / "res"
+    with atomic_directory(out, "paper report") as tmp:
+        (tmp / "plots").mkdir()
+        (tmp / "plots" / "a.png").write_text("1")
+        (tmp / "b.txt").write_text("2")
+    for mine in (out / "notes.txt", out / "plots" / "mine.png", out / "run-folder"):
+        if mine.name == "run-folder":
+            with atomic_directory(mine, "run") as tmp:  # another command's output in it
+                (tmp / "summary.json").write_text("{}")
+        else:
+            mine.write_text("mine")
+        with pytest.raises(InputError, match=f"but {str(mine)!r} in it was not written"):
+            check_output_directory(out, "paper report")
+        with (
+            pytest.raises(InputError, match="choose another --out"),
+            atomic_directory(out, "paper report") as tmp,
+        ):
+            (tmp / "c.txt").write_text("3")
+        assert mine.exists() and (out / "b.txt").exists() and not (out / "c.txt").exists()
+        if mine.is_dir():
+            shutil.rmtree(mine)
+        else:
+            mine.unlink()
+    # a hidden temporary left by a killed braidsim is braidsim's own
+    (out / ".b.txt.braidsim-999999999-x.json").write_text("half")
+    with atomic_directory(out, "paper report") as tmp:
+        (tmp / "c.txt").write_text("3")
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, "c.txt"])
+
+
+def test_an_earlier_output_whose_marker_lists_nothing_is_replaced_as_before(tmp_path):
+    """An output of a braidsim whose marker held its kind only stays replaceable whole."""
+    out = tmp_path / "res"
+    out.mkdir()
+    (out / MARKER).write_text("paper report\n")
+    (out / "anything.txt").write_text("x")
+    with atomic_directory(out, "paper report") as tmp:
+        (tmp / "a.txt").write_text("1")
+    assert sorted(p.name for p in out.iterdir()) == sorted([MARKER, "a.txt"])
 
 
 def _umask() -> int:
