@@ -60,6 +60,10 @@ def test_run_window_and_set(capsys) -> None:
     assert lo == pytest.approx(hi)  # at rest on the inner wall
 
 
+PARAM = ["--param", "track.vibration_amplitude"]
+AXIS = ["--from", "0.05 mm", "--to", "0.3 mm"]
+
+
 @pytest.mark.parametrize(
     ("args", "fragment"),
     [
@@ -94,6 +98,36 @@ def test_run_window_and_set(capsys) -> None:
         (["run", "paper-3.1", "--set", "simulation.rtol=abc"], "allowed >= 1e-15 and <= 0.01"),
         # (below the state's rounding: was taken, and the run limited by atol alone)
         (["run", "paper-3.1", "--set", "simulation.rtol=1e-30"], "1e-30 is out of range"),
+        # the option as typed, not the API's parameter
+        (
+            ["bifurcation", "paper-3.3", "--param", "track.vibration_amplitud", *AXIS],
+            "error: --param: unknown key 'track.vibration_amplitud' (did you mean",
+        ),
+        (["basins", "paper-3.3", "--x", "initial.xx"], "error: --x: unknown key 'initial.xx'"),
+        (["basins", "paper-3.3", "--y", "carrier.model"], "error: --y: unknown key"),
+        (
+            ["bifurcation", "paper-3.3", *PARAM, "--from", "-1 mm", "--to", "0.2 mm"],
+            "error: --from (track.vibration_amplitude): -0.001 m is out of range",
+        ),
+        # a range of a bifurcation or basins as a sweep axis's: not reversed, not empty
+        (
+            ["bifurcation", "paper-3.3", *PARAM, "--from", "0.5 mm", "--to", "0.02 mm"],
+            "error: --to: 0.02 mm (2e-05 m) is below --from (0.5 mm; 0.0005 m), a reversed",
+        ),
+        (
+            ["bifurcation", "paper-3.3", *PARAM, "--from", "0.2 mm", "--to", "0.2 mm"],
+            "error: --to: 0.2 mm equals --from (0.2 mm; 0.0002 m), an empty range of 41",
+        ),
+        (
+            ["bifurcation", "paper-3.3", *PARAM, *AXIS, "--points", "1"],
+            "error: --points: 1 value runs --from only (--to 0.3 mm would not be used)",
+        ),
+        (
+            ["basins", "paper-3.3", "--y-from", "1 m/s", "--y-to", "-1 m/s"],
+            "error: --y-to: -1 m/s (-1 m/s) is below --y-from",
+        ),
+        (["basins", "paper-3.3", "--x-to", "0 mm"], "error: --x-to: 0 mm equals --x-from"),
+        (["basins", "paper-3.3", "--ny", "1"], "error: --ny: 1 value runs --y-from only"),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) -> None:

@@ -318,6 +318,7 @@ def test_chunk_failing_too_often_stops_the_sweep_and_keeps_done_chunks(tmp_path)
             "did you mean 'track.vibration_amplitude'",
         ),
         (("num = 3", "num = 0"), "empty range"),
+        (("num = 3", "num = 1"), "num: 1 value runs start only \\(stop 0.18 mm would not"),
         (('stop = "0.18 mm"', 'stop = "0.06 mm"'), "empty range"),
         (("num = 3", "num = 2.5"), "num: 2.5 is not a whole number"),
         (

@@ -210,10 +210,62 @@ def _check_grid(runs: int, workers: int, option: str) -> None:
 
 
 def _axis_value(option: str, key: str, text: str) -> float:
-    """A value of a scalar scenario key given on the command line (unit policy applies)."""
+    """A value of a scalar scenario key given on the command line (unit policy applies), in
+    SI, checked against the key's range; an error names ``option`` and the key, as a sweep
+    spec's ``start (key)`` does."""
+    from braidsim.analysis.bifurcation import to_si
     from braidsim.params import SCHEMA, parse_set_value
 
-    return quantity_option(option, parse_set_value(key, text), SCHEMA[key].unit)
+    v = quantity_option(option, parse_set_value(key, text), SCHEMA[key].unit)
+    try:
+        return to_si(key, v)
+    except InputError as exc:
+        head, _, rest = str(exc).partition(": ")
+        raise InputError(f"{option} ({head}): {rest}") from None
+
+
+def _scalar_key(option: str, key: str) -> None:
+    """:func:`~braidsim.analysis.bifurcation.check_scalar_key`, its error naming ``option``
+    as typed (the API's says ``parameter``)."""
+    from braidsim.analysis.bifurcation import check_scalar_key
+
+    try:
+        check_scalar_key(key)
+    except InputError as exc:
+        raise InputError(f"{option}: {str(exc).partition(': ')[2]}") from None
+
+
+def _axis_range(
+    key: str, start: tuple[str, str], stop: tuple[str, str], count: tuple[str, int]
+) -> Any:
+    """The ``count`` evenly spaced values of ``key`` from ``start`` to ``stop`` [SI], each
+    given as (option, value as typed), under the rule of a sweep axis's start/stop/num
+    (braidsim.sweep.spec): stop above start, or equal to it for a single value; a reversed
+    range, a range of several equal values, or a single value with a stop it would not use
+    is refused, naming the option."""
+    import numpy as np
+
+    from braidsim.params import SCHEMA
+
+    (o_a, text_a), (o_b, text_b), (o_n, n) = start, stop, count
+    a, b = _axis_value(o_a, key, text_a), _axis_value(o_b, key, text_b)
+    unit = f" {SCHEMA[key].unit}" if SCHEMA[key].unit else ""
+    if b < a:
+        raise InputError(
+            f"{o_b}: {text_b} ({b:g}{unit}) is below {o_a} ({text_a}; {a:g}{unit}), a reversed "
+            f"range; allowed {o_b} > {o_a}"
+        )
+    if n > 1 and b == a:
+        raise InputError(
+            f"{o_b}: {text_b} equals {o_a} ({text_a}; {a:g}{unit}), an empty range of {n} equal "
+            f"values; allowed {o_b} > {o_a} (or {o_n} 1)"
+        )
+    if n == 1 and b != a:
+        raise InputError(
+            f"{o_n}: 1 value runs {o_a} only ({o_b} {text_b} would not be used); allowed "
+            f"{o_n} >= 2, or {o_b} equal to {o_a} for a single value"
+        )
+    return np.linspace(a, b, n)
 
 
 @app.command()
@@ -238,16 +290,13 @@ def bifurcation(
     """Stroboscopic bifurcation diagram of the settled motion against one parameter."""
     import braidsim
     from braidsim.analysis.bifurcation import bifurcation as run_bifurcation
-    from braidsim.analysis.bifurcation import check_scalar_key, parameter_values
     from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
     _check_out(out, "bifurcation")
     _check_grid(points, workers, "--points")
-    check_scalar_key(param)
+    _scalar_key("--param", param)
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
-    values = parameter_values(
-        param, _axis_value("--from", param, start), _axis_value("--to", param, stop), points
-    )
+    values = _axis_range(param, ("--from", start), ("--to", stop), ("--points", points))
     with (
         sigterm_as_interrupt(),
         progress_bar(f"bifurcation of {sc.name}", len(values), quiet=json_) as advance,
@@ -325,7 +374,6 @@ def basins(
     """Basins of attraction: the steady state reached from each start of a 2-D grid."""
     import braidsim
     from braidsim.analysis.basins import basins as run_basins
-    from braidsim.analysis.bifurcation import check_scalar_key, parameter_values
 
     if x == y:
         raise InputError(f"--x, --y: both are {x!r}; allowed two different parameters")
@@ -334,11 +382,11 @@ def basins(
         if count < 1:
             raise InputError(f"{option}: {count} is out of range; allowed >= 1")
     _check_grid(nx * ny, workers, "--nx x --ny")
-    check_scalar_key(x)
-    check_scalar_key(y)
+    _scalar_key("--x", x)
+    _scalar_key("--y", y)
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
-    xs = parameter_values(x, _axis_value("--x-from", x, x_from), _axis_value("--x-to", x, x_to), nx)
-    ys = parameter_values(y, _axis_value("--y-from", y, y_from), _axis_value("--y-to", y, y_to), ny)
+    xs = _axis_range(x, ("--x-from", x_from), ("--x-to", x_to), ("--nx", nx))
+    ys = _axis_range(y, ("--y-from", y_from), ("--y-to", y_to), ("--ny", ny))
     from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
     with (

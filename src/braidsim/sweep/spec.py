@@ -430,6 +430,11 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
                 f"({said['start']}; {start:g}{unit}), a reversed range; allowed stop > start "
                 "(list values = [...] for another order)"
             )
+        if num == 1 and stop != start:  # (the range's stop would be silently unused)
+            raise InputError(
+                f"{where}num: 1 value runs start only (stop {said['stop']} would not be used); "
+                "allowed num >= 2, or stop equal to start for a single value"
+            )
         if spacing == "log":
             if start <= 0.0 or stop <= 0.0:
                 raise InputError(
