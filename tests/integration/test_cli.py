@@ -98,7 +98,11 @@ AXIS = ["--from", "0.05 mm", "--to", "0.3 mm"]
         (["run", "paper-3.1", "--set", "simulation.rtol=abc"], "allowed >= 1e-15 and <= 0.01"),
         # (below the state's rounding: was taken, and the run limited by atol alone)
         (["run", "paper-3.1", "--set", "simulation.rtol=1e-30"], "1e-30 is out of range"),
-        # the option as typed, not the API's parameter
+        # the option as typed, not the API's windows[0] or parameter
+        (
+            ["run", "paper-3.1", "--window", "0.5 s", "0.1 s"],
+            "error: --window: [0.5, 0.1] s is not a time interval",
+        ),
         (
             ["bifurcation", "paper-3.3", "--param", "track.vibration_amplitud", *AXIS],
             "error: --param: unknown key 'track.vibration_amplitud' (did you mean",
@@ -442,3 +446,11 @@ def test_sweep_draws_progress_only_where_someone_watches(
     code, _, err = run_cli(capsys, "sweep", str(spec), "--out", str(tmp_path / "s.zarr"), *extra)
     assert code == 0, err
     assert asked == [drawn]
+
+
+def test_duration_help_example_carries_its_unit(capsys) -> None:
+    """The help's example was a bare 0.5, which the command answers with a note asking for
+    the unit."""
+    code, out, _ = run_cli(capsys, "run", "--help")
+    assert code == 0
+    assert "e.g. '0.5 s'" in " ".join(out.split())

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -28,7 +29,7 @@ def run(
         list[str] | None, typer.Option("--set", help="KEY=VALUE override (repeatable).")
     ] = None,
     duration: Annotated[
-        str | None, typer.Option(help="Simulated time [s], e.g. 0.5 or '500 ms'.")
+        str | None, typer.Option(help="Simulated time [s], e.g. '0.5 s' or '500 ms'.")
     ] = None,
     window: Annotated[
         tuple[str, str] | None, typer.Option(help="T0 T1: ranges over this window [s].")
@@ -73,8 +74,14 @@ def run(
             quantity_option("--window", window[1], "s"),
         )
     )
-    windows = [win] if win else None
     T = float(sc["simulation.duration"] if dur is None else dur)
+    if win is not None and math.isfinite(T) and T > 0:
+        # checked here to name the option as typed (simulate names its ``windows[0]``); a
+        # bad --duration is left for simulate to refuse
+        from braidsim.simulate import time_window
+
+        win = time_window("--window", win, 0.0, T)
+    windows = [win] if win else None
     with progress_simulated(f"simulating {sc.name}, {T:g} s", 0.0, T, quiet=json_):
         res = braidsim.simulate(
             sc,
