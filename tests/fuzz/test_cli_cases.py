@@ -416,7 +416,7 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
         "sweep-resume-notstore",
         ["sweep", "{fx}/good_sweep.toml", "--out", "{fx}", "--resume"],
         BAD,
-        ("STORE", "zarr.json"),
+        ("not a sweep store",),
     ),
     (
         "sweep-resume-other",

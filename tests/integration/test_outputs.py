@@ -375,6 +375,27 @@ def _tiny_sweep(tmp_path: Path, out: Path, amplitudes: list[str]) -> list[str]:
     return ["sweep", str(spec), "--out", str(out), "--processes", "1", "--no-progress"]
 
 
+def test_sweep_out_that_is_not_a_store_is_said_so_up_front(capsys, tmp_path) -> None:
+    """A run folder as a sweep's --out: it said "pass --resume to finish it", and --resume
+    then that it is not a sweep store."""
+    d = tmp_path / "run1"
+    d.mkdir()
+    (d / "summary.json").write_text("{}")
+    for extra in ([], ["--resume"]):
+        code, _, err = run_cli(capsys, *_tiny_sweep(tmp_path, d, ["0.05 mm"]), *extra)
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"--out: {d} exists and is not a sweep store; allowed a new or empty" in err
+
+
+def test_sweep_writes_its_store_into_an_empty_folder(capsys, tmp_path) -> None:
+    """As run and paper do: an empty folder holds nothing to lose (it was refused)."""
+    d = tmp_path / "s.zarr"
+    d.mkdir()
+    code, _, err = run_cli(capsys, *_tiny_sweep(tmp_path, d, ["0.05 mm", "0.06 mm"]))
+    assert code == 0, err
+    assert braidsim.sweep.open_sweep(d).attrs["complete"] is True
+
+
 def test_sweep_failing_before_its_store_does_not_offer_resume(capsys, tmp_path, monkeypatch):
     """A sweep whose store could not be created has nothing to resume: the hint says so."""
     import braidsim.sweep.execute as execute

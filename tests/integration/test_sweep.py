@@ -205,8 +205,16 @@ def test_processes_0_is_all_cores():
 
 def test_resume_refuses_another_spec(tmp_path, local_store):
     other = load_spec(write(tmp_path, SPEC.replace("num = 3", "num = 4")))
-    with pytest.raises(InputError, match=r"different spec \(it differs in axes\.2\.num\)"):
+    with pytest.raises(InputError, match=r"different spec \(it differs in axes\[1\]\.num\)"):
         run_sweep(other, local_store, resume=True, processes=1, progress=False)
+
+
+def test_spec_differences_name_axes_as_the_spec_check_does():
+    """A resumed store's spec differences said ``axes.2.num`` (1-based), the spec's own
+    checks ``axes[1].num``: one form."""
+    from braidsim.sweep.execute import _spec_differences
+
+    assert _spec_differences(SPEC, SPEC.replace("num = 3", "num = 4")) == ["axes[1].num"]
 
 
 def test_resume_refuses_a_store_of_another_version(tmp_path, local_store, monkeypatch):

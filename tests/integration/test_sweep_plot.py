@@ -191,3 +191,27 @@ def test_sel_outside_the_axis_is_refused_and_a_bare_number_noticed(stores, tmp_p
     assert fig.axes[0].get_title() == "regime (h_a = 0.12 mm)"  # the grid value selected
     fig = plot_sweep(ds, "regime", x="h_a", sel={"omega": "240 rpm"})
     assert fig.axes[0].get_title() == "regime (omega = 25.1327 rad/s)"
+
+
+def test_a_store_being_written_is_said_to_be(tmp_path, capsys):
+    """sweep-plot on a store another sweep writes now said "finish it with --resume" (which
+    is refused while it runs); a store left unfinished names its command, its SPEC said."""
+    from braidsim.sweep.store import StoreLock, create_store
+
+    spec = tmp_path / "grid.toml"
+    spec.write_text(textwrap.dedent(GRID))
+    store = create_store(load_spec(spec), tmp_path / "grid.zarr")
+    png = tmp_path / "p.png"
+    argv = ("sweep-plot", str(store), "--metric", "regime", "--x", "omega", "--out", str(png))
+    lock = StoreLock(store)  # as the sweep writing it holds it
+    try:
+        code, err = cli(capsys, *argv)
+    finally:
+        lock.release()
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"STORE: {store} is being written by a braidsim sweep now: 6 of 6 runs" in err
+    assert "--resume" not in err
+    code, err = cli(capsys, *argv)
+    assert code == 2 and "not finished: 6 of 6 runs" in err
+    assert f"`braidsim sweep SPEC --out {store} --resume`, SPEC being the spec file" in err
+    assert not png.exists()

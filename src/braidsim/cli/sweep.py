@@ -57,7 +57,8 @@ def sweep(
 
     def resume_hint() -> str:
         # the store is created whole or not at all: without it there is nothing to resume
-        if not out.exists():
+        # (an empty folder given as --out stays as it was)
+        if not (out / "zarr.json").is_file():
             return f"no store was written at {out}"
         from braidsim.errors import StoreError
         from braidsim.sweep.store import done_chunks
@@ -153,6 +154,7 @@ def sweep_plot(
     from braidsim.errors import InputError
     from braidsim.plotting import save
     from braidsim.sweep import open_sweep, plot_sweep
+    from braidsim.sweep.store import being_written, resume_command
 
     def pairs(items: list[str] | None, option: str) -> dict[str, str]:
         outd = {}
@@ -170,10 +172,16 @@ def sweep_plot(
     ds = open_sweep(store)
     # the cells of chunks not done hold the fill values, which read as failed runs
     missing = int(ds.attrs["runs_not_done"])
+    if missing and being_written(store):  # (--resume would be refused while it runs)
+        raise InputError(
+            f"STORE: {store} is being written by a braidsim sweep now: {missing} of "
+            f"{int(ds.attrs['n_runs'])} runs have not run yet; plot it once that sweep has "
+            "finished"
+        )
     if missing:
         raise InputError(
             f"STORE: {store} is not finished: {missing} of {int(ds.attrs['n_runs'])} runs have "
-            f"not run yet; finish it with `braidsim sweep SPEC --out {store} --resume`, then plot"
+            f"not run yet; finish it with {resume_command(store)}, then plot it"
         )
     sels: dict[str, object] = dict(pairs(sel, "--sel"))
     for dim, value in sels.items():

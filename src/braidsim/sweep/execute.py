@@ -54,6 +54,7 @@ from braidsim.sweep.store import (
     create_store,
     done_chunks,
     mark_undone,
+    nothing_at,
     remove_partial_files,
     repair_coordinates,
     set_complete,
@@ -532,14 +533,19 @@ def run_sweep(
             executor = DaskExecutor(scheduler=scheduler, workers=workers, retries=spec.retries)
         else:
             executor = LocalProcesses(processes, retries=spec.retries)
-    if path.exists() and not resume:
-        raise InputError(
-            f"--out: {path} exists; pass --resume to finish it, or choose another path"
-        )
     from braidsim.io import check_output_target
 
     check_output_target(path, "--out", directory=True)
-    if path.exists():
+    if not nothing_at(path):  # (an empty folder holds nothing to lose: it is written)
+        if not (path / "zarr.json").is_file():  # (a run folder, or any other folder)
+            raise InputError(
+                f"--out: {path} exists and is not a sweep store; allowed a new or empty "
+                "folder, or a sweep store to finish with --resume"
+            )
+        if not resume:
+            raise InputError(
+                f"--out: {path} exists; pass --resume to finish it, or choose another path"
+            )
         store_attrs(path)  # a store, before any worker starts
     start = getattr(executor, "start", None)
     if start is not None:
@@ -570,8 +576,9 @@ def run_sweep(
 
 
 def _spec_differences(old_text: str, new_text: str) -> list[str]:
-    """The entries (dotted paths, axes by number) where two sweep specs' TOML texts differ;
-    empty when the old text cannot be read."""
+    """The entries where two sweep specs' TOML texts differ, named as the spec's validation
+    names them (``axes[1].num``: dotted paths, list entries by 0-based index); empty when
+    the old text cannot be read."""
     import tomllib
 
     try:
@@ -586,7 +593,7 @@ def _spec_differences(old_text: str, new_text: str) -> list[str]:
                 out.update(flat(v, f"{prefix}{k}."))
         elif isinstance(d, list) and d and all(isinstance(e, dict) for e in d):
             for i, e in enumerate(d):
-                out.update(flat(e, f"{prefix}{i + 1}."))
+                out.update(flat(e, f"{prefix[:-1]}[{i}]."))
         else:
             out[prefix[:-1]] = d
         return out
@@ -602,7 +609,7 @@ def _execute(
 
     Returns (start time, chunks done before, runs done before, chunks run now, failed runs).
     """
-    if path.exists():
+    if not nothing_at(path):
         import braidsim
 
         attrs = store_attrs(path)

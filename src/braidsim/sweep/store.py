@@ -75,10 +75,20 @@ def _codecs() -> dict[str, Any]:
     return {"compressors": [ZstdCodec(level=0), Crc32cCodec()]}
 
 
+def resume_command(path: str | Path) -> str:
+    """The command that finishes or repairs the store at ``path``, for messages. The store
+    keeps its spec's text (attribute ``spec``), not the file's path: the command names the
+    file as the spec it was made from."""
+    return (
+        f"`braidsim sweep SPEC --out {path} --resume`, SPEC being the spec file the store was "
+        "made from (the store keeps its text in its attribute 'spec')"
+    )
+
+
 def _damaged(path: str | Path, what: str) -> StoreError:
     return StoreError(
-        f"STORE: {path} is damaged ({what}); recompute its damaged chunks with `braidsim "
-        f"sweep SPEC --out {path} --resume`, or run the sweep again into a new store"
+        f"STORE: {path} is damaged ({what}); recompute its damaged chunks with "
+        f"{resume_command(path)}, or run the sweep again into a new store"
     )
 
 
@@ -105,6 +115,35 @@ def remove_stale_temporaries(final: Path) -> int:
             shutil.rmtree(p, ignore_errors=True)
             n += 1
     return n
+
+
+def nothing_at(path: str | Path) -> bool:
+    """Whether ``path`` is absent or an empty folder: a new store may be made there (an
+    empty folder holds nothing to lose; the store's rename replaces it)."""
+    p = Path(path)
+    if not p.exists():
+        return True
+    try:
+        return p.is_dir() and not any(p.iterdir())
+    except OSError:
+        return False
+
+
+def being_written(path: str | Path) -> bool:
+    """Whether a braidsim sweep holds the store's writer lock (:class:`StoreLock`) now."""
+    import fcntl
+
+    try:
+        fd = os.open(Path(path) / LOCK, os.O_RDONLY)
+    except OSError:  # no lock file: no writer
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError:
+        return True
+    finally:
+        os.close(fd)  # (releases the shared lock taken, if any)
+    return False
 
 
 class StoreLock:
@@ -227,11 +266,11 @@ def create_store(spec: SweepSpec, path: str | Path) -> Path:
     Raises
     ------
     InputError
-        ``path`` exists already.
+        ``path`` exists already and is not an empty folder.
     """
     zarr = _zarr()
     final = Path(path)
-    if final.exists():
+    if not nothing_at(final):
         raise InputError(
             f"--out: {final} exists; pass --resume to finish it, or choose another path"
         )
@@ -598,7 +637,7 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     if coords:
         raise StoreError(
             f"STORE: {path}: the coordinate array {coords[0]!r} is missing or fails its "
-            f"checksum; write it again with `braidsim sweep SPEC --out {path} --resume`"
+            f"checksum; write it again with {resume_command(path)}"
         )
     bad = corrupt_chunks(path, strict=True)
     if bad:
@@ -606,7 +645,7 @@ def open_sweep(path: str | Path) -> xr.Dataset:
         raise StoreError(
             f"STORE: {path}: chunk {c} of {name!r} is missing or fails its checksum "
             f"({len(bad)} chunk(s) damaged after they were written); recompute them with "
-            f"`braidsim sweep SPEC --out {path} --resume`"
+            f"{resume_command(path)}"
         )
     ds = xr.open_zarr(str(path), consolidated=False, chunks=None)
     ds.attrs["runs_not_done"] = runs_not_done(path)
@@ -631,8 +670,8 @@ def export_netcdf(path: str | Path, out: str | Path, *, partial: bool = False) -
     if missing and not partial:
         raise StoreError(
             f"STORE: {path} is not finished: {missing} of {int(ds.attrs['n_runs'])} runs have "
-            f"not run yet; finish it with `braidsim sweep SPEC --out {path} --resume`, then "
-            "export it (or pass partial=True to export the runs done so far)"
+            f"not run yet; finish it with {resume_command(path)}, then export it (or pass "
+            "partial=True to export the runs done so far)"
         )
     ds = ds.load()
 
