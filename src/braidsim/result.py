@@ -75,13 +75,15 @@ IMPACT_UNITS = {
 
 
 def impacts_frame(episodes: np.ndarray) -> pd.DataFrame:
-    """The impact table of the solver's episode records (``EPISODE_DTYPE`` rows)."""
+    """The impact table of the solver's episode records (``EPISODE_DTYPE`` rows);
+    ``attrs["units"]`` gives the SI unit of each column ("" for none), as a batch's table
+    does."""
     import pandas as pd
 
     c = {name: episodes[name] for name in EPISODE_COLUMNS}
     pairs = [PAIRS[int(p)] for p in c["pair"]]
     walls = [WALLS[(pr, int(w))] for pr, w in zip(pairs, c["wall"], strict=True)]
-    return pd.DataFrame(
+    df = pd.DataFrame(
         {
             "t": c["t"],
             "t_end": c["t_end"],
@@ -103,6 +105,18 @@ def impacts_frame(episodes: np.ndarray) -> pd.DataFrame:
             "initial": c["initial"] == 1.0,
         }
     )
+    df.attrs["units"] = {name: IMPACT_UNITS.get(name, "") for name in df.columns}
+    return df
+
+
+def impacts_csv(impacts: pd.DataFrame) -> str:
+    """The impact table as CSV text, each header with its unit in brackets as in
+    ``series.csv`` (``t [s]``, ``peak_force [N]``; ``pair`` has none), from
+    ``impacts.attrs["units"]``; the readers of measured impact lists
+    (:func:`braidsim.fit.data.read_csv`) take such headers."""
+    units = impacts.attrs.get("units", {})
+    header = [f"{name} [{units[name]}]" if units.get(name) else str(name) for name in impacts]
+    return str(impacts.to_csv(index=False, header=header))
 
 
 def ranges_dict(ranges: np.ndarray, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
@@ -483,5 +497,5 @@ class Result:
         buf = io.StringIO()
         np.savetxt(buf, arr, delimiter=",", header=header, comments="", fmt="%.10g")
         p1 = atomic_write_text(d / "series.csv", buf.getvalue())
-        p2 = atomic_write_text(d / "impacts.csv", self.impacts.to_csv(index=False))
+        p2 = atomic_write_text(d / "impacts.csv", impacts_csv(self.impacts))
         return [p1, p2]

@@ -342,6 +342,30 @@ def test_rerun_refuses_to_delete_the_users_file_in_its_out(capsys, tmp_path) -> 
     assert code == 0, err
 
 
+def test_impacts_csv_headers_carry_units_as_series_csv(transfer_run, tmp_path) -> None:
+    """impacts.csv said ``t,t_end,...`` while series.csv says ``t [s]``; the table's
+    ``attrs["units"]`` were empty. The fit still reads a run's impact list in SI."""
+    from braidsim.fit.data import read_csv
+
+    imp = transfer_run.impacts
+    assert imp.attrs["units"]["t"] == "s" and imp.attrs["units"]["peak_force"] == "N"
+    assert imp.attrs["units"]["pair"] == "" and set(imp.attrs["units"]) == set(imp.columns)
+    transfer_run.to_csv(tmp_path)
+    header = (tmp_path / "impacts.csv").read_text().splitlines()[0].split(",")
+    assert header[:5] == ["t [s]", "t_end [s]", "duration [s]", "pair", "wall"]
+    assert "peak_force [N]" in header and "velocity [m/s]" in header
+    track = imp[(imp["pair"] == "track") & ~imp["initial"]]
+    table = tmp_path / "track_impacts.csv"
+    table.write_text(
+        (tmp_path / "impacts.csv").read_text().splitlines()[0]
+        + "\n"
+        + track.to_csv(index=False, header=False)
+    )
+    back = read_csv(table)
+    assert np.array_equal(back.t, track["t"].to_numpy())
+    assert np.array_equal(back.columns["peak_force"], track["peak_force"].to_numpy())
+
+
 def test_out_creates_missing_folders_only_when_it_writes(capsys, tmp_path) -> None:
     """docs/guarantees.md: folders missing above --out are made like ``mkdir -p``, and a
     refused command makes none."""

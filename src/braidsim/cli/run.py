@@ -107,12 +107,13 @@ def _write_run(res: Any, summary: dict[str, Any], out: Path, csv: bool) -> None:
     from braidsim.export import write_series_netcdf
     from braidsim.io import atomic_directory, json_safe
     from braidsim.plotting import run_figures
+    from braidsim.result import impacts_csv
 
     with atomic_directory(out, kind="run") as tmp:
         if csv:
             res.to_csv(tmp)
         else:
-            (tmp / "impacts.csv").write_text(res.impacts.to_csv(index=False), encoding="utf-8")
+            (tmp / "impacts.csv").write_text(impacts_csv(res.impacts), encoding="utf-8")
         run_figures(res, tmp)
         write_series_netcdf(res, tmp / "series.nc")
         (tmp / "summary.json").write_text(
