@@ -131,7 +131,11 @@ AXIS = ["--from", "0.05 mm", "--to", "0.3 mm"]
             "error: --y-to: -1 m/s (-1 m/s) is below --y-from",
         ),
         (["basins", "paper-3.3", "--x-to", "0 mm"], "error: --x-to: 0 mm equals --x-from"),
-        (["basins", "paper-3.3", "--ny", "1"], "error: --ny: 1 value runs --y-from only"),
+        # (--ny 1 alone is the row at --y-from: its --y-to is the default, not typed)
+        (
+            ["basins", "paper-3.3", "--ny", "1", "--y-to", "1 m/s"],
+            "error: --ny: 1 value runs --y-from only (--y-to 1 m/s would not be used)",
+        ),
     ],
 )
 def test_bad_input_is_one_line_exit_2(capsys, args: list[str], fragment: str) -> None:

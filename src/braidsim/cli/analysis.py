@@ -235,20 +235,37 @@ def _scalar_key(option: str, key: str) -> None:
         raise InputError(f"{option}: {str(exc).partition(': ')[2]}") from None
 
 
+def _typed(ctx: typer.Context | None, name: str) -> bool:
+    """Whether the option of parameter ``name`` was given on the command line (not its
+    default)."""
+    if ctx is None:
+        return True
+    source = ctx.get_parameter_source(name)
+    return source is None or source.name != "DEFAULT"
+
+
 def _axis_range(
-    key: str, start: tuple[str, str], stop: tuple[str, str], count: tuple[str, int]
+    key: str,
+    start: tuple[str, str],
+    stop: tuple[str, str],
+    count: tuple[str, int],
+    stop_typed: bool = True,
 ) -> Any:
     """The ``count`` evenly spaced values of ``key`` from ``start`` to ``stop`` [SI], each
     given as (option, value as typed), under the rule of a sweep axis's start/stop/num
     (braidsim.sweep.spec): stop above start, or equal to it for a single value; a reversed
     range, a range of several equal values, or a single value with a stop it would not use
-    is refused, naming the option."""
+    is refused, naming the option. A single value with a stop left at its default
+    (``stop_typed`` false: a basins axis) is the start alone, as asked."""
     import numpy as np
 
     from braidsim.params import SCHEMA
 
     (o_a, text_a), (o_b, text_b), (o_n, n) = start, stop, count
-    a, b = _axis_value(o_a, key, text_a), _axis_value(o_b, key, text_b)
+    a = _axis_value(o_a, key, text_a)
+    if n == 1 and not stop_typed:
+        return np.array([a])
+    b = _axis_value(o_b, key, text_b)
     unit = f" {SCHEMA[key].unit}" if SCHEMA[key].unit else ""
     if b < a:
         raise InputError(
@@ -353,6 +370,7 @@ def bifurcation(
 @app.command()
 @guarded
 def basins(
+    ctx: typer.Context,
     scenario: Annotated[
         str, typer.Argument(help="Built-in scenario name or TOML file.", metavar="SCENARIO")
     ],
@@ -385,8 +403,8 @@ def basins(
     _scalar_key("--x", x)
     _scalar_key("--y", y)
     sc = braidsim.load_scenario(scenario, overrides=parse_sets(set_))
-    xs = _axis_range(x, ("--x-from", x_from), ("--x-to", x_to), ("--nx", nx))
-    ys = _axis_range(y, ("--y-from", y_from), ("--y-to", y_to), ("--ny", ny))
+    xs = _axis_range(x, ("--x-from", x_from), ("--x-to", x_to), ("--nx", nx), _typed(ctx, "x_to"))
+    ys = _axis_range(y, ("--y-from", y_from), ("--y-to", y_to), ("--ny", ny), _typed(ctx, "y_to"))
     from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
     with (
