@@ -456,6 +456,84 @@ def test_cli_sweep_json_plot_and_netcdf(tmp_path, capsys, local_store):
     assert "--sel: fix the dimensions omega" in capsys.readouterr().err
 
 
+def _netcdf_engines() -> list[str | None]:
+    import xarray as xr
+
+    # None: xarray's default engine (h5netcdf here, a dependency); scipy writes netCDF-3
+    return [None, *(["scipy"] if "scipy" in xr.backends.list_engines() else [])]
+
+
+def _same_values(a, b) -> None:
+    for name in a.variables:
+        x, y = np.asarray(a[name].values), np.asarray(b[name].values)
+        if x.dtype.kind in "OTU":  # strings: netCDF gives them back as object or fixed width
+            assert x.astype(object).tolist() == y.astype(object).tolist(), name
+        else:
+            np.testing.assert_array_equal(x, y, err_msg=name)
+
+
+def test_the_open_store_is_saved_by_xarrays_to_netcdf(tmp_path, local_store):
+    """The Dataset that xarray.open_zarr or open_sweep gives is saved by xarray's own
+    to_netcdf, with the default engine and with netCDF-3 (scipy): a boolean root attribute
+    (``complete``) and lists of names (``dims``, ``arrays``) were refused."""
+    import xarray as xr
+
+    opened = {
+        "open_zarr": xr.open_zarr(local_store, consolidated=False),
+        "open_sweep": open_sweep(local_store),
+    }
+    for how, ds in opened.items():
+        for engine in _netcdf_engines():
+            nc = tmp_path / f"{how}-{engine}.nc"
+            ds.to_netcdf(nc, engine=engine)
+            with xr.open_dataset(nc, engine=engine) as back:
+                _same_values(ds, back)
+                assert back.attrs["complete"] == 1 and back.attrs["dims"] == "omega h_a"
+                assert back.attrs["spec_sha256"] == ds.attrs["spec_sha256"]
+
+
+def test_a_store_of_format_2_is_read_saved_and_resumed(tmp_path, local_store):
+    """A store written before format 3 (``complete`` a boolean, ``dims`` and ``arrays``
+    lists) is read by open_sweep, whose Dataset has the format-3 attributes and goes to
+    netCDF; --resume accepts it and sets ``complete`` to 1."""
+    import shutil
+
+    import xarray as xr
+    import zarr
+
+    old = tmp_path / "old.zarr"
+    shutil.copytree(local_store, old)
+    meta = json.loads((old / "zarr.json").read_text())
+    a = meta["attributes"]
+    a.update(
+        format="braidsim-sweep/2",
+        complete=False,
+        dims=a["dims"].split(),
+        arrays=a["arrays"].split(),
+    )
+    (old / "zarr.json").write_text(json.dumps(meta))
+    # a failed run's reason, so that a non-empty string goes to netCDF too
+    zarr.open_group(str(old), mode="r+")["failure"][0, 1] = "max_steps (5000000) reached"
+    ds = open_sweep(old)
+    assert ds.attrs["complete"] == 0 and ds.attrs["arrays"].split()[-3:] == [
+        "failure",
+        "x",
+        "track_contact_force",
+    ]
+    assert str(ds["failure"].values[0, 1]) == "max_steps (5000000) reached"
+    for engine in _netcdf_engines():
+        nc = tmp_path / f"old-{engine}.nc"
+        ds.to_netcdf(nc, engine=engine)
+        with xr.open_dataset(nc, engine=engine) as back:
+            _same_values(ds, back)
+    spec = load_spec(write(tmp_path, SPEC))
+    summary = run_sweep(spec, old, resume=True, processes=1, progress=False)
+    assert summary["complete"] and summary["chunks_computed"] == 0
+    attrs = zarr.open_group(str(old), mode="r").attrs
+    assert attrs["complete"] == 1 and not isinstance(attrs["complete"], bool)
+    assert attrs["format"] == "braidsim-sweep/2"
+
+
 def test_latin_hypercube_samples_fill_every_stratum():
     n = 50
     u = draw_samples("latin_hypercube", n, 3, seed=7)

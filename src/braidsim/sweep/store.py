@@ -3,7 +3,7 @@
 Layout (``STORE/``)::
 
     zarr.json                 root attributes: spec text and hash, base parameters (SI), units,
-                              ``complete`` (true once every chunk is written)
+                              ``complete`` (1 once every chunk is written, else 0)
     <axis name>/              one coordinate array per grid axis (values in SI, ``units``)
     run/, <sampled key>/      with samples: the run index and each sampled parameter
     t/                        with series: the sample times
@@ -28,6 +28,13 @@ coordinate arrays that fail or differ from the spec's values. One process writes
 a time: the writer holds an exclusive lock (``flock``) on ``_sweep/.lock`` for as long as it
 runs, the operating system releases it when the process ends (also after SIGKILL), and a
 second writer is refused with a message instead of deleting the first one's files in flight.
+
+netCDF: every root and variable attribute is a number, a list of numbers or a string (a
+list of names is one string of names separated by spaces, ``complete`` is 0 or 1), so the
+Dataset that xarray opens is saved by its own ``to_netcdf`` with any engine, netCDF-3
+(SciPy) included. Stores of formats 1 and 2 (``complete`` a boolean, ``dims`` and
+``arrays`` lists) are read and resumed as they are; :func:`open_sweep` gives their Dataset
+the format-3 attributes.
 """
 
 from __future__ import annotations
@@ -53,9 +60,10 @@ if TYPE_CHECKING:
     import xarray as xr
     import zarr
 
-STORE_FORMAT = "braidsim-sweep/2"
-#: formats this version reads (format 1 stores have no checksums)
-READ_FORMATS = ("braidsim-sweep/1", STORE_FORMAT)
+STORE_FORMAT = "braidsim-sweep/3"
+#: formats this version reads (format 1 stores have no checksums; formats 1 and 2 store
+#: ``complete`` as a boolean and ``dims`` and ``arrays`` as lists, which netCDF-3 cannot hold)
+READ_FORMATS = ("braidsim-sweep/1", "braidsim-sweep/2", STORE_FORMAT)
 LOCK = "_sweep/.lock"
 _METRIC = {m.name: m for m in METRICS}
 
@@ -212,13 +220,16 @@ def _root_attrs(spec: SweepSpec) -> dict[str, Any]:
         "regime_labels": json.dumps(
             {str(REGIME_FAILED): "failed", **{str(i): r for i, r in enumerate(REGIMES)}}
         ),
-        "dims": list(spec.dims),
-        "arrays": [*spec.metrics, "failure", *o.series],
+        # names separated by spaces (like CF's "coordinates"): a netCDF-3 attribute cannot be
+        # a list of strings, and the names are identifiers
+        "dims": " ".join(spec.dims),
+        "arrays": " ".join([*spec.metrics, "failure", *o.series]),
         "chunk_shape": list(spec.chunk_shape),
         "n_runs": spec.n_runs,
         "n_chunks": spec.n_chunks,
-        # true once every chunk is written (for readers that do not look at _sweep/done)
-        "complete": False,
+        # 1 once every chunk is written, else 0 (for readers that do not look at _sweep/done);
+        # an int, not a boolean: netCDF has no boolean attributes
+        "complete": 0,
         "sign_convention": "parameters and metrics in SI; depths and forces are magnitudes",
     }
 
@@ -391,12 +402,24 @@ def store_attrs(path: str | Path) -> Mapping[str, Any]:
     return attrs
 
 
+def names_attr(value: Any) -> list[str]:
+    """The names of a root attribute ``dims`` or ``arrays``: a string of names separated by
+    spaces (format 3), or a list of them (formats 1 and 2)."""
+    if value is None:
+        return []
+    if isinstance(value, str):
+        return value.split()
+    return [str(v) for v in value]
+
+
 def set_complete(path: str | Path, complete: bool) -> None:
-    """Set the root attribute ``complete``: false while chunks are still to be written, true
-    once all are (zarr rewrites ``zarr.json`` through a temporary file and a rename)."""
+    """Set the root attribute ``complete``: 0 while chunks are still to be written, 1 once
+    all are (zarr rewrites ``zarr.json`` through a temporary file and a rename). A store of
+    format 1 or 2 (a boolean there) gets the integer too."""
     g = _zarr().open_group(str(path), mode="r+")
-    if g.attrs.get("complete") is not complete:
-        g.attrs["complete"] = complete
+    old = g.attrs.get("complete")
+    if isinstance(old, bool) or old != int(complete):
+        g.attrs["complete"] = int(complete)
 
 
 def remove_partial_files(path: str | Path) -> int:
@@ -423,7 +446,7 @@ def check_store(path: str | Path) -> Any:
         g = zarr.open_group(str(path), mode="r")
     except Exception as exc:  # zarr raises several types for damaged metadata
         raise _damaged(path, f"root: {exc.__class__.__name__}") from None
-    for name in ["_sweep/done", *attrs.get("arrays", [])]:
+    for name in ["_sweep/done", *names_attr(attrs.get("arrays"))]:
         try:
             g[name]
         except Exception as exc:  # a missing array (KeyError) or damaged metadata
@@ -494,7 +517,7 @@ def _chunk_key(c: int, grid: tuple[int, ...]) -> str:
 
 def _data_arrays(group: Any) -> list[str]:
     """The arrays chunked like the work (metrics, failure, series), as the store lists them."""
-    return [str(n) for n in group.attrs.get("arrays", [])]
+    return names_attr(group.attrs.get("arrays"))
 
 
 def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
@@ -506,7 +529,7 @@ def corrupt_chunks(path: str | Path, strict: bool = False) -> dict[int, str]:
     """
     p = Path(path)
     g = check_store(p)
-    if g.attrs.get("format") != STORE_FORMAT:
+    if g.attrs.get("format") == "braidsim-sweep/1":
         return {}
     done = done_chunks(p, strict=strict)
     names = _data_arrays(g)
@@ -630,7 +653,10 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     A store whose sweep has not finished can be read while it runs or after an interruption:
     the chunks not done yet hold the fill values (NaN, -1 or ""), and ``attrs["runs_not_done"]``
     counts their runs (0 once the sweep is finished), so that such cells are not taken for
-    results. A damaged chunk (missing, or failing its checksum) is refused."""
+    results. A damaged chunk (missing, or failing its checksum) is refused.
+
+    Its attributes are numbers, lists of numbers and strings (``complete``: 1 or 0, also for
+    a store of an earlier format), so xarray's ``to_netcdf`` saves it with any engine."""
     import xarray as xr
 
     coords = damaged_coordinates(path)
@@ -648,6 +674,11 @@ def open_sweep(path: str | Path) -> xr.Dataset:
             f"{resume_command(path)}"
         )
     ds = xr.open_zarr(str(path), consolidated=False, chunks=None)
+    # a store of format 1 or 2: the attributes as format 3 has them, which netCDF can hold
+    ds.attrs["complete"] = int(bool(ds.attrs.get("complete", 0)))
+    for key in ("dims", "arrays"):
+        if key in ds.attrs:
+            ds.attrs[key] = " ".join(names_attr(ds.attrs[key]))
     ds.attrs["runs_not_done"] = runs_not_done(path)
     return ds
 
