@@ -339,6 +339,38 @@ def test_cli_analyze_text_names_the_span_of_each_count(capsys) -> None:
     assert "energy, whole run:" in text
 
 
+def test_cli_analyze_says_why_a_short_window_has_no_regime(capsys) -> None:
+    """A window shorter than 2 whole periods between stroboscopic samples has no regime:
+    the text and the JSON say why and what duration is needed (they left the regime out
+    silently, the text claiming "steady state over whole periods" over 0.3 periods)."""
+    argv = ("analyze", "paper-3.3", "--duration", "0.01 s")
+    code, out, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    text = " ".join(out.split())  # rich wraps the lines
+    assert "steady state over whole periods" not in text
+    assert "window 0.005-0.01 s (0.3 periods), too short for whole periods" in text
+    reason = (
+        "not classified: the steady-state window 0.005-0.01 s holds 0.3 periods of the "
+        "excitation (T = 0.0166667 s), fewer than the 2 whole periods between stroboscopic "
+        "samples that the regime rules need; a duration of 0.1 s or more (6 T: the default "
+        "transient is half of a run this short) always gives them"
+    )
+    assert f"steady state: {reason}" in text
+    code, js, err = run_cli(capsys, *argv, "--json")
+    d = json.loads(js)
+    assert d["regime"] is None and d["regime_reason"] == reason
+    # the duration it names is enough
+    code, js, err = run_cli(capsys, "analyze", "paper-3.3", "--duration", "0.1 s", "--json")
+    d = json.loads(js)
+    assert d["regime"] is not None and d["regime_reason"] is None
+    # with a transient given: the duration after it, or an earlier transient
+    a = analyze("paper-3.3", duration=0.1, transient=0.08)
+    assert a.steady is None and a.regime_reason.endswith(
+        "a duration of 0.13 s or more (the transient + 3 T), or a transient of at most 0.05 s,"
+        " always gives them"
+    )
+
+
 def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
     code, out, err = run_cli(
         capsys,

@@ -62,13 +62,16 @@ class RunAnalysis:
     energy : EnergyBalance
         Over the whole run.
     steady : SteadyState or None
-        Classification over the window (None: the window is shorter than 2 cycles).
+        Classification over the window (None: the window holds fewer than 2 whole periods
+        between stroboscopic samples; ``regime_reason`` says why and what duration is needed).
     bound : dict
         :func:`braidsim.analysis.regimes.contact_loss_bound`.
     spectra : list of Spectrum
         Of x and the track contact force over the window.
     window_rule : str
         How the window was chosen, in words.
+    regime_reason : str
+        Why ``steady`` is None ("" when it is not).
     """
 
     result: Result
@@ -80,9 +83,13 @@ class RunAnalysis:
     bound: dict[str, Any]
     spectra: list[Spectrum]
     window_rule: str = ""
+    regime_reason: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready form (SI)."""
+        """JSON-ready form (SI).
+
+        ``regime`` is :meth:`SteadyState.to_dict`; it is None when the window is too short
+        to classify, and ``regime_reason`` then says why (None otherwise)."""
         sc = self.result.model.scenario
         return {
             "scenario": sc.name,
@@ -93,6 +100,7 @@ class RunAnalysis:
             "impacts_in_window": self.impacts_window.to_dict(sequence=False),
             "energy_balance": self.energy.to_dict(),
             "regime": None if self.steady is None else self.steady.to_dict(samples=False),
+            "regime_reason": None if self.steady is not None else self.regime_reason,
             "contact_loss_bound": self.bound,
             "spectra": [s.to_dict() for s in self.spectra],
         }
@@ -214,10 +222,32 @@ def analyze(
         else f"default: max(D/2, min({DEFAULT_TRANSIENT_CYCLES} T, D - {DEFAULT_CYCLES} T)) "
         f"= {t_tr:.6g} s discarded"
     )
-    rule = (
-        f"{how} of a {T_run:g} s run (T = {T:.6g} s, {T_run / T:.4g} periods); "
-        f"steady state over whole periods {window[0]:.6g}-{window[1]:.6g} s"
-    )
+    reason = ""
+    if steady is not None:
+        span = f"steady state over whole periods {window[0]:.6g}-{window[1]:.6g} s"
+    else:
+        periods = (window[1] - window[0]) / T
+        span = (
+            f"window {window[0]:.6g}-{window[1]:.6g} s ({periods:.3g} periods), too short "
+            "for whole periods"
+        )
+        # a window of 3 T always holds 3 stroboscopic samples, 2 whole periods (the first
+        # sample lies less than T after its start); the default transient of a run shorter
+        # than 100 T is half of it, so such a run needs 6 T
+        if transient is None:
+            need = f"a duration of {6 * T:.6g} s or more (6 T: the default transient is half"
+            need += " of a run this short)"
+        else:
+            need = f"a duration of {t_tr + 3 * T:.6g} s or more (the transient + 3 T)"
+            if T_run - 3 * T >= 0.0:
+                need += f", or a transient of at most {T_run - 3 * T:.6g} s,"
+        reason = (
+            f"not classified: the steady-state window {window[0]:.6g}-{window[1]:.6g} s "
+            f"holds {periods:.3g} periods of the excitation (T = {T:.6g} s), fewer than the "
+            f"2 whole periods between stroboscopic samples that the regime rules need; "
+            f"{need} always gives them"
+        )
+    rule = f"{how} of a {T_run:g} s run (T = {T:.6g} s, {T_run / T:.4g} periods); {span}"
     return RunAnalysis(
         res,
         window,
@@ -228,4 +258,5 @@ def analyze(
         contact_loss_bound(sc),
         spectra,
         rule,
+        reason,
     )

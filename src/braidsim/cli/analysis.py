@@ -694,6 +694,8 @@ def _print_analysis(d: dict[str, Any], out: Path | None) -> None:
         reg = r["regime"]
         per = f", period {reg['period']} cycles" if reg["period"] else ""
         con.print(f"steady state: {reg['label']}{per} ({reg['rule']})")
+    else:
+        con.print(f"steady state: {d['regime_reason']}", markup=False)
     b = d["contact_loss_bound"]
     con.print(
         f"contact-loss bound: a_p = {b['pressing_acceleration']:.4g} m/s^2, h_a omega_h^2 = "
