@@ -371,6 +371,25 @@ def test_cli_analyze_says_why_a_short_window_has_no_regime(capsys) -> None:
     )
 
 
+def test_analyze_json_carries_the_poincare_samples(capsys, tmp_path) -> None:
+    """analyze.json holds the stroboscopic samples poincare.png draws, in the form of
+    bifurcation's states[i].strobe."""
+    out = tmp_path / "a"
+    argv = ("analyze", "paper-3.3", "--duration", "0.2 s", "--out", str(out))
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    d = json.loads((out / "analyze.json").read_text())
+    assert (out / "poincare.png").is_file()
+    strobe = d["regime"]["strobe"]
+    a = analyze("paper-3.3", duration=0.2)
+    assert a.steady is not None
+    assert strobe == a.steady.to_dict()["strobe"]
+    assert set(strobe) == {"t", "x", "vx", "u"} and len(strobe["t"]) == a.steady.strobe_t.size
+    t0, t1 = d["regime"]["window"]
+    assert strobe["t"][0] == t0 and strobe["t"][-1] == t1
+    np.testing.assert_allclose(np.diff(strobe["t"]), d["regime"]["sampling_period"], rtol=1e-9)
+
+
 def test_cli_bifurcation_basins_lyapunov(capsys, tmp_path) -> None:
     code, out, err = run_cli(
         capsys,

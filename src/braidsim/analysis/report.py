@@ -88,8 +88,11 @@ class RunAnalysis:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready form (SI).
 
-        ``regime`` is :meth:`SteadyState.to_dict`; it is None when the window is too short
-        to classify, and ``regime_reason`` then says why (None otherwise)."""
+        ``regime`` is :meth:`SteadyState.to_dict` with its stroboscopic (Poincare) samples
+        ``regime.strobe`` = {t [s], x [m], vx [m/s], u = x - h [m]}, the points of
+        ``poincare.png`` and the form of ``bifurcation``'s ``states[i].strobe``; it is
+        None when the window is too short to classify, and ``regime_reason`` then says why
+        (None otherwise)."""
         sc = self.result.model.scenario
         return {
             "scenario": sc.name,
@@ -99,7 +102,7 @@ class RunAnalysis:
             "impacts": self.impacts.to_dict(sequence=True),
             "impacts_in_window": self.impacts_window.to_dict(sequence=False),
             "energy_balance": self.energy.to_dict(),
-            "regime": None if self.steady is None else self.steady.to_dict(samples=False),
+            "regime": None if self.steady is None else self.steady.to_dict(samples=True),
             "regime_reason": None if self.steady is not None else self.regime_reason,
             "contact_loss_bound": self.bound,
             "spectra": [s.to_dict() for s in self.spectra],
