@@ -166,6 +166,32 @@ def test_lyapunov_exponent_of_resting_contact() -> None:
     assert res.exponent == pytest.approx(expected, rel=0.03)
 
 
+def test_cli_lyapunov_prints_the_standard_error(capsys) -> None:
+    """The text and the JSON give the exponent's standard error by batch means
+    (estimate.standard_error()), as docs/analysis.md quotes it (only the range of the
+    running estimate was printed, so a quoted "+-" needed Python)."""
+    argv = ("lyapunov", "paper-3.4b", "--transient-cycles", "20", "--cycles", "10")
+    est = carrier_lyapunov("paper-3.4b", transient_cycles=20, cycles=10).estimate
+    se = est.standard_error()
+    assert math.isfinite(se) and se > 0
+    code, js, err = run_cli(capsys, *argv, "--json")
+    assert code == 0, err
+    d = json.loads(js)
+    assert d["exponent"] == est.exponent and d["standard_error"] == se
+    code, out, err = run_cli(capsys, *argv)
+    text = " ".join(out.split())
+    assert f"largest Lyapunov exponent {est.exponent:.5g} +- {se:.2g} 1/s" in text, text
+    assert "standard error by batch means of 10 blocks" in text
+    # fewer intervals (8) than blocks: no standard error (null), and no "+-" printed
+    short = ("lyapunov", "paper-3.4b", "--transient-cycles", "20", "--cycles", "0.5")
+    code, js, err = run_cli(capsys, *short, "--json")
+    assert code == 0, err
+    assert json.loads(js)["standard_error"] is None
+    code, out, err = run_cli(capsys, *short)
+    text = " ".join(out.split())
+    assert "+-" not in text and "(no standard error: fewer than 10 intervals; 8 intervals" in text
+
+
 @pytest.mark.slow
 def test_lyapunov_exponent_of_irregular_motion_is_positive_and_robust() -> None:
     """h_a = 0.18 mm (irregular impacts): positive exponent, the same with renormalisation

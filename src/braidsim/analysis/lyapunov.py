@@ -109,13 +109,17 @@ class LyapunovEstimate:
         return float(np.std(rates, ddof=1) / math.sqrt(blocks))
 
     def to_dict(self, curve: bool = True) -> dict[str, Any]:
-        """JSON-ready form."""
+        """JSON-ready form: ``exponent`` and its ``standard_error`` (:meth:`standard_error`,
+        10 blocks) [1/time unit], ``spread_last_half`` (:meth:`spread`), and with ``curve``
+        the convergence curve ``times``, ``running``."""
         out: dict[str, Any] = {
             "exponent": self.exponent,
             "interval": self.interval,
             "intervals": int(self.times.size),
             "d0": self.d0,
             "spread_last_half": self.spread(),
+            # batch means over 10 blocks (NaN, null in JSON, with fewer than 10 intervals)
+            "standard_error": self.standard_error(),
         }
         if curve:
             out["times"] = self.times.tolist()

@@ -536,10 +536,18 @@ def lyapunov(
         return
     con = _console()
     est = res.estimate
+    se = est.standard_error()
+    # the standard error by batch means is the statistical error; the range of the running
+    # estimate only says how far it has settled
+    if math.isfinite(se):
+        pm, note = f" +- {se:.2g}", "+- its standard error by batch means of 10 blocks"
+    else:
+        pm, note = "", "no standard error: fewer than 10 intervals"
     con.print(
-        f"[bold]{sc.name}[/bold]: largest Lyapunov exponent {est.exponent:.5g} 1/s "
-        f"({est.times.size} intervals of {est.interval:.3g} s after {res.transient:g} s; "
-        f"range of the running estimate over the last half {est.spread():.3g} 1/s)"
+        f"[bold]{sc.name}[/bold]: largest Lyapunov exponent {est.exponent:.5g}{pm} 1/s "
+        f"({note}; {est.times.size} intervals of {est.interval:.3g} s after "
+        f"{res.transient:g} s; range of the running estimate over the last half "
+        f"{est.spread():.3g} 1/s)"
     )
     if out is not None:
         con.print(f"written to {out}")
