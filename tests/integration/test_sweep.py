@@ -587,6 +587,15 @@ def test_sampled_sweep_has_a_run_dimension(tmp_path):
     assert fig.axes
 
 
+def test_the_chunking_rule_of_docs_sweeps_md():
+    """docs/sweeps.md's example: 17 x 25 runs, at most 64 per chunk, blocks of 2 x 25 (50
+    runs), 9 chunks (it said chunks hold 64 to 256 runs)."""
+    spec = load_spec(Path(__file__).parents[2] / "examples" / "sweep_ha_omega.toml")
+    assert spec.shape == (17, 25) and spec.chunk_shape == (2, 25) and spec.n_chunks == 9
+    doc = (Path(__file__).parents[2] / "docs" / "sweeps.md").read_text()
+    assert "blocks of 2 x 25 = 50 runs, 9 chunks, the last of 25" in " ".join(doc.split())
+
+
 def test_chunks_are_contiguous_blocks():
     assert chunk_shape_for((17, 25), 64) == (2, 25)
     assert chunk_shape_for((17, 25), 10) == (1, 10)
