@@ -1,12 +1,18 @@
 """Nonlinear dynamics of the paper's carrier: a bifurcation diagram over the track vibration
 amplitude h_a and the basins of attraction at the section 3.3 conditions.
 
-    python examples/analysis_demo.py --out analysis-demo              # full size, minutes
-    python examples/analysis_demo.py --out /tmp/demo --quick          # CI size, seconds
+    python examples/analysis_demo.py --out analysis-demo              # full size, about 6 s
+    python examples/analysis_demo.py --out /tmp/demo --quick          # CI size, under 2 s
     BRAIDSIM_DEMO_QUICK=1 python examples/analysis_demo.py --out /tmp/demo
 
 Writes ``bifurcation.png``, ``basins.png`` and ``demo.json`` (regimes, transitions,
 attractors, the contact-loss bound) into ``--out`` and prints a short summary.
+
+Run times with the compiled code cached, on the shared 2-core development machine
+(2026-11-30, two workers): full size 5.9-6.6 s wall (10.3-10.4 s of CPU), ``--quick`` 1.7 s.
+The full-size ``bifurcation.png`` is docs/img/analysis_bifurcation_ha.png and ``basins.png``
+docs/img/analysis_basins_3_3.png: to regenerate those, run it at full size and copy the two
+files there.
 
 What to look for: below the contact-loss bound h_a = a_p / omega_h^2 (docs/model.md §7,
 dashed line) the carrier started as in section 3.3 mostly rests on the wall; above it it

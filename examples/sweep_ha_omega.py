@@ -1,7 +1,8 @@
 """Where does the carrier stay on a vibrating track, and where does it chatter?
 
 Runs the sweep of ``sweep_ha_omega.toml`` (track vibration amplitude h_a against horn-gear
-speed omega, 17 x 25 one-second runs of the paper-3.3 carrier; about a minute on 2 cores;
+speed omega, 17 x 25 one-second runs of the paper-3.3 carrier; 4.5-5.8 s wall, 6.0 s of CPU,
+with the compiled code cached, on the shared 2-core development machine, 2026-11-30;
 resumable: run it again after an interruption) and draws two heat maps over it:
 
 * the regime of the track contact over the last 0.5 s (braidsim.batch: resting contact,
