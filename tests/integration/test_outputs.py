@@ -417,7 +417,7 @@ def test_sweep_writes_its_store_into_an_empty_folder(capsys, tmp_path) -> None:
     d.mkdir()
     code, _, err = run_cli(capsys, *_tiny_sweep(tmp_path, d, ["0.05 mm", "0.06 mm"]))
     assert code == 0, err
-    assert braidsim.sweep.open_sweep(d).attrs["complete"] is True
+    assert braidsim.sweep.open_sweep(d).attrs["complete"] == 1
 
 
 def test_sweep_failing_before_its_store_does_not_offer_resume(capsys, tmp_path, monkeypatch):
