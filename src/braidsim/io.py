@@ -36,8 +36,9 @@ def _prefix(p: Path) -> str:
     return f".{p.name}.braidsim-{os.getpid()}-"
 
 
-def _gone(pid: int) -> bool:
-    """Whether process ``pid`` no longer exists (one we may not signal exists)."""
+def process_gone(pid: int) -> bool:
+    """Whether process ``pid`` no longer exists (one we may not signal exists): the test
+    of the hidden temporaries that a killed braidsim left behind."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -51,7 +52,7 @@ def _stale_temporary(name: str) -> bool:
     """Whether ``name`` is a hidden temporary (:func:`_prefix`) of a braidsim process that
     is gone."""
     m = re.fullmatch(r"\..+\.braidsim-(\d+)-.*", name)
-    return m is not None and _gone(int(m.group(1)))
+    return m is not None and process_gone(int(m.group(1)))
 
 
 def remove_stale(p: Path) -> int:
@@ -67,7 +68,7 @@ def remove_stale(p: Path) -> int:
         m = pat.fullmatch(e.name)
         if m is None:
             continue
-        if not _gone(int(m.group(1))):
+        if not process_gone(int(m.group(1))):
             continue  # alive (or not ours to signal): another braidsim is writing
         if e.is_dir() and not e.is_symlink():
             shutil.rmtree(e, ignore_errors=True)

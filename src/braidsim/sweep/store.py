@@ -52,6 +52,7 @@ import numpy as np
 
 from braidsim.batch import METRICS, REGIME_FAILED, REGIMES
 from braidsim.errors import InputError, StoreError
+from braidsim.io import process_gone
 from braidsim.params import SCHEMA
 from braidsim.result import UNITS as SERIES_UNITS
 from braidsim.sweep.spec import RUN_DIM, TIME_DIM, SweepSpec
@@ -100,16 +101,6 @@ def _damaged(path: str | Path, what: str) -> StoreError:
     )
 
 
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
 def remove_stale_temporaries(final: Path) -> int:
     """Remove the hidden folders ``.NAME.creating-PID-*`` that a killed process left beside
     the store ``NAME`` (only those whose process is gone); return how many."""
@@ -119,7 +110,7 @@ def remove_stale_temporaries(final: Path) -> int:
         return 0
     for p in final.parent.iterdir():
         m = pat.fullmatch(p.name)
-        if m and not _pid_alive(int(m.group(1))):
+        if m and process_gone(int(m.group(1))):
             shutil.rmtree(p, ignore_errors=True)
             n += 1
     return n
