@@ -260,28 +260,14 @@ def _axis_range(
     import numpy as np
 
     from braidsim.params import SCHEMA
+    from braidsim.sweep.spec import check_range
 
     (o_a, text_a), (o_b, text_b), (o_n, n) = start, stop, count
     a = _axis_value(o_a, key, text_a)
     if n == 1 and not stop_typed:
         return np.array([a])
     b = _axis_value(o_b, key, text_b)
-    unit = f" {SCHEMA[key].unit}" if SCHEMA[key].unit else ""
-    if b < a:
-        raise InputError(
-            f"{o_b}: {text_b} ({b:g}{unit}) is below {o_a} ({text_a}; {a:g}{unit}), a reversed "
-            f"range; allowed {o_b} > {o_a}"
-        )
-    if n > 1 and b == a:
-        raise InputError(
-            f"{o_b}: {text_b} equals {o_a} ({text_a}; {a:g}{unit}), an empty range of {n} equal "
-            f"values; allowed {o_b} > {o_a} (or {o_n} 1)"
-        )
-    if n == 1 and b != a:
-        raise InputError(
-            f"{o_n}: 1 value runs {o_a} only ({o_b} {text_b} would not be used); allowed "
-            f"{o_n} >= 2, or {o_b} equal to {o_a} for a single value"
-        )
+    check_range((a, b, n), (o_a, o_b, o_n), (text_a, text_b), SCHEMA[key].unit)
     return np.linspace(a, b, n)
 
 

@@ -353,6 +353,41 @@ class SweepSpec:
         return hashlib.sha256(text.encode()).hexdigest()
 
 
+def check_range(
+    values: tuple[float, float, int],
+    names: tuple[str, str, str],
+    said: tuple[str, str],
+    unit: str,
+    where: str = "",
+    reversed_hint: str = "",
+) -> None:
+    """The rule of a range of ``num`` values from ``start`` to ``stop`` (``values``, SI):
+    stop above start, or equal to it for a single value. A reversed range, several equal
+    values, or one value with a stop it would not use is refused, naming the entry as the
+    caller calls it (``names`` of start, stop and num after ``where``: a sweep axis's
+    ``axes[0].stop``, bifurcation's ``--to``) with the values as typed (``said``) and in
+    SI."""
+    start, stop, num = values
+    n_a, n_b, n_n = names
+    s_a, s_b = said
+    u = f" {unit}" if unit else ""
+    if num > 1 and start == stop:
+        raise InputError(
+            f"{where}{n_b}: {s_b} equals {n_a} ({s_a}; {start:g}{u}), an empty range of {num} "
+            f"equal values; allowed {n_b} > {n_a} (or {n_n} 1)"
+        )
+    if stop < start:  # (with num = 1 as well: stop would be ignored)
+        raise InputError(
+            f"{where}{n_b}: {s_b} ({stop:g}{u}) is below {n_a} ({s_a}; {start:g}{u}), a "
+            f"reversed range; allowed {n_b} > {n_a}{reversed_hint}"
+        )
+    if num == 1 and stop != start:  # (the range's stop would be silently unused)
+        raise InputError(
+            f"{where}{n_n}: 1 value runs {n_a} only ({n_b} {s_b} would not be used); allowed "
+            f"{n_n} >= 2, or {n_b} equal to {n_a} for a single value"
+        )
+
+
 def _axis(i: int, table: Any, base: Scenario) -> Axis:
     where = f"axes[{i}]."
     t = expect_table(f"axes[{i}]", table)
@@ -418,23 +453,14 @@ def _axis(i: int, table: Any, base: Scenario) -> Axis:
         # (the values as written, "60 rpm", and in SI: a unit other than SI's read as
         # bare numbers of another size)
         said = {k: (t[k] if isinstance(t[k], str) else f"{t[k]:g}") for k in ("start", "stop")}
-        unit = f" {spec.unit}" if spec.unit else ""
-        if num > 1 and start == stop:
-            raise InputError(
-                f"{where}stop: {said['stop']} equals start ({said['start']}; {start:g}{unit}), "
-                "an empty range; allowed stop != start"
-            )
-        if stop < start:  # (with num = 1 as well: stop would be ignored)
-            raise InputError(
-                f"{where}stop: {said['stop']} ({stop:g}{unit}) is below start "
-                f"({said['start']}; {start:g}{unit}), a reversed range; allowed stop > start "
-                "(list values = [...] for another order)"
-            )
-        if num == 1 and stop != start:  # (the range's stop would be silently unused)
-            raise InputError(
-                f"{where}num: 1 value runs start only (stop {said['stop']} would not be used); "
-                "allowed num >= 2, or stop equal to start for a single value"
-            )
+        check_range(
+            (start, stop, num),
+            ("start", "stop", "num"),
+            (said["start"], said["stop"]),
+            spec.unit,
+            where,
+            " (list values = [...] for another order)",
+        )
         if spacing == "log":
             if start <= 0.0 or stop <= 0.0:
                 raise InputError(
