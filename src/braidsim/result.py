@@ -121,7 +121,21 @@ def impacts_csv(impacts: pd.DataFrame) -> str:
 
 def ranges_dict(ranges: np.ndarray, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
     """``{"depth": [min, max], ...}`` of one pair and window of a (window, pair, quantity,
-    min/max) range array; a window that saw no point reads [0, 0]."""
+    min/max) range array; a window that saw no point reads [0, 0].
+
+    Raises
+    ------
+    InputError
+        ``pair`` not one of :data:`PAIRS`, or ``window`` not the index of a window.
+    """
+    if pair not in PAIRS:
+        raise InputError(f"pair: {pair!r} is not known; allowed {' or '.join(PAIRS)}")
+    n = ranges.shape[0]
+    if not (isinstance(window, int | np.integer) and -n <= window < n):
+        raise InputError(
+            f"window: {window!r} is out of range; allowed 0 to {n - 1} (the index of a window "
+            "of the run; window 0 is the whole run)"
+        )
     ip = PAIRS.index(pair)
     out = {}
     for q, name in enumerate(RANGE_QUANTITIES):
@@ -257,17 +271,30 @@ class Result:
     def ranges_dict(self, pair: str = "track", window: int = 0) -> dict[str, list[float]]:
         """Exact extremes of one pair in one window, paper signs, SI units.
 
-        ``{"depth": [min, max], "stiffness_force": .., "damping_force": .., "contact_force": ..}``
+        ``pair`` is ``"track"`` (x) or ``"slot"`` (y); ``window`` the index of a window of
+        :attr:`windows` (0: the whole run; :meth:`window_index` finds one by its times).
+        Returns ``{"depth": [min, max] (m), "stiffness_force": [min, max] (N),
+        "damping_force": .. (N), "contact_force": .. (N)}``; InputError for an unknown pair
+        or window.
         """
         return ranges_dict(self.ranges, pair, window)
 
     def window_index(self, t0: float, t1: float) -> int:
-        """Index of the window [t0, t1] (it must have been asked for in ``simulate``)."""
+        """Index of the window [t0, t1] [s] in :attr:`windows` (window 0 is the whole run;
+        the others must have been asked for with ``simulate(..., windows=[(t0, t1)])``).
+
+        Raises
+        ------
+        InputError
+            No window [t0, t1] was computed (the message lists those that were).
+        """
         for i, (a, b) in enumerate(self.windows):
             if math.isclose(a, t0, abs_tol=1e-12) and math.isclose(b, t1, abs_tol=1e-12):
                 return i
-        raise KeyError(
-            f"window [{t0}, {t1}] was not computed; pass windows=[({t0}, {t1})] to simulate"
+        have = ", ".join(f"({a:g}, {b:g})" for a, b in self.windows)
+        raise InputError(
+            f"window: [{t0:g}, {t1:g}] s was not computed; allowed one of {have} (ask for "
+            f"others with simulate(..., windows=[({t0:g}, {t1:g})]))"
         )
 
     # ------------------------------------------------------------------ provenance

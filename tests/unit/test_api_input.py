@@ -394,3 +394,19 @@ def test_a_stiff_contact_of_a_high_exponent_is_not_called_extreme() -> None:
     )
     msg = failure_message(L.ST_STEP_COLLAPSE, 0.01, build_model(sc, 0.1), {})
     assert "extreme" not in msg and "raise contact.min_impact_velocity" in msg
+
+
+def test_result_ranges_dict_refuses_an_unknown_pair_or_window(res: braidsim.Result) -> None:
+    with pytest.raises(InputError, match=r"^pair: 'trak' is not known; allowed track or slot"):
+        res.ranges_dict("trak")
+    with pytest.raises(InputError, match=r"^window: 5 is out of range; allowed 0 to 0 "):
+        res.ranges_dict("track", 5)
+    with pytest.raises(InputError, match=r"^window: 0.5 is out of range; allowed 0 to 0 "):
+        res.ranges_dict("track", 0.5)  # type: ignore[arg-type]
+    assert res.ranges_dict("slot", -1) == res.ranges_dict("slot", 0)  # numpy's last window
+
+
+def test_result_window_index_of_a_window_not_computed(res: braidsim.Result) -> None:
+    with pytest.raises(InputError, match=r"^window: \[0, 0.005\] s was not computed; allowed "):
+        res.window_index(0, 0.005)
+    assert res.window_index(0, 0.02) == 0
