@@ -515,6 +515,17 @@ def simulate(
         raise InputError("sensitivities: a list of keys, e.g. ['track.clearance']")
     if keys and callable(series):
         raise InputError("sensitivities: need series=True or False, not a series callable")
+    if isinstance(series, bool | np.bool_):
+        series = bool(series)  # (compared by identity below)
+    elif not callable(series):
+        raise InputError(
+            f"series: {_shown(series)} is not allowed; allowed True, False or a callable that "
+            "receives the rows"
+        )
+    if not isinstance(record_events, bool | np.bool_):
+        raise InputError(
+            f"record_events: {_shown(record_events)} is not allowed; allowed True or False"
+        )
     if not (rms is None or isinstance(rms, bool | np.bool_)):
         raise InputError(f"rms: {_shown(rms)} is not allowed; allowed True, False or None")
     model = build_model(

@@ -410,3 +410,13 @@ def test_result_window_index_of_a_window_not_computed(res: braidsim.Result) -> N
     with pytest.raises(InputError, match=r"^window: \[0, 0.005\] s was not computed; allowed "):
         res.window_index(0, 0.005)
     assert res.window_index(0, 0.02) == 0
+
+
+def test_simulate_refuses_series_and_record_events_of_another_type() -> None:
+    """A string is truthy: "no" must not silently run with another meaning."""
+    with pytest.raises(InputError, match=r"^series: 'no' is not allowed; allowed True, False or "):
+        braidsim.simulate(SC, 0.01, series="no")  # type: ignore[arg-type]
+    with pytest.raises(InputError, match=r"^record_events: 'no' is not allowed; allowed True or "):
+        braidsim.simulate(SC, 0.01, record_events="no")  # type: ignore[arg-type]
+    a = braidsim.simulate(SC, 0.01, record_events=np.bool_(False), series=np.bool_(True))
+    assert a.series["t"].size > 0 and not np.any(a.series["kind"][1:-1])
