@@ -452,8 +452,9 @@ def simulate(
         ``simulation.sample_interval``;
         0 keeps only the event rows.
     sample_times : array, optional
-        Explicit sample times [s], a flat list (numbers in s or strings with a unit;
-        replaces ``sample_interval``).
+        Explicit sample times [s], a flat list (numbers in s or strings with a unit),
+        strictly increasing and within the run (replaces ``sample_interval``; an empty list
+        keeps only the event rows).
     record_events : bool
         Add the exact onset/exit/peak/transfer states to the series.
     start : State, optional
@@ -558,9 +559,23 @@ def simulate(
         if sample_times is None:  # unused, but refused as it would be with a series
             _sample_interval(sc, sample_interval, T - t_start)
     elif sample_times is not None:
-        st = np.sort(time_array("sample_times", sample_times))
-        if st.size and (st[0] < t_start or st[-1] > T or not np.all(np.isfinite(st))):
-            raise InputError(f"sample_times: must lie in [{t_start:g}, {T:g}] s")
+        st = time_array("sample_times", sample_times)
+        allowed = f"allowed increasing times {t_start:g} <= t <= {T:g} s, the span of the run"
+        bad = np.flatnonzero(~np.isfinite(st))
+        if bad.size:
+            raise InputError(
+                f"sample_times: entry {bad[0]} is not a finite time ({st[bad[0]]!r}); {allowed}"
+            )
+        down = np.flatnonzero(np.diff(st) <= 0.0)
+        if down.size:
+            i = int(down[0]) + 1
+            raise InputError(
+                f"sample_times: not strictly increasing at entry {i} ({st[i - 1]:.9g} s then "
+                f"{st[i]:.9g} s); {allowed}"
+            )
+        if st.size and (st[0] < t_start or st[-1] > T):
+            out = st[0] if st[0] < t_start else st[-1]
+            raise InputError(f"sample_times: {out:g} s is outside the run; {allowed}")
     else:
         dt, span = _sample_interval(sc, sample_interval, T - t_start)
         dt0, k = dt, 1

@@ -420,3 +420,21 @@ def test_simulate_refuses_series_and_record_events_of_another_type() -> None:
         braidsim.simulate(SC, 0.01, record_events="no")  # type: ignore[arg-type]
     a = braidsim.simulate(SC, 0.01, record_events=np.bool_(False), series=np.bool_(True))
     assert a.series["t"].size > 0 and not np.any(a.series["kind"][1:-1])
+
+
+def test_sample_times_must_be_finite_increasing_times_in_the_run() -> None:
+    """As simulate_batch's series_times: times out of order are refused (they were sorted
+    silently, repeats kept as repeated rows); a missing or NaN time is named as such."""
+    with pytest.raises(InputError, match=r"^sample_times: not strictly increasing at entry 1 "):
+        braidsim.simulate(SC, 0.01, sample_times=[0.005, 0.001])
+    with pytest.raises(InputError, match=r"^sample_times: not strictly increasing at entry 1 "):
+        braidsim.simulate(SC, 0.01, sample_times=[0.001, 0.001])
+    for bad in ([0.001, float("nan")], [None]):
+        with pytest.raises(InputError, match=r"^sample_times: entry \d+ is not a finite time"):
+            braidsim.simulate(SC, 0.01, sample_times=bad)  # type: ignore[arg-type]
+    with pytest.raises(
+        InputError,
+        match=r"^sample_times: 0.5 s is outside the run; allowed increasing times 0 <= t <= 0.01 s",
+    ):
+        braidsim.simulate(SC, 0.01, sample_times=[0.001, 0.5])
+    assert braidsim.simulate(SC, 0.01, sample_times=[], record_events=False).series["t"].size == 0
