@@ -606,7 +606,8 @@ class Scenario:
         *,
         check_start: bool = True,
     ) -> Scenario:
-        """A new scenario with ``overrides`` (dotted keys, numbers or unit strings) applied.
+        """A new scenario with ``overrides`` (dotted keys or nested tables, numbers or unit
+        strings) applied.
 
         ``check_start=False`` leaves the start's position unchecked against the walls: for a
         caller that sets the start itself afterwards (a machine's carriers start at rest on
@@ -626,9 +627,8 @@ class Scenario:
             )
         raw: dict[str, Any] = dict(self.values)
         explicit = set(self.explicit)
-        for key, value in (overrides or {}).items():
-            if not isinstance(key, str):
-                raise InputError(f"{key!r}: a parameter key must be a string")
+        # nested tables ({"track": {"clearance": ...}}) read as dotted keys, as in a scenario
+        for key, value in flatten(overrides or {}).items():
             if key not in SCHEMA:
                 raise _unknown(key)
             raw[key] = convert(SCHEMA[key], value)
@@ -792,7 +792,8 @@ def load_scenario(
         Built-in name (``braidsim scenarios``), path to a TOML file, or ``{key: value}``.
         A TOML file may say ``extends = "paper-3.1"`` to start from a built-in scenario.
     overrides : mapping, optional
-        ``{dotted key: value}``; values are SI numbers or unit strings.
+        ``{dotted key: value}`` (or nested tables, ``{"track": {"clearance": ...}}``); values
+        are SI numbers or unit strings.
 
     Returns
     -------

@@ -438,3 +438,20 @@ def test_sample_times_must_be_finite_increasing_times_in_the_run() -> None:
     ):
         braidsim.simulate(SC, 0.01, sample_times=[0.001, 0.5])
     assert braidsim.simulate(SC, 0.01, sample_times=[], record_events=False).series["t"].size == 0
+
+
+def test_overrides_take_nested_tables_as_a_scenario_mapping_does() -> None:
+    """{"track": {"clearance": ...}} is read as track.clearance by load_scenario's mapping;
+    as overrides it was an unknown key 'track' (did you mean 'track.harmonics'?)."""
+    nested = {"track": {"clearance": "2 mm"}, "contact": {"track": {"restitution": 0.7}}}
+    a = braidsim.load_scenario(SC, overrides=nested)
+    b = braidsim.load_scenario(
+        SC, overrides={"track.clearance": "2 mm", "contact.track.restitution": 0.7}
+    )
+    assert a.values == b.values and a.explicit == b.explicit
+    with pytest.raises(InputError, match=r"^track.clearence: unknown parameter \(did you mean "):
+        braidsim.load_scenario(SC, overrides={"track": {"clearence": "2 mm"}})
+    with pytest.raises(InputError, match=r"^track.clearance: given twice"):
+        braidsim.load_scenario(
+            SC, overrides={"track.clearance": 1e-3, "track": {"clearance": 2e-3}}
+        )
