@@ -68,7 +68,7 @@ import numpy as np
 from braidsim.core import CARRIER_COLUMNS, RawRun
 from braidsim.errors import InputError, SimulationError
 from braidsim.model import Model, build_model
-from braidsim.params import SCHEMA, Scenario, load_scenario
+from braidsim.params import SCHEMA, Scenario, flatten, load_scenario
 from braidsim.regimes import CONTACT_PATTERNS, FAILED, window_contacts
 from braidsim.result import UNITS as SERIES_UNITS
 
@@ -672,8 +672,9 @@ def simulate_batch(
 def resolved_parameters(
     models: Sequence[Model], sets: Sequence[Mapping[str, Any]]
 ) -> dict[str, np.ndarray]:
-    """Every key the parameter sets give, as each run's model resolved it (SI)."""
-    keys = list(dict.fromkeys(k for s in sets for k in s))
+    """Every key the parameter sets give (a nested table's as dotted keys, as the overrides
+    read them), as each run's model resolved it (SI)."""
+    keys = list(dict.fromkeys(k for s in sets for k in flatten(s)))
     out: dict[str, np.ndarray] = {}
     for key in keys:
         vals = [m.scenario[key] for m in models]

@@ -225,3 +225,11 @@ def test_regime_rule(rows, regime, fraction):
     _episode_metrics(_episodes(rows), 0.5, 1.0, values)
     assert values[METRIC_INDEX["regime"]] == regime
     assert values[METRIC_INDEX["track_contact_fraction"]] == pytest.approx(fraction)
+
+
+def test_parameter_sets_take_nested_tables_as_overrides_do():
+    """{"track": {"clearance": ...}} is track.clearance, in the parameters and the table."""
+    b = simulate_batch("paper-3.1", [{"track": {"clearance": "2 mm"}}, {}], duration=0.005)
+    assert list(b.parameters) == ["track.clearance"]
+    assert b.parameters["track.clearance"].tolist() == [0.002, 0.003]
+    assert b.to_dataframe()["track.clearance"].tolist() == [0.002, 0.003]
