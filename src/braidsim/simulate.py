@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -115,6 +115,20 @@ def _sample_interval(
             f"allowed >= {length * 1e-300:.3g} s"
         )
     return dt, span
+
+
+def _sensitivity_keys(sensitivities: object) -> tuple[str, ...]:
+    """The keys of ``simulate(..., sensitivities=...)``: None or a list of strings."""
+    allowed = "allowed a list of numeric scenario keys, e.g. ['track.clearance']"
+    if sensitivities is None:
+        return ()
+    if isinstance(sensitivities, str | bytes | Mapping) or not isinstance(sensitivities, Iterable):
+        raise InputError(f"sensitivities: {_shown(sensitivities)} is not a list of keys; {allowed}")
+    keys = list(sensitivities)
+    for i, key in enumerate(keys):
+        if not isinstance(key, str):
+            raise InputError(f"sensitivities: entry {i} ({_shown(key)}) is not a key; {allowed}")
+    return tuple(str(key) for key in keys)  # (numpy's strings as str)
 
 
 def run_windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
@@ -511,9 +525,7 @@ def simulate(
             f"{type(start).__name__}"
         )
     t_start = 0.0 if start is None else float(start.t)
-    keys = tuple(sensitivities or ())
-    if isinstance(sensitivities, str):
-        raise InputError("sensitivities: a list of keys, e.g. ['track.clearance']")
+    keys = _sensitivity_keys(sensitivities)
     if keys and callable(series):
         raise InputError("sensitivities: need series=True or False, not a series callable")
     if isinstance(series, bool | np.bool_):

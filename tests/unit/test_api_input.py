@@ -455,3 +455,22 @@ def test_overrides_take_nested_tables_as_a_scenario_mapping_does() -> None:
         braidsim.load_scenario(
             SC, overrides={"track.clearance": 1e-3, "track": {"clearance": 2e-3}}
         )
+
+
+def test_sensitivities_must_be_a_list_of_keys() -> None:
+    """A number was a TypeError from iterating it; a dict's keys and a numpy array of two
+    keys (its truth value is ambiguous) were taken or failed inside."""
+    allowed = r"allowed a list of numeric scenario keys, e.g. \['track.clearance'\]"
+    for bad in (5, {"track.clearance": 1.0}, "track.clearance"):
+        with pytest.raises(
+            InputError, match=rf"^sensitivities: .* is not a list of keys; {allowed}"
+        ):
+            braidsim.simulate(SC, 0.005, sensitivities=bad)  # type: ignore[arg-type]
+    with pytest.raises(
+        InputError, match=rf"^sensitivities: entry 1 \(None\) is not a key; {allowed}"
+    ):
+        braidsim.simulate(SC, 0.005, sensitivities=["track.clearance", None])  # type: ignore[list-item]
+    keys = np.array(["track.clearance", "contact.track.restitution"])
+    res = braidsim.simulate(SC, 0.005, sensitivities=keys, series=False)  # type: ignore[arg-type]
+    assert res.sensitivity.keys == ("track.clearance", "contact.track.restitution")
+    assert all(type(k) is str for k in res.sensitivity.keys)
