@@ -17,6 +17,7 @@ import numpy as np
 
 from braidsim.core.layout import EPISODE_COLUMNS, KIND_NAMES
 from braidsim.errors import InputError
+from braidsim.units import to_si
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -379,12 +380,19 @@ class Result:
         It starts with the provenance of :meth:`provenance` (``braidsim_version``,
         ``created``, ``scenario``, ``simulation`` with the start time, the duration actually
         simulated and the backend, and ``parameters``, the resolved scenario). With
-        ``window`` the ranges and the impact list cover only [t0, t1].
+        ``window``, one of the windows given to :func:`braidsim.simulate` (times in s or
+        strings with a unit), the ranges and the impact list cover only [t0, t1]; an
+        InputError names the windows there are for another.
         """
         iw = 0
         if window is not None:
             try:
-                iw = self.window_index(*window)
+                if isinstance(window, str) or len(window) != 2:
+                    raise TypeError
+                # each time a number in s or a string with a unit, as simulate's windows
+                t0, t1 = (to_si("window", t, "s") for t in window)
+                iw = self.window_index(t0, t1)
+                window = (t0, t1)
             except (KeyError, TypeError, ValueError):
                 have = ", ".join(f"({a:g}, {b:g})" for a, b in self.windows)
                 raise InputError(

@@ -474,3 +474,11 @@ def test_sensitivities_must_be_a_list_of_keys() -> None:
     res = braidsim.simulate(SC, 0.005, sensitivities=keys, series=False)  # type: ignore[arg-type]
     assert res.sensitivity.keys == ("track.clearance", "contact.track.restitution")
     assert all(type(k) is str for k in res.sensitivity.keys)
+
+
+def test_summary_window_takes_times_with_units_as_simulate_does() -> None:
+    res = braidsim.simulate(SC, 0.01, windows=[("1 ms", "5 ms")], series=False)
+    assert res.summary(window=("1 ms", "5 ms"))["window"] == [0.001, 0.005]
+    assert res.summary(window=("1 ms", "5 ms"))["x"] == res.summary(window=(0.001, 0.005))["x"]
+    with pytest.raises(InputError, match=r"^window: \('1 ms', '5 kg'\) s is not one this result"):
+        res.summary(window=("1 ms", "5 kg"))
