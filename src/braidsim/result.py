@@ -281,7 +281,7 @@ class Result:
         return ranges_dict(self.ranges, pair, window)
 
     def window_index(self, t0: float, t1: float) -> int:
-        """Index of the window [t0, t1] [s] in :attr:`windows` (window 0 is the whole run;
+        """Index of the window from t0 to t1 (in s) in :attr:`windows` (window 0 is the whole run;
         the others must have been asked for with ``simulate(..., windows=[(t0, t1)])``).
 
         Raises
