@@ -806,6 +806,12 @@ def load_scenario(
         Unknown key (naming the closest), wrong unit, out-of-range value, malformed TOML.
     """
     if isinstance(scenario, Mapping):
+        if "extends" in scenario:
+            # (a file's extends names its base by path or name; a mapping has no file)
+            raise InputError(
+                "scenario: 'extends' is read in a scenario TOML file only; allowed from "
+                "Python load_scenario(BASE, overrides={...}) with BASE a built-in name or path"
+            )
         meta: dict[str, str] = {}
         name, raw = "custom", flatten(scenario)
     elif not isinstance(scenario, str | Path):

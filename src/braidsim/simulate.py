@@ -101,6 +101,36 @@ def time_array(key: str, values: object) -> np.ndarray:
         return np.array([to_si(key, v, "s") for v in values], dtype=float)
 
 
+def increasing_times(
+    key: str, values: object, t0: float, t1: float, span: str, slack: float = 0.0
+) -> np.ndarray:
+    """:func:`time_array`, each time finite, the times strictly increasing and within
+    [t0, t1 (1 + slack)] s (``span`` says what that interval is).
+
+    Raises
+    ------
+    InputError
+        Naming ``key`` and the first entry that is not a finite time, out of order, or
+        outside [t0, t1].
+    """
+    st = time_array(key, values)
+    allowed = f"allowed increasing times {t0:g} <= t <= {t1:g} s, {span}"
+    bad = np.flatnonzero(~np.isfinite(st))
+    if bad.size:
+        raise InputError(f"{key}: entry {bad[0]} is not a finite time ({st[bad[0]]!r}); {allowed}")
+    down = np.flatnonzero(np.diff(st) <= 0.0)
+    if down.size:
+        i = int(down[0]) + 1
+        raise InputError(
+            f"{key}: not strictly increasing at entry {i} ({st[i - 1]:.9g} s then "
+            f"{st[i]:.9g} s); {allowed}"
+        )
+    if st.size and (st[0] < t0 or st[-1] > t1 * (1 + slack)):
+        out = st[0] if st[0] < t0 else st[-1]
+        raise InputError(f"{key}: {out:g} s is outside [{t0:g}, {t1:g}] s; {allowed}")
+    return st
+
+
 def _sample_interval(
     sc: Scenario, sample_interval: float | None, length: float
 ) -> tuple[float, float]:
@@ -367,7 +397,12 @@ def run_model(
     if start is not None:
         y0 = np.asarray(start.y, dtype=float)
         if y0.shape != (n_full,):
-            raise InputError(f"start: the state vector needs {n_full} entries, got {y0.shape}")
+            raise InputError(
+                f"start: a state of {y0.size} entries, where this scenario's model "
+                f"({type(model.record).__name__}) has {n_full}: the state of a run of another "
+                "model; allowed the final state of a run of the same model (for the carrier, "
+                "the same simulation.dof)"
+            )
         n_coord2 = state_size(model.record, False)
         # a quadrature the previous run did not integrate starts from this run's start
         y0 = np.where(np.isnan(y0) & (np.arange(n_full) >= n_coord2), 0.0, y0)[:n]
@@ -571,23 +606,7 @@ def simulate(
         if sample_times is None:  # unused, but refused as it would be with a series
             _sample_interval(sc, sample_interval, T - t_start)
     elif sample_times is not None:
-        st = time_array("sample_times", sample_times)
-        allowed = f"allowed increasing times {t_start:g} <= t <= {T:g} s, the span of the run"
-        bad = np.flatnonzero(~np.isfinite(st))
-        if bad.size:
-            raise InputError(
-                f"sample_times: entry {bad[0]} is not a finite time ({st[bad[0]]!r}); {allowed}"
-            )
-        down = np.flatnonzero(np.diff(st) <= 0.0)
-        if down.size:
-            i = int(down[0]) + 1
-            raise InputError(
-                f"sample_times: not strictly increasing at entry {i} ({st[i - 1]:.9g} s then "
-                f"{st[i]:.9g} s); {allowed}"
-            )
-        if st.size and (st[0] < t_start or st[-1] > T):
-            out = st[0] if st[0] < t_start else st[-1]
-            raise InputError(f"sample_times: {out:g} s is outside the run; {allowed}")
+        st = increasing_times("sample_times", sample_times, t_start, T, "the span of the run")
     else:
         dt, span = _sample_interval(sc, sample_interval, T - t_start)
         dt0, k = dt, 1

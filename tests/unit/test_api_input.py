@@ -434,7 +434,7 @@ def test_sample_times_must_be_finite_increasing_times_in_the_run() -> None:
             braidsim.simulate(SC, 0.01, sample_times=bad)  # type: ignore[arg-type]
     with pytest.raises(
         InputError,
-        match=r"^sample_times: 0.5 s is outside the run; allowed increasing times 0 <= t <= 0.01 s",
+        match=r"^sample_times: 0.5 s is outside \[0, 0.01\] s; allowed increasing times 0 <= t",
     ):
         braidsim.simulate(SC, 0.01, sample_times=[0.001, 0.5])
     assert braidsim.simulate(SC, 0.01, sample_times=[], record_events=False).series["t"].size == 0
@@ -482,3 +482,31 @@ def test_summary_window_takes_times_with_units_as_simulate_does() -> None:
     assert res.summary(window=("1 ms", "5 ms"))["x"] == res.summary(window=(0.001, 0.005))["x"]
     with pytest.raises(InputError, match=r"^window: \('1 ms', '5 kg'\) s is not one this result"):
         res.summary(window=("1 ms", "5 kg"))
+
+
+def test_batch_series_times_are_checked_as_sample_times_are() -> None:
+    """A NaN among a batch's series_times was 'must lie in [0, T]'; the same check as
+    simulate's sample_times names it (one function for both)."""
+    from braidsim.batch import simulate_batch
+
+    sc = braidsim.load_scenario(SC)
+    with pytest.raises(InputError, match=r"^series_times: entry 1 is not a finite time"):
+        simulate_batch(sc, [{}], 0.01, series=["x"], series_times=[0.001, float("nan")])
+    with pytest.raises(InputError, match=r"^series_times: not strictly increasing at entry 1"):
+        simulate_batch(sc, [{}], 0.01, series=["x"], series_times=[0.002, 0.001])
+    with pytest.raises(InputError, match=r"^series_times: 0.5 s is outside \[0, 0.01\] s"):
+        simulate_batch(sc, [{}], 0.01, series=["x"], series_times=[0.5])
+
+
+def test_a_start_state_of_another_model_is_named_so() -> None:
+    """The final state of an xy run given as an x-only scenario's start was 'the state
+    vector needs 7 entries, got (13,)'."""
+    xy = braidsim.simulate(SC, 0.002, overrides={"simulation.dof": "xy"}, series=False)
+    with pytest.raises(InputError, match=r"^start: a state of 13 entries, where this scenario's"):
+        braidsim.simulate(SC, 0.002, start=xy.final_state, series=False)
+
+
+def test_extends_in_a_scenario_mapping_is_explained() -> None:
+    """'extends' works in a TOML file; in a mapping it was 'unknown parameter'."""
+    with pytest.raises(InputError, match=r"^scenario: 'extends' is read in a scenario TOML file"):
+        braidsim.load_scenario({"extends": "paper-3.1", "track.clearance": "2 mm"})
