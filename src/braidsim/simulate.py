@@ -574,6 +574,7 @@ def simulate(
         raise InputError(
             f"record_events: {_shown(record_events)} is not allowed; allowed True or False"
         )
+    record_events = bool(record_events)  # (a numpy bool as the options' plain bool)
     if not (rms is None or isinstance(rms, bool | np.bool_)):
         raise InputError(f"rms: {_shown(rms)} is not allowed; allowed True, False or None")
     model = build_model(

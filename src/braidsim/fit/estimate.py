@@ -877,12 +877,8 @@ def _part_table(problem: Problem, u: np.ndarray) -> list[dict[str, Any]]:
             "noise": dict(part.sigma),
         }
         if not isinstance(part, ImpactProblem) and part.has_events:
-            row["pulses"] = (
-                part.onsets,
-                part._model_onsets(res, u)[0],
-                part._model_onsets(res, u, clear=True)[0],
-                part.record.sample_interval,
-            )
+            t_may, _, t_must, _ = part._model_onsets(res, u)
+            row["pulses"] = (part.onsets, t_may, t_must, part.record.sample_interval)
         out.append(row)
     return out
 

@@ -376,14 +376,14 @@ class Problem:
     # -- events ----------------------------------------------------------------------------
 
     def _model_onsets(
-        self, res: Result, u: np.ndarray, clear: bool = False
-    ) -> tuple[np.ndarray, np.ndarray]:
+        self, res: Result, u: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Onsets [s, the record's time] of the model's track impacts that the record may
-        show, and their rows in ``res.impacts``: those whose samples of the model's own
-        series (at the record's times) within the contact reach the record's pulse
-        threshold less :data:`PULSE_MARGIN` noise levels (``clear``: beyond it by as much,
-        impacts the record must show), as :func:`~braidsim.fit.data.detect_pulses` sees
-        the record. (By the contact's continuous peak instead, an impact 3-4 samples long
+        show, and their rows in ``res.impacts``, then the same of those it must show: the
+        first those whose samples of the model's own series (at the record's times) within
+        the contact reach the record's pulse threshold less :data:`PULSE_MARGIN` noise
+        levels, the second beyond it by as much, as :func:`~braidsim.fit.data.detect_pulses`
+        sees the record. (By the contact's continuous peak instead, an impact 3-4 samples long
         whose noisy samples all missed the threshold counted as a pulse the record lacks,
         4.4 ms from any: on paper-3.1 that residual moved the impact-time stage's optimum
         to a clearance 2.4 % off, and the record residuals' fit from there ended in a local
@@ -399,15 +399,17 @@ class Problem:
         b = np.searchsorted(ts, t_end, "right")
         peak = np.array([excursion[i:j].max() if j > i else 0.0 for i, j in zip(a, b, strict=True)])
         margin = PULSE_MARGIN * self.pulse_noise
-        keep = rows[peak > self.pulse_threshold + (margin if clear else -margin)]
-        return np.asarray(imp["t"], dtype=float)[keep] - self.time_offset(u), keep
+        t_rec = t_on - self.time_offset(u)
+        may = peak > self.pulse_threshold - margin
+        must = peak > self.pulse_threshold + margin
+        return t_rec[may], rows[may], t_rec[must], rows[must]
 
     def _event_parts(
-        self, res: Result, u: np.ndarray
+        self, tm: np.ndarray, rows: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(the measured onsets' residuals, the index of each one's nearest model impact
-        among those the record may show, their onsets and rows)."""
-        tm, rows = self._model_onsets(res, u)
+        among those the record may show, whose onsets ``tm`` and rows are given, those
+        onsets and rows)."""
         td = self.onsets
         sig_t = self.record.sample_interval
         T = self.record.duration
@@ -416,10 +418,9 @@ class Problem:
         near = np.abs(tm[None, :] - td[:, None]).argmin(axis=1)
         return (tm[near] - td) / sig_t, near, tm, rows
 
-    def _extra_parts(self, res: Result, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(each model impact the record must show: its onset less its nearest measured
-        one [s], its row)."""
-        tm, rows = self._model_onsets(res, u, clear=True)
+    def _extra_parts(self, tm: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(each model impact the record must show, of onsets ``tm`` and rows given: its
+        onset less its nearest measured one [s], its row)."""
         td = self.onsets
         if tm.size == 0 or td.size == 0:
             return np.zeros(0), rows[:0]
@@ -427,8 +428,9 @@ class Problem:
         return diff[np.arange(tm.size), np.abs(diff).argmin(axis=1)], rows
 
     def _event_r(self, res: Result, u: np.ndarray) -> np.ndarray:
-        r_d = self._event_parts(res, u)[0]
-        d = self._extra_parts(res, u)[0]
+        t_may, rows_may, t_must, rows_must = self._model_onsets(res, u)
+        r_d = self._event_parts(t_may, rows_may)[0]
+        d = self._extra_parts(t_must, rows_must)[0]
         extra = float(np.sqrt(np.sum(d * d))) / self.record.sample_interval
         return np.concatenate([r_d, [extra]])
 
@@ -441,12 +443,13 @@ class Problem:
             dt[:, self._scenario_columns()] = np.asarray(res.sensitivity.impacts)[:, :, 0]
         if self.i_offset is not None:
             dt[:, self.i_offset] = -1.0
-        _r_d, near, tm, rows = self._event_parts(res, u)
+        t_may, rows_may, t_must, rows_must = self._model_onsets(res, u)
+        _r_d, near, tm, rows = self._event_parts(t_may, rows_may)
         sig_t = self.record.sample_interval
         J = np.zeros((self.onsets.size + 1, k))
         if tm.size:
             J[: self.onsets.size] = dt[rows[near]] / sig_t
-        d, rows_x = self._extra_parts(res, u)
+        d, rows_x = self._extra_parts(t_must, rows_must)
         extra = float(np.sqrt(np.sum(d * d)))
         if extra > 0:
             J[-1] = (d[:, None] * dt[rows_x]).sum(axis=0) / extra / sig_t
