@@ -469,6 +469,12 @@ class Result:
           ``t`` by the rule above, in time order, with its own coordinate ``event_t`` [s],
           ``event_kind``, and each quantity as ``event_<name>`` (e.g. ``event_x``,
           ``event_track_contact_force``). Nothing of :attr:`series` is lost between the two.
+        * With sensitivities (``simulate(..., sensitivities=[...])``), a dimension ``key``
+          (coordinates ``key`` and ``key_units``, the SI unit of each key): ``d_<q>`` on
+          ``(t, key)`` and ``event_d_<q>`` on ``(event, key)``, the derivative of each
+          series quantity q (x, vx, y, vy, ax, ay, track_contact_force,
+          slot_contact_force) at the row's time, in q's unit per the key's; ``final_d_<s>``
+          on ``key``, that of the final state (x, vx, y, vy).
 
         ``attrs`` carry the provenance: ``braidsim_version``, ``created`` (UTC, ISO 8601),
         ``scenario``, ``duration`` [s] (the simulated time actually used), ``t_start`` [s],
@@ -507,6 +513,9 @@ class Result:
                 "event_t": ("event", t[event], {"units": "s", "long_name": "time of the event"}),
             },
         )
+        if self.sensitivity is not None:
+            coords, variables = self._sensitivity_variables(order, keep, event)
+            ds = ds.assign_coords(coords).assign(variables)
         ds.attrs.update(
             {
                 **{k: v for k, v in self.provenance().items() if k != "parameters"},
@@ -518,6 +527,47 @@ class Result:
             }
         )
         return ds
+
+    def _sensitivity_variables(
+        self, order: np.ndarray, keep: np.ndarray, event: np.ndarray
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The forward sensitivities as coordinates and variables of :meth:`to_xarray`'s
+        Dataset: along a dimension ``key`` (coordinates ``key``, the scenario keys, and
+        ``key_units``, the SI unit of each), ``d_<q>`` on ``(t, key)`` and
+        ``event_d_<q>`` on ``(event, key)`` for each series quantity q, the rows split as
+        the series' own, and ``final_d_<s>`` on ``key`` for each state s at the end of the
+        run."""
+        from braidsim.sensitivity import SERIES_QUANTITIES, STATE_NAMES, key_unit
+
+        sens = self.sensitivity
+        keys = list(sens.keys)
+        coords: dict[str, Any] = {
+            "key": ("key", keys, {"long_name": "scenario key of the derivative"}),
+            "key_units": (
+                "key",
+                [key_unit(self.model, k) for k in keys],
+                {"description": "SI unit of each key (dimensionless: empty)"},
+            ),
+        }
+        out: dict[str, Any] = {}
+
+        units = {**UNITS, "ax": "m/s^2", "ay": "m/s^2"}  # accelerations: not series columns
+
+        def attrs(q: str) -> dict[str, str]:
+            u = units[q] or "1"
+            return {
+                "description": f"d {q} / d key, in {u} per the key's SI unit (key_units)",
+                "quantity_units": u,
+            }
+
+        if sens.series is not None:
+            d = np.asarray(sens.series)[order]
+            for j, q in enumerate(SERIES_QUANTITIES):
+                out[f"d_{q}"] = (("t", "key"), d[keep, :, j], attrs(q))
+                out[f"event_d_{q}"] = (("event", "key"), d[event, :, j], attrs(q))
+        for j, s in enumerate(STATE_NAMES):
+            out[f"final_d_{s}"] = ("key", np.asarray(sens.final)[:, j], attrs(s))
+        return coords, out
 
     def to_csv(self, directory: str | Path) -> list[Path]:
         """Write ``series.csv`` and ``impacts.csv`` into ``directory``; return the paths."""

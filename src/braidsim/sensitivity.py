@@ -195,6 +195,18 @@ def _key_value(model: Model, key: str) -> float:
     return value
 
 
+def key_unit(model: Model, key: str) -> str:
+    """The SI unit of a scenario key as :class:`Sensitivities` differentiate by it: the
+    schema's unit ("" for a dimensionless key), and ``N/m^n`` with the pair's exponent n for
+    a contact stiffness (whose unit depends on n)."""
+    from braidsim.params import SCHEMA
+
+    for pair in ("track", "slot"):
+        if key == f"contact.{pair}.stiffness":
+            return f"N/m^{float(getattr(model, pair).exponent):g}"
+    return SCHEMA[key].unit
+
+
 def directions(model: Model, keys: Sequence[str]) -> Directions:
     """The tangents along each scenario key (see the module docstring)."""
     from braidsim.model import build_model

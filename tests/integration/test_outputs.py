@@ -106,6 +106,51 @@ def test_series_netcdf_is_compressed_and_round_trips(transfer_run, tmp_path) -> 
         )
 
 
+def test_xarray_carries_the_sensitivities(tmp_path) -> None:
+    """With sensitivities the Dataset holds them on a ``key`` dimension, split over ``t``
+    and ``event`` as the series' rows are, the final state's beside them; the final
+    state's derivative along the restitution is that of two runs by central differences."""
+    from braidsim.export import write_series_netcdf
+
+    keys = ["track.clearance", "contact.track.restitution", "contact.track.stiffness"]
+    sc = braidsim.load_scenario(
+        "paper-3.2", overrides={"transfer.times": [0.02], "simulation.rtol": 1e-11}
+    )
+    res = braidsim.simulate(sc, duration=0.03, sensitivities=keys)
+    ds = res.to_xarray()
+    assert list(ds["key"].values) == keys
+    assert list(ds["key_units"].values) == ["m", "", "N/m^1.5"]
+    sens = res.sensitivity
+    assert sens.series.shape[0] == len(res.series["t"])
+    assert ds["d_x"].shape == (ds.sizes["t"], 3) and ds["event_d_x"].shape == (ds.sizes["event"], 3)
+    # each row's derivatives travel with its values: rows of x on t and on event
+    for grid, prefix in (("t", ""), ("event", "event_")):
+        times = ds["t" if grid == "t" else "event_t"].values
+        xs = ds[f"{prefix}x"].values
+        raw = np.flatnonzero(np.isin(res.series["t"], times))
+        for i in range(0, times.size, max(1, times.size // 50)):
+            j = raw[(res.series["t"][raw] == times[i]) & (res.series["x"][raw] == xs[i])][-1]
+            np.testing.assert_array_equal(ds[f"{prefix}d_x"].values[i], sens.series[j, :, 0])
+    assert ds["d_track_contact_force"].attrs["quantity_units"] == "N"
+    np.testing.assert_array_equal(ds["final_d_vx"].values, sens.final[:, 1])
+
+    key, h = "contact.track.restitution", 1e-5
+    c = float(sc[key])
+    ends = [
+        np.array(
+            braidsim.simulate(sc.with_overrides({key: c + s * h}), duration=0.03).final_state.y[:2]
+        )
+        for s in (1, -1)
+    ]
+    fd = (ends[0] - ends[1]) / (2 * h)
+    got = [float(ds[f"final_d_{q}"].sel(key=key)) for q in ("x", "vx")]
+    np.testing.assert_allclose(got, fd, rtol=1e-5)
+
+    p = write_series_netcdf(res, tmp_path / "series.nc")
+    with xr.open_dataset(p) as back:
+        xr.testing.assert_identical(back.load(), ds)
+
+
 # ------------------------------------------------------------------ provenance
 
 
