@@ -374,8 +374,18 @@ class Sensitivities:
         return pd.DataFrame(rows)
 
 
-def sensitivity_error(t: float) -> SensitivityError:
-    """The error of a run that met a grazing contact."""
+def sensitivity_error(t: float, t_start: float | None = None) -> SensitivityError:
+    """The error of a run that met a grazing contact; at the run's start ``t_start`` (within
+    a picosecond), of one that starts on a wall whose gap a key moves."""
+    if t_start is not None and abs(t - t_start) <= 1e-12 * max(1.0, abs(t_start)):
+        return SensitivityError(
+            f"the carrier starts on a wall at t = {t_start:.9g} s (touching it, no overlap) "
+            "and a sensitivity key moves that wall's gap there: one way the contact starts "
+            "later, the other it overlaps from the start, so the sensitivities do not exist; "
+            "leave such keys (the initial position, that wall's clearance) out, or start the "
+            "carrier off the wall or overlapping it",
+            t,
+        )
     return SensitivityError(
         f"a contact starts or ends with (almost) zero normal speed at t = {t:.9g} s (a "
         "grazing contact): the sequence of impacts changes under an infinitesimal change, "
@@ -604,7 +614,7 @@ def flow_map(
         assert raw.series is not None  # (series=True)
         _check_declared_contacts(raw.series[0], model, modes_t)
     if raw.status == L.ST_GRAZING:
-        raise sensitivity_error(raw.t)
+        raise sensitivity_error(raw.t, t0)
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
     return _flow_map_of_run(t0, t1, y[:n], modes_t, v0a, raw, n, keys, _min_gaps(raw, model))

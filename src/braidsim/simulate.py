@@ -451,7 +451,8 @@ def run_model(
     if raw.status == L.ST_GRAZING:
         from braidsim.sensitivity import sensitivity_error
 
-        raise sensitivity_error(raw.t)
+        # (a continued run's start is no new start: it opens no contacts there)
+        raise sensitivity_error(raw.t, None if start is not None else model.t_start)
     if raw.status != L.ST_OK:
         raise SimulationError(failure_message(raw.status, raw.t, model, stats_dict(raw)), raw.t)
     if n < n_full:

@@ -129,6 +129,49 @@ def test_contacts_that_transfers_cut_and_start_match_finite_differences() -> Non
             assert res.sensitivity.final[i, j] == pytest.approx(fd, rel=1e-3), (key, name)
 
 
+def test_a_start_touching_a_wall_refuses_keys_that_move_its_gap() -> None:
+    """paper-3.2 starts the carrier touching its outer wall (x0 = the clearance) and moving
+    into it at 2 mm/s: a contact latched at that speed from t = 0. A wider clearance starts
+    that contact later, at gap / speed (the onset's slope from that side 1 / 2 mm/s = 500
+    s/m), a narrower one overlaps from the start (released elastically, no damping): the
+    one-sided quotients disagree and the final x jumps, so there is no derivative. The
+    tangents said d onset = 0 and gave the final state's slope from one side, silently. A key
+    that moves only the approach speed keeps its derivatives."""
+    sc = braidsim.load_scenario("paper-3.2", overrides=TIGHT)
+    base = braidsim.simulate(sc, duration=0.05, series=False)
+    assert base.impacts.t.iloc[0] == 0.0 and not base.impacts.initial.iloc[0]
+    eps = sc["track.clearance"]
+    h = 1e-10 * eps
+    wider, narrower = (
+        braidsim.simulate(sc, duration=0.05, series=False, overrides={"track.clearance": v})
+        for v in (eps + h, eps - h)
+    )
+    assert (wider.impacts.t.iloc[0] - base.impacts.t.iloc[0]) / h == pytest.approx(500, rel=1e-3)
+    assert narrower.impacts.t.iloc[0] == 0.0 and narrower.impacts.initial.iloc[0]
+    right = (wider.final["x"] - base.final["x"]) / h
+    left = (base.final["x"] - narrower.final["x"]) / h
+    assert abs(left - right) > 10 * abs(right)  # (the final x jumps: not a kink alone)
+    for key in ("track.clearance", "initial.x"):
+        with pytest.raises(SensitivityError, match="starts on a wall at t = 0 s") as err:
+            braidsim.simulate(sc, duration=0.05, series=False, sensitivities=[key])
+        assert "\n" not in str(err.value)
+    res = braidsim.simulate(
+        sc, duration=0.05, series=False, sensitivities=["initial.vx", "contact.track.restitution"]
+    )
+    # the first contact starts at t = 0 whatever the speed, with the speed as its approach speed
+    assert res.sensitivity.impacts[0, 0, 0] == 0.0
+    assert res.sensitivity.impacts[0, 0, 1] == pytest.approx(1.0, rel=1e-9)
+    for i, key in enumerate(("initial.vx", "contact.track.restitution")):
+        p, dp = sc[key], 1e-6 * sc[key]
+        plus, minus = (
+            braidsim.simulate(sc, duration=0.05, series=False, overrides={key: p + s * dp})
+            for s in (1, -1)
+        )
+        for j, name in enumerate(("x", "vx")):
+            fd = (plus.final[name] - minus.final[name]) / (2 * dp)
+            assert res.sensitivity.final[i, j] == pytest.approx(fd, rel=1e-5), (key, name)
+
+
 @pytest.mark.slow  # 100 s, most of it compiling the xy solver with tangents for this test alone
 def test_xy_carrier_with_transfers_matches_finite_differences() -> None:
     """The xy carrier hitting both slot walls and the track, with transfers to the next

@@ -91,6 +91,7 @@ from braidsim.core.solver.tangent import (
     onset_correction,
     series_tangent_row,
     start_contact,
+    start_on_wall_fixed,
     step_series_tangents,
     surface_event,
     tangent_dense_coeffs,
@@ -368,9 +369,13 @@ def integrate(
     # a new run's start time: a contact that starts within a picosecond of it, from rest on
     # its wall, started with the run (tangent.contact_event); -inf in a continued call
     t_begin = -math.inf
+    start_on_wall = False  # a start on a wall whose gap a direction moves: no derivative
     if r.started != STARTED:
         if r.started == NEW_RUN:
             t_begin = t
+            if SENS is not None:
+                # (before the start's contacts, which read these scales and leave S alone)
+                tangent_scales(SENS.S, n_dof2, SENS.SMAX)
             nep = _start_contacts(
                 model, t, y, modes, v0s, open_ep, EP, nep, n_pairs, n, SENS, -1, K[0]
             )
@@ -378,8 +383,8 @@ def integrate(
             # grows by up to 5x a step: a few cheap steps, and no start-step heuristic whose
             # trial evaluations would have to be made contact-aware
             r.h = min(1e-6, hmax, t_end - t)
-            if SENS is not None:
-                tangent_scales(SENS.S, n_dof2, SENS.SMAX)
+            if SENS is not None and not start_on_wall_fixed(model, SENS, t, y, modes, n_pairs):
+                start_on_wall = True
         else:
             # a continuation (CONTINUED): the contacts carried over open new episodes; a
             # step of 0 means "choose one", as for a new run
@@ -461,9 +466,9 @@ def integrate(
             clamped[pair] = clamp_state(INF0, pair)
     if SENS is not None:
         tangent_start(model, SENS, t, y, modes, v0s, KS)
-    status = ST_OK
+    status = ST_GRAZING if start_on_wall else ST_OK
     h_cut = 0.0
-    while t < t_end:
+    while t < t_end and status == ST_OK:
         # room for what one step writes, else hand the buffers back to be flushed
         if rows is not None and nrow > rows.shape[0] - row_reserve:
             status = ST_ROWS_FULL

@@ -519,6 +519,31 @@ def clamp_event(model, SENS, pair, post_clamped, t, y, f, h_step, modes, v0s, n_
 
 
 @tangent_helper
+def start_on_wall_fixed(model, SENS, t, y, modes, npair):
+    """False where a contact opened at a new run's start with the body exactly on its wall
+    (no overlap, moving into it) has its gap moved by some direction (its tangent above the
+    direction's absolute tolerance plus 1e-9 of the largest tangent of its kind, as in
+    :func:`contact_event`). Such a contact has no derivative along that direction: a wider
+    gap starts the contact later, at t + gap / speed (an onset time whose derivative is
+    1 / speed), a narrower one overlaps at the start, a contact released elastically (v0 =
+    inf, ``initial_impact_velocity`` aside) instead of one latched at the approach speed.
+    A direction that moves only the approach rate keeps the start on the wall."""
+    for pair in range(npair):
+        mode = modes[pair]
+        if mode == 0:
+            continue
+        g_in, g_out, _ = gaps(model, pair, t, y)
+        if (g_in if mode < 0 else g_out) != 0.0:
+            continue  # an overlap: it stays one under a small change
+        for d in range(SENS.S.shape[0]):
+            dg_in, dg_out, _ = pair_gaps_jvp(model, SENS.tangents[d], pair, t, y, SENS.S[d])
+            dg = dg_in if mode < 0 else dg_out
+            if abs(dg) > SENS.ATOL[d, 0] + 1e-9 * SENS.SMAX[d, 0]:
+                return False
+    return True
+
+
+@tangent_helper
 def start_contact(model, SENS, pair, t, y, mode, ie, initial, itr, f_free):
     """Tangents of the latched speed (and of the episode's first values) of a contact the
     start policy opens at t: at the start of a run (``itr`` = -1), or right after the
