@@ -305,8 +305,9 @@ class Sensitivities:
         carrier).
     impacts : np.ndarray (n_impacts, k, 5)
         d(:data:`IMPACT_QUANTITIES`) / d key for each row of ``Result.impacts`` (NaN where
-        undefined: the exit time of a contact still open, the onset of a contact present at
-        the start).
+        undefined: the exit time of a contact still open at the end, the approach speed of
+        a contact carried into a continued run; the onset of a contact present at the
+        start is the start, its derivative 0).
     series : np.ndarray (n_rows, k, 8) or None
         d(:data:`SERIES_QUANTITIES`) / d key at the time of each row of ``Result.series``.
     latched : np.ndarray (k, 2)
