@@ -171,9 +171,15 @@ def _key_value(model: Model, key: str) -> float:
     from braidsim.params import SCHEMA
 
     if not isinstance(key, str) or key not in SCHEMA:
-        from braidsim.params import _unknown
+        from braidsim.params import _closest
 
-        raise _unknown(str(key))
+        key = str(key)
+        # (an empty or unprintable name quoted: it was ": unknown parameter", naming nothing)
+        shown = key if key and key.isprintable() and len(key) <= 80 else repr(key[:80])
+        raise InputError(
+            f"sensitivity: {shown} is not a scenario key{_closest(key)}; allowed: numeric "
+            "model parameters (`braidsim scenarios --keys` lists all)"
+        )
     spec = SCHEMA[key]
     if spec.kind != "float" or key.startswith(_NOT_PARAMETERS):
         raise InputError(

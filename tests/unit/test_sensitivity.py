@@ -522,6 +522,11 @@ def test_bad_keys_are_one_clear_line() -> None:
         braidsim.simulate("paper-3.3", duration=0.01, sensitivities=["contact.track.restitutio"])
     with pytest.raises(InputError, match=r"simulation\.rtol is not a differentiable"):
         braidsim.simulate("paper-3.3", duration=0.01, sensitivities=["simulation.rtol"])
+    # an unknown key is named as a sensitivity's (an empty one was ": unknown parameter")
+    for key, shown in (("", "''"), ("track.clearence", "track.clearence")):
+        with pytest.raises(InputError) as err:
+            braidsim.simulate("paper-3.3", duration=0.01, sensitivities=[key])
+        assert str(err.value).startswith(f"sensitivity: {shown} is not a scenario key")
 
 
 def test_a_grazing_onset_after_a_pause_is_refused_as_before_it(monkeypatch) -> None:
