@@ -387,10 +387,11 @@ def sensitivity_error(t: float, t_start: float | None = None) -> SensitivityErro
     if t_start is not None and abs(t - t_start) <= 1e-12 * max(1.0, abs(t_start)):
         return SensitivityError(
             f"the carrier starts on a wall at t = {t_start:.9g} s (touching it, no overlap) "
-            "and a sensitivity key moves that wall's gap there: one way the contact starts "
-            "later, the other it overlaps from the start, so the sensitivities do not exist; "
-            "leave such keys (the initial position, that wall's clearance) out, or start the "
-            "carrier off the wall or overlapping it",
+            "and a sensitivity key moves that wall's gap there (or, at rest on the wall, its "
+            "rate): one way the contact starts later or not at all, the other it overlaps "
+            "from the start, so the sensitivities do not exist (as at a grazing contact); "
+            "leave such keys (the initial position or speed, that wall's clearance) out, or "
+            "start the carrier off the wall or overlapping it",
             t,
         )
     return SensitivityError(
