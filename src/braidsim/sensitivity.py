@@ -572,6 +572,13 @@ def flow_map(
     modes_t, v0a = _contact_state(modes, v0s)
     # directions: the n state components, the 2 latched speeds, the keys
     keys = _checked_keys(keys)
+    fixed = [key for key in keys if key.startswith("initial.")] if y0 is not None else []
+    if fixed:
+        # (the given y0 replaces the scenario's initial state: its column would be 0)
+        raise InputError(
+            f"flow_map: {fixed[0]} with y0: the map starts from the given y0, not the "
+            "scenario's initial state; its derivatives along y0 are the map's state columns"
+        )
     dirs = directions(model, keys) if keys else None
     zero = zero_tangent(model.record)
     k = n + 2 + len(keys)

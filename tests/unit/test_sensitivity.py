@@ -570,6 +570,11 @@ def test_a_grazing_onset_after_a_pause_is_refused_as_before_it(monkeypatch) -> N
             {"y0": [0.5e-3, 0.0], "modes": (1, 0), "v0s": (0.1, math.nan)},
             "modes[0] = +1 declares a contact with the outer track wall, but y0 is 2.62 mm",
         ),
+        # the given y0 replaces the initial state: the key's column was silently 0
+        (
+            {"y0": [1e-3, 0.0], "keys": ["track.clearance", "initial.vx"]},
+            "flow_map: initial.vx with y0: the map starts from the given y0",
+        ),
     ],
 )
 def test_flow_map_inputs_are_one_clear_line(kwargs, message) -> None:
