@@ -29,7 +29,7 @@ TIGHT = {
 
 def _quantities(res: braidsim.Result, n_impacts: int) -> np.ndarray:
     imp = res.impacts.iloc[:n_impacts]
-    cols = [imp[c].to_numpy() for c in ("t", "velocity", "peak_force", "max_depth", "t_end")]
+    cols = [imp[c].to_numpy() for c in L.IMPACT_SENS_FIELDS]  # (rebound_velocity last)
     fin = [res.final[k] for k in ("x", "vx", "y", "vy")]
     return np.concatenate([np.asarray(fin), np.stack(cols, axis=1).ravel()])
 
@@ -77,7 +77,7 @@ def _check_against_fd(sc, keys, duration, rel=5e-6, min_checked=0.5):
 
 def test_x_carrier_sensitivities_match_finite_differences() -> None:
     """paper-3.3 (track vibration, chatter), x only: final state and every impact's time,
-    speed, peak force, depth and exit, along parameters of the law, the geometry, the
+    speed, peak force, depth, exit and rebound speed, along parameters of the law, the geometry, the
     loads, the vibration and the horn gear."""
     sc = braidsim.load_scenario("paper-3.3", overrides=TIGHT)
     keys = [
@@ -121,7 +121,7 @@ def test_contacts_that_transfers_cut_and_start_match_finite_differences() -> Non
         rows = [(cut + 1, "t"), (cut + 1, "velocity"), (cut + 1, "peak_force"), (cut, "t_end")]
         for row, column in rows:
             fd = (plus.impacts[column].iloc[row] - minus.impacts[column].iloc[row]) / (2 * h)
-            q = ["t", "velocity", "peak_force", "max_depth", "t_end"].index(column)
+            q = L.IMPACT_SENS_FIELDS.index(column)
             tangent = res.sensitivity.impacts[row, i, q]
             assert tangent == pytest.approx(fd, rel=1e-5, abs=1e-6), (key, column)
         for j, name in enumerate(("x", "vx")):
@@ -396,9 +396,9 @@ def test_linear_oscillator_sensitivities_match_the_closed_form() -> None:
     ["hertz", pytest.param("kelvin_voigt", marks=pytest.mark.slow)],
 )
 def test_impact_oscillator_event_sensitivities(law_kind: str) -> None:
-    """Onset time, approach speed, peak force, depth and exit time of every impact of a
-    forced impact oscillator against central differences of the gap and of x0; the
-    Kelvin-Voigt dashpot makes the vector field jump at onset (the saltation term)."""
+    """Onset time, approach speed, peak force, depth, exit time and rebound speed of every
+    impact of a forced impact oscillator against central differences of the gap and of x0;
+    the Kelvin-Voigt dashpot makes the vector field jump at onset (the saltation term)."""
     if law_kind == "hertz":
         law = PowerLawContact(1e9, 1.5, 0.4)
     else:
@@ -429,7 +429,7 @@ def test_impact_oscillator_event_sensitivities(law_kind: str) -> None:
         r = run(model(gap), opts, y0 + np.array([x0, 0, 0, 0, 0]), series=False)
         e = r.episodes
         assert len(e) == n
-        cols = ("t", "velocity", "peak_force", "max_depth", "t_end")
+        cols = L.IMPACT_SENS_FIELDS
         return np.r_[r.y[:2], np.stack([e[c] for c in cols], axis=1).ravel()]
 
     h = 2e-8
@@ -626,7 +626,7 @@ def test_cli_sensitivity_json_and_bad_key(capsys) -> None:
     d = data["final"]["sensitivity"]["track.clearance"]
     assert d["x"] == pytest.approx(res.sensitivity.final[0, 0], rel=1e-12)
     imp = data["impacts"][1]["sensitivity"]["track.clearance"]
-    assert set(imp) == {"t", "velocity", "peak_force", "max_depth", "t_end"}
+    assert set(imp) == {"t", "velocity", "peak_force", "max_depth", "t_end", "rebound_velocity"}
     assert imp["peak_force"] == pytest.approx(res.sensitivity.impacts[1, 0, 2], rel=1e-12)
     code, out, err = cli("run", "paper-3.3", "--sensitivity", "contact.track.model", "--json")
     assert code == 2 and out == ""

@@ -86,7 +86,7 @@ class SensitivityRun:
         Tangents of the final coordinates and speeds.
     DV0 : array (k, 2)
         Tangents of the final latched speeds.
-    impacts : array (n_impacts, k, 5)
+    impacts : array (n_impacts, k, 6)
         :data:`~braidsim.core.layout.IMPACT_SENS_FIELDS` of each row of the impact table.
     series : array (rows, k, 8) or None
         :data:`~braidsim.core.layout.SERIES_SENS_FIELDS` of each row of the series.
@@ -855,7 +855,7 @@ def _sensitivity_work(
     RSENS = None
     if tangents.series and rows is not None and keep:
         RSENS = np.zeros((rows.shape[0], k, 8))
-    ESENS = np.full((EP.shape[0], k, 5), np.nan)
+    ESENS = np.full((EP.shape[0], k, len(L.IMPACT_SENS_FIELDS)), np.nan)
     scale = np.abs(np.array(tangents.scale, dtype=float).reshape(k))
     scale[~(np.isfinite(scale) & (scale > 0))] = 1.0
     ATOL = np.array([opts.atol_position, opts.atol_velocity])[None, :] / scale[:, None]

@@ -231,9 +231,10 @@ class SensitivityWork(NamedTuple):
         Tangents of the latched approach speeds of the pairs; in and out.
     DTR : array (k, n_transfers)
         Tangents of the transfer times.
-    ESENS : array (episode capacity, k, 5)
-        Tangents of each impact's onset time, approach speed, peak force, maximum depth and
-        exit time (:data:`IMPACT_SENS_FIELDS`), rows matching the impact table.
+    ESENS : array (episode capacity, k, 6)
+        Tangents of each impact's onset time, approach speed, peak force, maximum depth,
+        exit time and rebound speed (:data:`IMPACT_SENS_FIELDS`), rows matching the impact
+        table.
     RSENS : array (row capacity, k, 8) or None
         Tangents of each series row's :data:`SERIES_SENS_FIELDS`, rows matching the series.
     SMAX : array (k, 2)
@@ -254,7 +255,7 @@ class SensitivityWork(NamedTuple):
     ATOL: np.ndarray
 
 
-IMPACT_SENS_FIELDS = ("t", "velocity", "peak_force", "max_depth", "t_end")
+IMPACT_SENS_FIELDS = ("t", "velocity", "peak_force", "max_depth", "t_end", "rebound_velocity")
 SERIES_SENS_FIELDS = (
     "x",
     "vx",
@@ -265,7 +266,7 @@ SERIES_SENS_FIELDS = (
     "track_contact_force",
     "slot_contact_force",
 )
-ES_T, ES_VELOCITY, ES_PEAK, ES_DEPTH, ES_T_END = range(5)
+ES_T, ES_VELOCITY, ES_PEAK, ES_DEPTH, ES_T_END, ES_REBOUND = range(len(IMPACT_SENS_FIELDS))
 
 
 # ---- one row of the impact table (a contact episode) ----------------------------------------

@@ -54,8 +54,7 @@ Jacobians
 ---------
 ``exact``: the forward sensitivities of the simulator (``simulate(..., sensitivities=keys)``,
 derivatives of the sampled state, acceleration and contact force and of each impact's onset
-time, approach speed and peak force), times d p / d u. The rebound speed of an impact list
-has no sensitivity: its rows take central differences (with a note).
+time, approach speed, peak force and rebound speed), times d p / d u.
 ``fd``: central differences in u with step h = 1e-5 (one-sided at the bounds); the solver's
 tolerance (relative 1e-8) makes their error about 1e-8 / h relative, small against the noise
 of a measurement, and they need no support from the core.
@@ -682,7 +681,7 @@ class ImpactProblem(Problem):
         rows = self.model_rows(res, u)
         peak = np.asarray(res.impacts["peak_force"], dtype=float)[rows]
         k = len(self.keys)
-        S = np.zeros((rows.size, k, len(IMPACT_QUANTITIES)))  # (n, k, 5)
+        S = np.zeros((rows.size, k, len(IMPACT_QUANTITIES)))  # (n, k, 6)
         if self.scenario_keys:
             S[:, self._scenario_columns()] = np.asarray(res.sensitivity.impacts)[rows]
         if self.i_offset is not None:
@@ -690,28 +689,12 @@ class ImpactProblem(Problem):
             # quantities do not move)
             S[:, self.i_offset, IMPACT_QUANTITIES.index("t")] = -1.0
         blocks = []
-        fd_rows = []
-        n = rows.size
-        for i, q in enumerate(self.quantities):
-            if q == "rebound_velocity":
-                blocks.append(np.zeros((n, k)))
-                fd_rows.append(i)
-                continue
+        for q in self.quantities:
             b = S[:, :, IMPACT_QUANTITIES.index(q)] / self.sigma[q]
             if q == "peak_force":
                 b = b * np.sign(peak)[:, None]
             blocks.append(b * self.dp_du(u)[None, :])
-        J = np.nan_to_num(np.vstack(blocks))
-        if fd_rows:
-            self.notes.add(
-                "rebound_velocity: the sensitivities do not give the rebound speed; its rows "
-                "of the Jacobian are central differences"
-            )
-            sl = np.concatenate([np.arange(i * n, (i + 1) * n) for i in fd_rows])
-            r0 = self._r_of(res, u)
-            Jfd = self._fd(u, lambda v: self._r_of(self.run(v), v), r0)
-            J[sl] = Jfd[sl]
-        return J
+        return np.nan_to_num(np.vstack(blocks))
 
     def residuals(self, u: np.ndarray, jac: bool = False) -> Evaluation:
         """Impact-list residuals at ``u`` (and their Jacobian d r / d u when ``jac``)."""

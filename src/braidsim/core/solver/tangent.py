@@ -60,7 +60,7 @@ from braidsim.core.interfaces import (
     penetration,
     penetration_jvp,
 )
-from braidsim.core.layout import ES_DEPTH, ES_PEAK, ES_T, ES_T_END, ES_VELOCITY
+from braidsim.core.layout import ES_DEPTH, ES_PEAK, ES_REBOUND, ES_T, ES_T_END, ES_VELOCITY
 from braidsim.core.solver.calls import rhs
 from braidsim.core.solver.dense import dense_eval
 from braidsim.core.solver.dopri5 import (
@@ -292,6 +292,8 @@ def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plu
                 SENS.ESENS[ie, d, ES_VELOCITY] = dvel
         elif ie >= 0:
             SENS.ESENS[ie, d, ES_T_END] = dt_e
+            # the rebound speed -p' at the exit, read at the moving exit instant
+            SENS.ESENS[ie, d, ES_REBOUND] = -(dpen_rate + pen_acc * dt_e)
     return True
 
 
@@ -603,7 +605,7 @@ def transfer_contacts(SENS, itr, f_free, f_after, n_dof2):
 def new_episode_row(SENS, ie):
     """Clear the tangents of a new impact-table row (NaN: not defined yet)."""
     for d in range(SENS.S.shape[0]):
-        for q in range(5):
+        for q in range(SENS.ESENS.shape[2]):
             SENS.ESENS[ie, d, q] = math.nan
 
 
