@@ -26,7 +26,8 @@ from braidsim.core import (
 )
 from braidsim.core.layout import SolverOptions
 from braidsim.core.physics.friction import FRICTION_CODES
-from braidsim.params import Scenario
+from braidsim.errors import InputError
+from braidsim.params import Scenario, inner_wall_at_start
 
 PAIR_BODIES = {"track": ("guide_pad", "track"), "slot": ("carrier", "horn_gear")}
 
@@ -154,6 +155,55 @@ def pair_model(sc: Scenario, pair: str) -> PairModel:
         source = "Eq. (4)"
     d = law.damping_factor(c_r)
     return PairModel(law.name, float(k), n, d, c_r, contact.effective_restitution(d), source)
+
+
+#: Speed [m/s] above which a start's overlap, released, is refused: about the speed of sound
+#: in steel (longitudinal waves, ~5,900 m/s), where a quasi-static contact law (the force a
+#: function of the depth and its rate) no longer describes anything; a braiding carrier
+#: moves at a few m/s.
+MAX_RELEASE_SPEED = 5000.0
+
+
+def start_overlaps(sc: Scenario) -> list[tuple[str, str, float]]:
+    """(pair, wall, depth [m]) of every wall the start overlaps: the track's inner wall at
+    x = h(0) and outer one at h(0) + clearance, the slot's rear wall at y = 0 and front one
+    at the slot's clearance (xy only)."""
+    h0 = inner_wall_at_start(sc.values)
+    x0 = sc["initial.x"]
+    walls = [
+        ("track", "inner", h0 - x0),
+        ("track", "outer", x0 - h0 - sc["track.clearance"]),
+    ]
+    if sc["simulation.dof"] == "xy":
+        y0 = sc["initial.y"]
+        walls += [("slot", "rear", -y0), ("slot", "front", y0 - sc["slot.clearance"])]
+    return [w for w in walls if w[2] > 0.0]
+
+
+def _check_start_energy(sc: Scenario, pairs: dict[str, PairModel]) -> None:
+    """Refuse a start whose overlap stores more elastic energy, K p^(n+1) / (n+1), than
+    would throw the carrier off at :data:`MAX_RELEASE_SPEED`: a stiffness in the wrong unit
+    or of an absurd size (1e30 N/m^1.5 under paper-3.3's 0.12-mm overlap ran without a word
+    and sent the carrier off at 1e10 m/s)."""
+    m = sc["carrier.mass"]
+    for pair, wall, p in start_overlaps(sc):
+        pm = pairs[pair]
+        n = pm.exponent
+        energy = pm.stiffness * p ** (n + 1.0) / (n + 1.0)
+        speed = math.sqrt(2.0 * energy / m)
+        if not speed > MAX_RELEASE_SPEED:
+            continue
+        k_max = 0.5 * m * MAX_RELEASE_SPEED**2 * (n + 1.0) / p ** (n + 1.0)
+        given = sc[f"contact.{pair}.stiffness"] is not None
+        key = f"contact.{pair}.stiffness" if given else f"the {pair} stiffness K (Eq. 4)"
+        raise InputError(
+            f"{key}: {pm.stiffness:.3g} N/m^{n:g} with the start's overlap of {p * 1e3:.4g} mm "
+            f"into the {wall} {pair} wall stores {energy:.3g} J, which would throw the "
+            f"{m:g} kg carrier off at {speed:.3g} m/s, beyond the speed of sound in steel "
+            f"({MAX_RELEASE_SPEED:g} m/s); allowed: a stiffness below {k_max:.3g} N/m^{n:g} "
+            "at this overlap, or a start that overlaps less (initial position, vibration "
+            "amplitude and phase)"
+        )
 
 
 def _profile_arrays(sc: Scenario) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -286,6 +336,7 @@ def _derive(sc: Scenario, keep_zero_harmonics: bool) -> _Derived:
     t1 = sc["yarn.tension_horizontal"]
     track = pair_model(sc, "track")
     slot = pair_model(sc, "slot")
+    _check_start_energy(sc, {"track": track, "slot": slot})
     prof_t, prof_w, prof_i = _profile_arrays(sc)
     omega0 = 0.0 if prof_t.size else sc["horn_gear.angular_velocity"]
     allow = bool(sc["contact.allow_tension"])

@@ -679,14 +679,20 @@ def _resolve_stiffness(values: dict[str, Any]) -> None:
         values[key] = float(value)
 
 
+def inner_wall_at_start(values: Mapping[str, Any]) -> float:
+    """x of the track's inner wall at t = 0 [m]: h(0) = h_a cos(phase) plus each harmonic's
+    amplitude times the cosine of its phase."""
+    h0 = values["track.vibration_amplitude"] * math.cos(values["track.vibration_phase"])
+    return float(h0 + sum(a * math.cos(phase) for a, _, phase in values["track.harmonics"]))
+
+
 def _check_start_between_walls(values: Mapping[str, Any]) -> None:
     """The start may overlap a wall (the paper's sections 3.3-3.4 start 0.12 mm into the
     track), but by no more than the pair's clearance: a deeper overlap is no state of a
     machine, and a value in the wrong unit ("1 m" for "1 mm") gave a run with forces of
     1e9 N rather than an error. The track's inner wall is at x = h(0) at the start, with
     h(t) = h_a cos(omega_h t + phase) plus its harmonics; the slot's rear wall at y = 0."""
-    h0 = values["track.vibration_amplitude"] * math.cos(values["track.vibration_phase"])
-    h0 += sum(a * math.cos(phase) for a, _, phase in values["track.harmonics"])
+    h0 = inner_wall_at_start(values)
     checks = [("initial.x", h0, "track.clearance", "the inner track wall at x = h(0)")]
     if values["simulation.dof"] == "xy":
         checks.append(("initial.y", 0.0, "slot.clearance", "the rear slot wall at y = 0"))

@@ -68,6 +68,13 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("set-1e400", [*R, "--set", "track.clearance=1e400"], BAD, ("track.clearance",)),
     ("set-1e400-m", [*R, "--set", "track.clearance=1e400 m"], BAD, ("track.clearance",)),
     ("set-1e308-km", [*R, "--set", "track.clearance=1e308 km"], BAD, ("track.clearance",)),
+    # the start's overlap under it would throw the carrier off at 1e10 m/s (it ran silently)
+    (
+        "set-absurd-stiffness",
+        ["run", "paper-3.3", "--set", "contact.track.stiffness=1e30"],
+        BAD,
+        ("contact.track.stiffness", "overlap", "m/s"),
+    ),
     ("set-eq", [*R, "--set", "track.clearance=1 m == 0.002"], BAD, ("track.clearance",)),
     ("set-code", [*R, "--set", "track.clearance=__import__('os')"], BAD, ("track.clearance",)),
     ("set-unit-exp", [*R, "--set", "track.clearance=1 m^99"], BAD, ("track.clearance",)),

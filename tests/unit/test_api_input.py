@@ -5,6 +5,7 @@ ZeroDivisionError from inside)."""
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -358,7 +359,12 @@ def test_a_collapse_without_stiffness_does_not_blame_friction_or_damping() -> No
 @pytest.mark.parametrize(
     ("overrides", "named", "status"),
     [
-        ({"contact.track.stiffness": 1e300}, "contact.track.stiffness = 1e+300 N/m^1.5", "NaN"),
+        # (started off the wall: its overlap at the start would be refused up front)
+        (
+            {"contact.track.stiffness": 1e300, "initial.x": "0.2 mm"},
+            "contact.track.stiffness = 1e+300 N/m^1.5",
+            "collapsed",
+        ),
         (
             {"contact.track.exponent": 4.0, "initial.vx": 1e100},
             "initial.vx = 1e+100 m/s",
@@ -367,7 +373,8 @@ def test_a_collapse_without_stiffness_does_not_blame_friction_or_damping() -> No
     ],
 )
 def test_a_failure_names_the_values_of_extreme_magnitude(overrides, named, status) -> None:
-    """A stiffness of 1e300 N/m^1.5 overflowed the state at t = 0 and a speed of 1e100 m/s
+    """A stiffness of 1e300 N/m^1.5 collapsed the step at the first impact (overflowed the
+    state at t = 0 when the start overlapped the wall: refused since) and a speed of 1e100 m/s
     collapsed the step; both messages told the user only to raise
     contact.min_impact_velocity (the hint read from paper-3.3's own contact damping)."""
     with pytest.raises(braidsim.SimulationError) as info:
@@ -510,3 +517,38 @@ def test_extends_in_a_scenario_mapping_is_explained() -> None:
     """'extends' works in a TOML file; in a mapping it was 'unknown parameter'."""
     with pytest.raises(InputError, match=r"^scenario: 'extends' is read in a scenario TOML file"):
         braidsim.load_scenario({"extends": "paper-3.1", "track.clearance": "2 mm"})
+
+
+def test_a_start_overlap_that_would_throw_the_carrier_off_is_refused() -> None:
+    """paper-3.3 starts 0.12 mm into its inner wall; with a stiffness of 1e30 N/m^1.5 that
+    overlap stores 6.3e19 J and the run sent the carrier off at 1e10 m/s without a word.
+    The largest stiffness allowed, K (n + 1) p^(n + 1) / (n + 1) = m v^2 / 2 at 5,000 m/s,
+    is checked on both sides; the built-in scenarios release at most 7.3 m/s."""
+    from braidsim.model import MAX_RELEASE_SPEED, build_model, start_overlaps
+    from braidsim.params import builtin_names, load_scenario
+
+    with pytest.raises(InputError) as info:
+        braidsim.simulate("paper-3.3", 0.001, overrides={"contact.track.stiffness": 1e30})
+    msg = str(info.value)
+    assert msg.startswith("contact.track.stiffness: 1e+30 N/m^1.5 with the start's overlap")
+    assert "0.12 mm into the inner track wall" in msg and "1.03e+10 m/s" in msg
+    k_max = float(re.search(r"a stiffness below ([0-9.e+]+) N/m\^1.5", msg).group(1))
+    m, p, n = 1.2, 0.12e-3, 1.5
+    assert k_max == pytest.approx(0.5 * m * MAX_RELEASE_SPEED**2 * (n + 1) / p ** (n + 1), 1e-2)
+    for k, refused in ((0.99 * k_max, False), (1.01 * k_max, True)):
+        sc = load_scenario("paper-3.3", overrides={"contact.track.stiffness": k})
+        if refused:
+            with pytest.raises(InputError, match="stiffness below"):
+                build_model(sc)
+        else:
+            build_model(sc)
+    # a stiffness from Eq. (4) is named as such; the slot's overlap (xy) is checked too
+    with pytest.raises(InputError, match=r"^the track stiffness K \(Eq. 4\): "):
+        moduli = {f"materials.{b}.youngs_modulus": "1e30 Pa" for b in ("track", "guide_pad")}
+        braidsim.simulate("paper-3.3", 0.001, overrides=moduli)
+    with pytest.raises(InputError, match="into the rear slot wall"):
+        load = {"simulation.dof": "xy", "initial.y": "-0.1 mm", "contact.slot.stiffness": 1e30}
+        build_model(load_scenario("paper-3.3", overrides=load))
+    for name in builtin_names():
+        assert start_overlaps(load_scenario(name)) is not None
+        build_model(load_scenario(name))
