@@ -143,6 +143,29 @@ def check_output_target(
     Path(probe).unlink(missing_ok=True)
 
 
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP back within the block, then let them in.
+
+    For the renames that put an output in place and record it (:data:`WRITTEN`): a signal
+    between two of them would leave an earlier output aside under a hidden name, or a
+    written output unnamed. Outside the main thread, or where signals cannot be blocked,
+    the block runs as it is."""
+    import signal
+    import threading
+
+    block = getattr(signal, "pthread_sigmask", None)
+    if block is None or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
+    before = block(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        block(signal.SIG_SETMASK, before)
+
+
 #: every output put in place by this process, in order (the command line reports them when
 #: a signal arrives after an output was already whole)
 WRITTEN: list[Path] = []
@@ -177,11 +200,12 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], object]) -> Pat
     try:
         writer(Path(tmp))
         os.chmod(tmp, FILE_MODE)  # mkstemp makes 0600; outputs are ordinary files
-        os.replace(tmp, p)
+        with signals_deferred():  # renamed into place is written: it is named as such
+            os.replace(tmp, p)
+            WRITTEN.append(p)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    WRITTEN.append(p)
     return p
 
 
@@ -228,6 +252,8 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
     remove_stale(p)
     tmp = Path(tempfile.mkdtemp(prefix=_prefix(p), suffix=".tmp", dir=p.parent))
     mark = len(WRITTEN)  # the files written inside are parts of this output, not outputs
+    old: Path | None = None
+    swapped = False
     try:
         yield tmp
         listed = "".join(f"{rel}\n" for rel in _entries(tmp))
@@ -236,17 +262,34 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
         if p.exists():
             check_output_directory(p, kind)
             old = Path(tempfile.mkdtemp(prefix=_prefix(p), suffix=".old", dir=p.parent))
-            os.replace(p, old / p.name)
-            os.replace(tmp, p)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(tmp, p)
+        # the swap is one step for a signal: between its renames the earlier output lies
+        # aside under a hidden name, and the new one is not yet named as written
+        with signals_deferred():
+            if old is not None:
+                os.replace(p, old / p.name)
+                try:
+                    os.replace(tmp, p)
+                except BaseException:
+                    os.replace(old / p.name, p)  # the earlier output stays
+                    raise
+            else:
+                os.replace(tmp, p)
+            del WRITTEN[mark:]
+            WRITTEN.append(p)
+            swapped = True
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        del WRITTEN[mark:]
+        if not swapped:  # (a signal held back by the swap is raised after it: p is whole)
+            shutil.rmtree(tmp, ignore_errors=True)
+            del WRITTEN[mark:]
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
         raise
-    del WRITTEN[mark:]
-    WRITTEN.append(p)
+    if old is not None:
+        try:
+            shutil.rmtree(old, ignore_errors=True)
+        except BaseException:  # a signal: the earlier output is still removed
+            shutil.rmtree(old, ignore_errors=True)
+            raise
 
 
 def _entries(

@@ -179,3 +179,61 @@ def test_a_signal_during_the_first_import_of_a_module_is_the_interruption(
         _on_signal(signal.SIGINT, None)
     assert info.value.signum == signal.SIGINT
     assert _RECEIVED and _RECEIVED[0] is info.value
+
+
+@pytest.mark.parametrize("at", [1, 2])
+def test_a_signal_while_an_output_folder_is_swapped_in_leaves_it_whole(
+    at, tmp_path, monkeypatch, restore_logging_and_hooks
+):
+    """A signal that lands between the renames that swap an earlier output for the new one
+    (``at`` 1: after the earlier output was moved aside, 2: after the new one was moved in)
+    waits for the swap: the folder holds the new output, whole, the command names it, and no
+    hidden temporary is left beside it."""
+    from braidsim import io
+    from braidsim.io import atomic_directory
+
+    out = tmp_path / "r"
+    with atomic_directory(out, kind="run") as d:
+        (d / "a.txt").write_text("old")
+    real = os.replace
+    calls = []
+
+    def replace_then_signal(src, dst):
+        real(src, dst)
+        calls.append(dst)
+        if len(calls) == at:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):  # the handler runs between bytecodes
+                pass
+
+    monkeypatch.setattr(io.os, "replace", replace_then_signal)
+    first = len(io.WRITTEN)
+    with pytest.raises(Interrupted), signals_handled():
+        with atomic_directory(out, kind="run") as d:
+            (d / "a.txt").write_text("new")
+    assert (out / "a.txt").read_text() == "new"
+    assert [p.name for p in io.WRITTEN[first:]] == ["r"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]
+
+
+def test_a_signal_right_after_a_file_is_renamed_into_place_names_it(
+    tmp_path, monkeypatch, restore_logging_and_hooks
+):
+    """A file renamed into place is an output written whole, even when the signal lands
+    before the next line runs."""
+    from braidsim import io
+
+    real = os.replace
+
+    def replace_then_signal(src, dst):
+        real(src, dst)
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):  # the handler runs between bytecodes
+            pass
+
+    monkeypatch.setattr(io.os, "replace", replace_then_signal)
+    first = len(io.WRITTEN)
+    with pytest.raises(Interrupted), signals_handled():
+        io.atomic_write_text(tmp_path / "f.json", "{}")
+    assert (tmp_path / "f.json").read_text() == "{}"
+    assert [p.name for p in io.WRITTEN[first:]] == ["f.json"]
