@@ -300,6 +300,7 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("basins-ykey", ["basins", "paper-3.3", "--y", "nope"], BAD, ("nope",)),
     ("basins-out-file", ["basins", "paper-3.3", "--out", "{o}/a_file"], BAD, ("a_file",)),
     # ---------------------------------------------------------------- lyapunov
+    ("lyap-cycles-huge", ["lyapunov", S, "--cycles", "1e12"], BAD, ("--cycles",)),
     ("lyap-d0-1", ["lyapunov", "paper-3.3", "--d0", "1"], BAD, ("--d0",)),
     ("lyap-d0-unit", ["lyapunov", "paper-3.3", "--d0", "1 kg"], BAD, ("--d0",)),
     ("lyap-d0-0", ["lyapunov", "paper-3.3", "--d0", "0 nm"], BAD, ("--d0",)),

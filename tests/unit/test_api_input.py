@@ -293,6 +293,31 @@ def test_a_run_too_long_for_its_step_limit_is_refused_up_front() -> None:
     assert time.process_time() - c0 < 5.0
 
 
+@pytest.mark.parametrize(
+    ("cycles", "interval", "limit"),
+    [(1e12, None, "BRAIDSIM_MAX_STEPS"), (1e6, 1e-9, "BRAIDSIM_MAX_STEPS"), (1e7, None, None)],
+)
+def test_a_lyapunov_exponent_too_long_to_measure_is_refused_up_front(
+    cycles, interval, limit, monkeypatch
+) -> None:
+    """Its intervals are short runs, each within the step limit: the whole measurement,
+    two trajectories over every interval, is what counts (it ended as "out of memory",
+    exit 1, allocating one number per interval, or ran for hours). 1e7 cycles of
+    paper-3.1 are 1.6e8 intervals: 3.8 GB of estimates, under the default memory limit of
+    4 GB but not under 1 GB."""
+    import time
+
+    from braidsim.analysis.lyapunov import carrier_lyapunov
+
+    if limit is None:
+        monkeypatch.setenv("BRAIDSIM_MAX_MEMORY", "1e9")
+        limit = "BRAIDSIM_MAX_MEMORY"
+    c0 = time.process_time()
+    with pytest.raises(InputError, match=rf"^cycles: .* exceeds the limit of .*{limit}=N$"):
+        carrier_lyapunov("paper-3.1", cycles=cycles, interval=interval)
+    assert time.process_time() - c0 < 5.0
+
+
 def test_the_rows_kept_in_memory_stay_within_the_memory_limit(monkeypatch) -> None:
     """The sample grid is sized beforehand; the peak rows of a long rest are counted as
     they come, and the run stops with what to change instead of growing without bound."""

@@ -367,6 +367,20 @@ def carrier_lyapunov(
     n = max(1, round(cycles * T / tau))
     t_tr = transient_cycles * T
     flow = CarrierFlow(sc, max(t_tr, 1e-9 * T) + (n + 1) * tau)
+    # each interval is a run of its own, within the step limit; the whole measurement is
+    # two trajectories over n intervals, each at least one step, and three numbers an
+    # interval (the logs, their times and the running estimate) kept
+    from braidsim import limits
+
+    def measured() -> str:
+        return (
+            f"cycles: {cycles:g} excitation cycles in {n:.4g} intervals of {tau:.3g} s, "
+            "two trajectories"
+        )
+
+    max_step = float(flow.full.options.max_step)
+    limits.check("steps", 2.0 * n * max(1.0, tau / max_step), lambda: measured() + ", at least")
+    limits.check("memory", 3.0 * 8.0 * n, measured)
     from braidsim.simulate import simulate
 
     # the transient run applies the kernel's t = 0 contact policy (docs/model.md §4)
