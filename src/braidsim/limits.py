@@ -60,7 +60,18 @@ def check(name: str, amount: float, what: str | Callable[[], str]) -> None:
         unit = DEFAULTS[name][1]
         if callable(what):
             what = what()
+        shown, limit_shown = _two_numbers(amount, cap)
         raise InputError(
-            f"{what}: {amount:.4g} {unit} exceeds the limit of {cap:.4g} {unit}; "
+            f"{what}: {shown} {unit} exceeds the limit of {limit_shown} {unit}; "
             f"reduce it, or raise the limit with {env_name(name)}=N"
         )
+
+
+def _two_numbers(amount: float, cap: float) -> tuple[str, str]:
+    """``amount`` and ``cap`` with four significant digits, or as many more as it takes to
+    tell them apart (10001 over 10000 read "1e+04 exceeds the limit of 1e+04")."""
+    for digits in range(4, 18):
+        a, c = f"{amount:.{digits}g}", f"{cap:.{digits}g}"
+        if a != c:
+            break
+    return a, c

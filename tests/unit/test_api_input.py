@@ -577,3 +577,17 @@ def test_a_start_overlap_that_would_throw_the_carrier_off_is_refused() -> None:
     for name in builtin_names():
         assert start_overlaps(load_scenario(name)) is not None
         build_model(load_scenario(name))
+@pytest.mark.parametrize(
+    ("name", "amount", "text"),
+    [
+        ("frames", 10_001, "10001 frames exceeds the limit of 10000 frames"),
+        ("transfers", 1_000_001, "1000001 transfers exceeds the limit of 1000000 transfers"),
+        ("runs", 1e8, "1e+08 runs exceeds the limit of 1e+07 runs"),
+    ],
+)
+def test_a_refusal_just_over_a_limit_gives_two_different_numbers(name, amount, text) -> None:
+    """Four digits made 10001 frames read "1e+04 frames exceeds the limit of 1e+04"."""
+    from braidsim import limits
+
+    with pytest.raises(InputError, match=rf"^what: {re.escape(text)}; "):
+        limits.check(name, amount, "what")
