@@ -11,9 +11,9 @@ are smooth, so neighbouring values share their high bytes). The file is written 
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from braidsim.io import atomic_write_with
 
@@ -39,6 +39,26 @@ def local_writes() -> Iterator[None]:
         yield
 
 
+def write_netcdf4(ds: Any, path: str | Path, encoding: Mapping[Any, Any] | None = None) -> Path:
+    """Write the xarray Dataset ``ds`` to ``path`` as netCDF4 (h5netcdf); the file is whole
+    or absent.
+
+    The file is made in memory and then written as bytes: HDF5 writing to a file meets a
+    failed write (a full disk, a file-size limit) inside its own driver, where h5py prints
+    "Exception ignored" tracebacks by the hundred and the process can end in a segmentation
+    fault; a write of bytes fails as an ``OSError`` naming the path."""
+    import io
+
+    buf = io.BytesIO()
+    with local_writes():
+        ds.to_netcdf(buf, engine="h5netcdf", encoding=encoding)
+    data = buf.getbuffer()
+    try:
+        return atomic_write_with(path, lambda tmp: tmp.write_bytes(data))
+    finally:
+        data.release()
+
+
 def write_series_netcdf(result: Result, path: str | Path) -> Path:
     """Write :meth:`Result.to_xarray` as compressed netCDF4 (zlib + shuffle); the file is
     whole or absent."""
@@ -46,9 +66,4 @@ def write_series_netcdf(result: Result, path: str | Path) -> Path:
     encoding = {
         name: {"zlib": True, "complevel": COMPLEVEL, "shuffle": True} for name in ds.data_vars
     }
-
-    def write(tmp: Path) -> None:
-        with local_writes():
-            ds.to_netcdf(tmp, engine="h5netcdf", encoding=encoding)
-
-    return atomic_write_with(path, write)
+    return write_netcdf4(ds, path, encoding)

@@ -203,10 +203,27 @@ def atomic_write_with(path: str | Path, writer: Callable[[Path], object]) -> Pat
         with signals_deferred():  # renamed into place is written: it is named as such
             os.replace(tmp, p)
             WRITTEN.append(p)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
-        raise
+        raise _named(exc, tmp, p) from None
     return p
+
+
+def _named(exc: BaseException, tmp: str | Path, path: Path, unnamed: bool = True) -> BaseException:
+    """``exc``, or for an I/O error about the temporary ``tmp`` or a file under it (or, with
+    ``unnamed``, about no file: a writer that wrote to a file object), the same error about
+    ``path`` or the file under it: the message names the output the user asked for, not a
+    hidden name."""
+    if not isinstance(exc, OSError):
+        return exc
+    name = exc.filename
+    if (name is None and unnamed) or (name is not None and os.fspath(name) == os.fspath(tmp)):
+        where = str(path)
+    elif isinstance(name, str) and name.startswith(os.fspath(tmp) + os.sep):
+        where = str(path) + name[len(os.fspath(tmp)) :]
+    else:
+        return exc
+    return OSError(exc.errno, exc.strerror or str(exc), where)
 
 
 #: the file that marks a folder as braidsim's output: its kind on the first line, then
@@ -277,13 +294,16 @@ def atomic_directory(path: str | Path, kind: str = "output") -> Iterator[Path]:
             del WRITTEN[mark:]
             WRITTEN.append(p)
             swapped = True
-    except BaseException:
+    except BaseException as exc:
         if not swapped:  # (a signal held back by the swap is raised after it: p is whole)
             shutil.rmtree(tmp, ignore_errors=True)
             del WRITTEN[mark:]
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
-        raise
+        named = _named(exc, tmp, p, unnamed=False)
+        if named is exc:
+            raise
+        raise named from None
     if old is not None:
         try:
             shutil.rmtree(old, ignore_errors=True)

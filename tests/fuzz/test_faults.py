@@ -379,6 +379,59 @@ def test_run_out_is_whole_or_absent(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]
 
 
+@pytest.mark.parametrize("verb", ["run", "continue"])
+def test_a_full_disk_while_an_output_folder_is_written_is_one_line_naming_it(verb, tmp_path):
+    """A file-size limit under the netCDF4 files (a run's series, 1.6 MB for 0.2 s of
+    paper-3.3; a continuation's branch, 14 kB): HDF5 met the failed write inside its own
+    file driver, h5py printed hundreds of lines of "Exception ignored" tracebacks and the
+    process ended with a segmentation fault (exit 139). Now: exit 1, one line naming the
+    file under --out and the cause, the earlier output untouched, no temporary left."""
+    import resource
+
+    out = tmp_path / "o"
+    if verb == "run":
+        argv = ["run", "paper-3.3", "--duration", "0.2 s", "--out", str(out)]
+        fsize = 300_000
+    else:
+        spec = tmp_path / "c.toml"
+        spec.write_text(
+            textwrap.dedent(
+                """
+                scenario = "paper-3.3"
+                [continuation]
+                parameter = "track.vibration_amplitude"
+                from = "0.05 mm"
+                to = "0.06 mm"
+                max_points = 3
+                method = "fd"
+                """
+            )
+        )
+        argv = ["continue", str(spec), "--out", str(out), "--quiet"]
+        fsize = 8_000
+    code, _, err = run_cli(argv)
+    assert code == 0, err
+    before = files(out)
+
+    def limit() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # EFBIG instead of a signal
+        resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+
+    proc = subprocess.run(
+        [sys.executable, "-m", "braidsim", *argv],
+        preexec_fn=limit,
+        capture_output=True,
+        timeout=300,
+    )
+    err = proc.stderr.decode(errors="replace")
+    why = judge(proc.returncode, proc.stdout.decode(), err, (1,), (str(out) + os.sep,))
+    RECORD.add(f"{verb}-out-full-disk", why)
+    assert why is None, why
+    assert ".braidsim-" not in err  # the output's own name, not a temporary's
+    assert files(out) == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "c.toml") == ["o"]
+
+
 @pytest.mark.slow
 def test_dask_worker_killed_mid_sweep(spec_path, reference, tmp_path):
     """A Dask worker process killed mid-sweep: the scheduler re-runs its tasks and the store

@@ -190,8 +190,6 @@ def branch_points_table(br: Branch) -> Any:
 def write_branch(ds: Any, path: str | Path) -> Path:
     """Write a branch dataset to ``path`` (``.nc``: netCDF4 via h5netcdf; ``.zarr``: zarr);
     whole or absent."""
-    from braidsim.io import atomic_write_with
-
     p = Path(path)
     if p.suffix == ".zarr":
         import shutil
@@ -206,13 +204,9 @@ def write_branch(ds: Any, path: str | Path) -> Path:
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
         return p
-    from braidsim.export import local_writes
+    from braidsim.export import write_netcdf4
 
-    def write(t: Path) -> None:
-        with local_writes():
-            ds.to_netcdf(t, engine="h5netcdf")
-
-    return atomic_write_with(p, write)
+    return write_netcdf4(ds, p)
 
 
 def open_branch(path: str | Path) -> Any:
