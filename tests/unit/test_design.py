@@ -418,6 +418,26 @@ def test_the_held_out_draw_has_a_seed_of_its_own() -> None:
         parse_design_spec(spec_table(robust={"check_seed": 1}))
 
 
+def test_an_optimisation_too_large_is_refused_up_front(monkeypatch) -> None:
+    """maxiter 10000 and popsize 1000 over 10 parameter sets are at most 4e8 machine runs
+    of the default profile (4 parameters): refused against BRAIDSIM_MAX_RUNS, with the
+    estimate, before any run (the study started and ran on for hours); the defaults pass."""
+    import time
+
+    c0 = time.process_time()
+    big = spec_table(optimizer={"maxiter": 10000, "popsize": 1000}, robust={"samples": 10})
+    with pytest.raises(
+        InputError,
+        match=r"^design\.optimizer: \(maxiter 10000 \+ 1\) x popsize 1000 x \d+ profile "
+        r"parameters x 10 parameter sets \(design\.robust\.samples\), at most: .* runs "
+        r"exceeds the limit of 1e\+07 runs; .*BRAIDSIM_MAX_RUNS=N$",
+    ):
+        parse_design_spec(big)
+    assert time.process_time() - c0 < 10.0
+    monkeypatch.setenv("BRAIDSIM_MAX_RUNS", "1e12")
+    assert parse_design_spec(big).optimizer.maxiter == 10000
+
+
 def test_design_spec_defaults_and_errors(tmp_path: Path) -> None:
     s = parse_design_spec(spec_table())
     assert s.objective == "score" and s.pair == "both" and s.family.name == "dip"

@@ -512,6 +512,7 @@ def parse_design_spec(data: Mapping[str, Any], path: Path | None = None) -> Desi
     _check_runs(table, mpath, machine, sensitivity, speed_limit)
     drive = _drive(d.get("drive", {}))
     robust = _robust(d.get("robust", {}), machine.scenario)
+    _check_optimisation(family, limits, optimizer, robust)
     _check_tolerances(table, mpath, machine, robust)
     lv = expect_table("design.levers", d.get("levers", {}))
     check_keys("design.levers.", lv, LEVER_KEYS)
@@ -624,6 +625,28 @@ def _check_runs(
                 f"design.speed_limit: the machine cannot run at {w:g} rad/s ({exc}); allowed: "
                 "set the speed with [machine] speed, or enabled = false"
             ) from None
+
+
+def _check_optimisation(
+    family: ProfileFamily, motion: Limits, optimizer: OptimizerOptions, robust: RobustOptions
+) -> None:
+    """Refuse an optimisation over the runs limit (``BRAIDSIM_MAX_RUNS``) before it starts:
+    differential evolution runs at most (maxiter + 1) generations of popsize x (number of
+    profile parameters) candidates, each the machine at every parameter set of the
+    objective."""
+    from braidsim import limits as resources
+
+    dim = len(family.bounds(motion))
+    sets = max(1, robust.samples)
+    resources.check(
+        "runs",
+        (optimizer.maxiter + 1) * optimizer.popsize * dim * sets,
+        lambda: (
+            f"design.optimizer: (maxiter {optimizer.maxiter} + 1) x popsize "
+            f"{optimizer.popsize} x {dim} profile parameters x {sets} parameter sets "
+            "(design.robust.samples), at most"
+        ),
+    )
 
 
 def _check_tolerances(
