@@ -9,6 +9,7 @@ force stroboscopic diagram and the analytic contact-loss bound a_p = h_a omega_h
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import re
@@ -521,3 +522,19 @@ def test_grazing_from_the_impacting_side_is_where_the_impact_vanishes(max_step: 
     )
     (g,) = [sp for sp in br.special if sp.type == "grazing"]
     assert g.value == pytest.approx(f_g, rel=1e-6)
+
+
+def test_a_periodic_map_run_that_fails_says_why_and_what_to_change(system) -> None:
+    """A run of the periodic map out of its step budget (a continuation.period of 100000
+    forcing periods spends the map's 1e7 steps at t = 232 s) said only "the integrator
+    stopped with status 3"."""
+    from braidsim.continuation.fdmap import advance
+    from braidsim.errors import SimulationError
+
+    prep = system.prepare({HA: 0.1e-3})
+    prep = dataclasses.replace(prep, options=prep.options._replace(max_steps=50))
+    with pytest.raises(SimulationError) as info:
+        advance(prep, 0.0, 100 * prep.period, [0.0001, 0.0])
+    text = str(info.value)
+    assert "status" not in text, text
+    assert re.search(r"step budget of 50 steps was spent at t = .* s .*continuation\.period", text)

@@ -69,6 +69,23 @@ class Segment:
     series: np.ndarray | None
 
 
+def _failure(status: int, t: float, t0: float, budget: int) -> str:
+    """What stopped a run of the periodic map, when, and what to change."""
+    where = f"at t = {t:.9g} s (a run of the periodic map from t = {t0:.9g} s)"
+    if status == L.ST_MAX_STEPS:
+        return (
+            f"the map's step budget of {budget} steps was spent {where}; allowed a shorter "
+            "map: a smaller continuation.period (forcing periods per orbit)"
+        )
+    why = {
+        L.ST_STEP_COLLAPSE: "the step size collapsed to the rounding of t",
+        L.ST_NONFINITE: "the state became NaN or infinite",
+        L.ST_ZENO: "more than 50 contact events came at one instant (a grazing contact)",
+        L.ST_STIFF: "the equations became stiff",
+    }.get(status, f"the integrator stopped (status {status})")
+    return f"{why} {where}; allowed a parameter range away from this value"
+
+
 def advance(
     prep: Any,
     t0: float,
@@ -105,11 +122,7 @@ def advance(
         implicit=prep.implicit,
     )
     if raw.status != L.ST_OK:
-        raise SimulationError(
-            f"the integrator stopped with status {raw.status} at t = {raw.t:.9g} s "
-            f"(a run of the periodic map from t = {t0:.9g} s)",
-            raw.t,
-        )
+        raise SimulationError(_failure(raw.status, raw.t, t0, opts.max_steps), raw.t)
     rr = raw.restart[0]
     m1 = (int(rr["mode_0"]), int(rr["mode_1"]))
     v1 = np.array(
