@@ -72,6 +72,8 @@ class ParamSpec:
         u = f" {self.unit}" if self.unit else ""
         if self.kind == "choice":
             return "one of " + ", ".join(self.choices)
+        if self.kind == "bool":
+            return "true or false"
         parts = []
         if self.low > -math.inf:
             parts.append(f"{'>' if self.low_open else '>='} {self.low:g}{u}")
@@ -483,7 +485,10 @@ def _convert(spec: ParamSpec, value: Any) -> Any:
             )
         return int(spec.check_number(v))
     if spec.kind == "bool":
-        if isinstance(value, bool) or type(value).__name__ == "bool_":
+        # (numpy's bool: ``bool_`` before numpy 2, ``bool`` since)
+        if isinstance(value, bool) or (
+            type(value).__module__ == "numpy" and type(value).__name__ in ("bool_", "bool")
+        ):
             return bool(value)
         if isinstance(value, str) and value.lower() in ("true", "false", "1", "0", "yes", "no"):
             return value.lower() in ("true", "1", "yes")

@@ -278,3 +278,18 @@ def test_a_start_within_a_clearance_of_the_walls_is_accepted() -> None:
     assert xy["initial.y"] == -1e-4
     # the x-only carrier has no y: its initial.y is not checked
     assert load_scenario("paper-3.3", overrides={"initial.y": "1 m"})["initial.y"] == 1.0
+
+
+@pytest.mark.parametrize("value", [np.bool_(True), np.bool_(False), np.True_, np.False_])
+def test_a_numpy_bool_is_a_boolean(value) -> None:
+    """numpy 2 names its bool type ``bool``, not ``bool_``: a numpy boolean was refused
+    ("np.False_ is not a boolean")."""
+    sc = braidsim.load_scenario("paper-3.1", overrides={"contact.allow_tension": value})
+    assert sc["contact.allow_tension"] is bool(value)
+
+
+def test_none_for_a_boolean_says_true_or_false() -> None:
+    with pytest.raises(
+        InputError, match=r"^contact\.allow_tension: None is not a value; allowed true or false "
+    ):
+        braidsim.load_scenario("paper-3.1", overrides={"contact.allow_tension": None})
