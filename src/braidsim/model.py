@@ -296,11 +296,15 @@ run is not cut short by a budget made for short ones."""
 
 def _step_budget(sc: Scenario, duration: float) -> int:
     """``simulation.max_steps`` when the scenario sets it, else the larger of its default and
-    :data:`STEPS_PER_SECOND` per simulated second."""
+    :data:`STEPS_PER_SECOND` per simulated second, at most the largest budget the key allows
+    (2^52: a longer run's count would pass a 64-bit integer, which the solver refuses)."""
+    from braidsim.params import SCHEMA
+
     budget = int(sc["simulation.max_steps"])
     if "simulation.max_steps" in sc.explicit:
         return budget
-    return max(budget, math.ceil(STEPS_PER_SECOND * duration))
+    most = int(SCHEMA["simulation.max_steps"].high)
+    return max(budget, min(math.ceil(STEPS_PER_SECOND * duration), most))
 
 
 class _Derived(NamedTuple):

@@ -591,3 +591,14 @@ def test_a_refusal_just_over_a_limit_gives_two_different_numbers(name, amount, t
 
     with pytest.raises(InputError, match=rf"^what: {re.escape(text)}; "):
         limits.check(name, amount, "what")
+
+
+def test_the_default_step_budget_of_a_very_long_run_stays_a_64_bit_integer() -> None:
+    """50,000 steps per simulated second of 1e20 s are 5e24, past a 64-bit integer: the
+    compiled solver refused its options ("internal error: TypingError"). The default budget
+    stops at the largest one simulation.max_steps allows, 2^52."""
+    from braidsim.model import build_model
+
+    sc = braidsim.load_scenario("paper-3.1", overrides={"simulation.max_step": "1e16 s"})
+    assert build_model(sc, 1e20).options.max_steps == 2**52
+    assert build_model(sc, 1.0).options.max_steps == 5_000_000
