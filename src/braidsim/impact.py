@@ -36,6 +36,28 @@ ATOL_VELOCITY = 1e-12
 TOLERANCE_SPEED = 0.5
 
 
+def _closed_form(mass: float, stiffness: float, exponent: float, v: float) -> dict[str, float]:
+    """The elastic closed form that sizes the run, refused where it leaves 64-bit floating
+    point (a depth or duration that overflows, or underflows to 0: 1e300 m/s overflowed,
+    1e-300 m/s gave an absolute tolerance of 0 m)."""
+    try:
+        el = contact.hertz_impact_closed_form(mass, stiffness, exponent, v)
+    except (OverflowError, ZeroDivisionError):
+        el = {"max_depth": math.inf, "contact_duration": math.inf}
+    p_m, T = el["max_depth"], el["contact_duration"]
+
+    def fits(x: float) -> bool:
+        return math.isfinite(x) and 1e-290 < x < 1e290
+
+    if fits(p_m) and fits(T) and fits(v / T):
+        return el
+    raise InputError(
+        f"velocity = {v:g} m/s, mass = {mass:g} kg, stiffness = {stiffness:g}: the impact's "
+        f"depth ({p_m:g} m) or duration ({T:g} s) is beyond 64-bit floating point; allowed a "
+        "less extreme velocity, mass or stiffness"
+    )
+
+
 def single_impact(
     model: str = "hunt_crossley",
     restitution: float | str = 5.0 / 9.0,
@@ -99,7 +121,7 @@ def single_impact(
     from braidsim.model import pair_model
 
     pm = pair_model(sc, "track")
-    elastic = contact.hertz_impact_closed_form(sc["carrier.mass"], pm.stiffness, pm.exponent, v)
+    elastic = _closed_form(sc["carrier.mass"], pm.stiffness, pm.exponent, v)
     # below the reference speed the absolute tolerances shrink with the impact's own depth
     # and speed (fixed ones left 1e-6 of the restitution at 1e-5 m/s, 2.5e-9 at 0.5 m/s)
     if v < TOLERANCE_SPEED:

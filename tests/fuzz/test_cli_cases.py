@@ -171,6 +171,9 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("impact-restitution-0", ["impact", "--restitution", "0"], BAD, ("restitution",)),
     ("impact-restitution-str", ["impact", "--restitution", "high"], BAD, ("restitution",)),
     ("impact-velocity-neg", ["impact", "--velocity", "-1"], BAD, ("velocity",)),
+    ("impact-velocity-1e300", ["impact", "--velocity", "1e300 m/s"], BAD, ("velocity",)),
+    ("impact-velocity-1e-300", ["impact", "--velocity", "1e-300 m/s"], BAD, ("velocity",)),
+    ("impact-stiffness-1e-320", ["impact", "--stiffness", "1e-320 N/m^1.5"], BAD, ("stiffness",)),
     ("impact-velocity-unit", ["impact", "--velocity", "1 kg"], BAD, ("velocity",)),
     (
         "impact-velocity-inf",
