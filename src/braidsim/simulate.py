@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -201,6 +201,15 @@ def _extreme_parameters(model: Model, bound: float = 1e15) -> str:
     return ", ".join(out)
 
 
+def _rate(compute: Callable[[], float]) -> float:
+    """``compute()`` as a rate [1/s]: infinite where it overflows, divides by 0 or is NaN."""
+    try:
+        r = float(compute())
+    except (OverflowError, ZeroDivisionError):
+        return math.inf
+    return math.inf if math.isnan(r) else abs(r)
+
+
 def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any]) -> str:
     """What failed, when, and what to change, for a solver status code."""
     sc = model.scenario
@@ -209,13 +218,21 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
     # The two rates that can make the explicit integrator crawl: the friction regularisation,
     # d f_x / d vx = (2/pi) mu1 N / (m x_hat), and the contact damping at rest under the
     # constant load F with the floor speed, d F_c / d pdot / m = F D / (v_min m).
+    # (values of extreme magnitude overflow them, or divide by a mass that is 0 in floating
+    # point: the rate is then infinite, and the message is still the run's failure)
     fric_rate = 0.0
     if sc["friction.law"] != "none":
-        fric_rate = (
-            2 / math.pi * rec.mu_x * rec.normal_x / (m * sc["friction.regularization_velocity"])
+        fric_rate = _rate(
+            lambda: (
+                2 / math.pi * rec.mu_x * rec.normal_x / (m * sc["friction.regularization_velocity"])
+            )
         )
-    damp_rate = (
-        model.constant_load * model.track.damping_factor / (sc["contact.min_impact_velocity"] * m)
+    damp_rate = _rate(
+        lambda: (
+            model.constant_load
+            * model.track.damping_factor
+            / (sc["contact.min_impact_velocity"] * m)
+        )
     )
     if max(fric_rate, damp_rate) * model.options.max_step < 10.0:
         # neither holds the explicit step below a tenth of the maximum step: not stiffness

@@ -602,3 +602,16 @@ def test_the_default_step_budget_of_a_very_long_run_stays_a_64_bit_integer() -> 
     sc = braidsim.load_scenario("paper-3.1", overrides={"simulation.max_step": "1e16 s"})
     assert build_model(sc, 1e20).options.max_steps == 2**52
     assert build_model(sc, 1.0).options.max_steps == 5_000_000
+
+
+@pytest.mark.parametrize(
+    ("key", "value"), [("carrier.mass", 5e-324), ("horn_gear.angular_velocity", 1e300)]
+)
+def test_a_failed_run_of_extreme_values_is_a_simulation_error(key, value) -> None:
+    """The failure message's stiffness rates divided by a subnormal mass and squared a speed
+    of 1e300 rad/s: a ZeroDivisionError or OverflowError (an internal error) instead of
+    the run's failure."""
+    from braidsim.errors import SimulationError
+
+    with pytest.raises(SimulationError, match=r"at t = "):
+        braidsim.simulate("paper-3.1", 0.01, overrides={key: value}, sample_interval=0.0)
