@@ -577,6 +577,8 @@ def test_a_start_overlap_that_would_throw_the_carrier_off_is_refused() -> None:
     for name in builtin_names():
         assert start_overlaps(load_scenario(name)) is not None
         build_model(load_scenario(name))
+
+
 @pytest.mark.parametrize(
     ("name", "amount", "text"),
     [
