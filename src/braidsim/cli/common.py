@@ -350,8 +350,7 @@ def end_on_signals(code: int) -> None:
         return
     for stream in (sys.stdout, sys.stderr):
         try:
-            if stream is not None:  # (None: the process was started with it closed)
-                stream.flush()
+            stream.flush()
         except (OSError, ValueError):  # (a closed pipe or stream: nothing more to give)
             pass
 
