@@ -237,32 +237,3 @@ def test_a_signal_right_after_a_file_is_renamed_into_place_names_it(
         io.atomic_write_text(tmp_path / "f.json", "{}")
     assert (tmp_path / "f.json").read_text() == "{}"
     assert [p.name for p in io.WRITTEN[first:]] == ["f.json"]
-
-
-@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP"])
-def test_a_signal_while_the_process_ends_after_the_command_keeps_its_answer(sig, tmp_path):
-    """The command has answered (its JSON on stdout, exit code 0) and the interpreter is
-    shutting down (exit handlers, here one that takes a signal): SIGINT printed a
-    KeyboardInterrupt traceback, SIGTERM and SIGHUP ended the process without a line. It
-    now ends at once with the command's answer and exit code."""
-    import json
-    import subprocess
-
-    script = tmp_path / "late.py"
-    script.write_text(
-        "import atexit, os, signal, sys, time\n"
-        "sys.argv = ['braidsim', 'models', '--json']\n"
-        "def late():\n"
-        f"    os.kill(os.getpid(), signal.{sig})\n"
-        "    time.sleep(2)\n"
-        "atexit.register(late)\n"
-        "from braidsim.cli import main\n"
-        "main()\n",
-        encoding="utf-8",
-    )
-    proc = subprocess.run(
-        [sys.executable, str(script)], capture_output=True, text=True, timeout=120
-    )
-    assert proc.stderr == ""
-    assert proc.returncode == 0
-    assert isinstance(json.loads(proc.stdout), dict)

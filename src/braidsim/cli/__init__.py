@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``braidsim`` command (``argv``: the arguments after the command's
     name; by default those of the process)."""
     from braidsim import startup, units
-    from braidsim.cli.common import end_on_signals, run_app
+    from braidsim.cli.common import run_app
 
     own_process = argv is None
     args = sys.argv[1:] if argv is None else argv
@@ -77,8 +77,6 @@ def main(argv: list[str] | None = None) -> None:
     _register(verb)
     code = run_app(argv)
     if own_process:
-        # the command has answered: a signal while the process ends keeps that answer
-        end_on_signals(code)
         # the process ends here: spare the interpreter's shutdown the collections over all
         # those objects (~0.2 s); exit handlers still run, and streams are flushed
         gc.freeze()

@@ -335,32 +335,6 @@ def signals_handled() -> Iterator[None]:
         sys.unraisablehook = old_hook
 
 
-def end_on_signals(code: int) -> None:
-    """After the command has answered: a signal while the process ends (the interpreter's
-    shutdown, its exit handlers) ends it at once with the command's exit code ``code``.
-
-    Outside :func:`signals_handled` SIGINT raised a KeyboardInterrupt wherever the shutdown
-    was (a traceback, "Exception ignored in ...") and SIGTERM or SIGHUP ended the process
-    without a line; the command's outputs are whole and its answer given by then, so they
-    stand. Its output streams are flushed first: nothing of the answer is left in a
-    buffer."""
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return
-    for stream in (sys.stdout, sys.stderr):
-        try:
-            stream.flush()
-        except (OSError, ValueError):  # (a closed pipe or stream: nothing more to give)
-            pass
-
-    def done(signum: int, frame: Any) -> None:
-        os._exit(code)
-
-    for sig in _SIGNALS:
-        signal.signal(sig, done)
-
-
 def _os_error_text(exc: OSError) -> str:
     path = exc.filename if exc.filename is not None else "output"
     why = exc.strerror or exc.__class__.__name__
