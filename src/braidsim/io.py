@@ -149,21 +149,38 @@ def signals_deferred() -> Iterator[None]:
 
     For the renames that put an output in place and record it (:data:`WRITTEN`): a signal
     between two of them would leave an earlier output aside under a hidden name, or a
-    written output unnamed. Outside the main thread, or where signals cannot be blocked,
-    the block runs as it is."""
+    written output unnamed. Within the block each of those signals is only noted, by a
+    handler of its own; after it the handlers that were there come back and a signal that
+    came is raised again, for them. (Blocking the signals in this thread instead does not
+    hold them in a process with other threads: the kernel hands the signal to one of them,
+    and Python runs its handler in the main thread all the same.) Outside the main thread,
+    where Python sets no handlers, the block runs as it is."""
     import signal
     import threading
 
-    block = getattr(signal, "pthread_sigmask", None)
-    if block is None or threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    held = {signal.SIGINT, signal.SIGTERM, signal.SIGHUP}
-    before = block(signal.SIG_BLOCK, held)
+    came: list[int] = []
+
+    def note(signum: int, frame: Any) -> None:
+        came.append(signum)
+
+    # (a handler set outside Python, which getsignal gives as None, is left in place: it
+    # could not be set back)
+    held = [
+        sig
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+        if signal.getsignal(sig) is not None
+    ]
+    before = [signal.signal(sig, note) for sig in held]
     try:
         yield
     finally:
-        block(signal.SIG_SETMASK, before)
+        for sig, handler in zip(held, before, strict=True):
+            signal.signal(sig, handler)
+        if came:
+            signal.raise_signal(came[0])
 
 
 #: every output put in place by this process, in order (the command line reports them when
