@@ -253,7 +253,7 @@ def test_xy_carrier_starting_on_its_slot_wall_has_sensitivities() -> None:
     # median agreement to 5e-4 (measured 9.2e-6, 6.4e-6, 4.6e-5 and 2.0e-4: the phase's
     # quotients spread most).
     values = _quantities(res, n_imp)
-    per_impact = np.abs(values[4:]).reshape(n_imp, 5).max(axis=0)  # t, speed, peak, ...
+    per_impact = np.abs(values[4:]).reshape(n_imp, len(L.IMPACT_SENS_FIELDS)).max(axis=0)
     magnitude = np.concatenate([np.abs(values[:4]), np.tile(per_impact, n_imp)])
     errs = []
     counted = total = 0
