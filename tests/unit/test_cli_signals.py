@@ -181,6 +181,25 @@ def test_a_signal_during_the_first_import_of_a_module_is_the_interruption(
     assert _RECEIVED and _RECEIVED[0] is info.value
 
 
+def _signal_after_rename(monkeypatch, signum: int, at: int) -> None:
+    """Make braidsim.io's ``at``-th rename send ``signum`` to this process right after it
+    renames."""
+    from braidsim import io
+
+    real = os.replace
+    calls = []
+
+    def replace_then_signal(src, dst):
+        real(src, dst)
+        calls.append(dst)
+        if len(calls) == at:
+            os.kill(os.getpid(), signum)
+            for _ in range(1000):  # the handler runs between bytecodes
+                pass
+
+    monkeypatch.setattr(io.os, "replace", replace_then_signal)
+
+
 @pytest.mark.parametrize("at", [1, 2])
 def test_a_signal_while_an_output_folder_is_swapped_in_leaves_it_whole(
     at, tmp_path, monkeypatch, restore_logging_and_hooks
@@ -195,18 +214,7 @@ def test_a_signal_while_an_output_folder_is_swapped_in_leaves_it_whole(
     out = tmp_path / "r"
     with atomic_directory(out, kind="run") as d:
         (d / "a.txt").write_text("old")
-    real = os.replace
-    calls = []
-
-    def replace_then_signal(src, dst):
-        real(src, dst)
-        calls.append(dst)
-        if len(calls) == at:
-            os.kill(os.getpid(), signal.SIGTERM)
-            for _ in range(1000):  # the handler runs between bytecodes
-                pass
-
-    monkeypatch.setattr(io.os, "replace", replace_then_signal)
+    _signal_after_rename(monkeypatch, signal.SIGTERM, at)
     first = len(io.WRITTEN)
     with pytest.raises(Interrupted), signals_handled():
         with atomic_directory(out, kind="run") as d:
@@ -223,15 +231,7 @@ def test_a_signal_right_after_a_file_is_renamed_into_place_names_it(
     before the next line runs."""
     from braidsim import io
 
-    real = os.replace
-
-    def replace_then_signal(src, dst):
-        real(src, dst)
-        os.kill(os.getpid(), signal.SIGINT)
-        for _ in range(1000):  # the handler runs between bytecodes
-            pass
-
-    monkeypatch.setattr(io.os, "replace", replace_then_signal)
+    _signal_after_rename(monkeypatch, signal.SIGINT, 1)
     first = len(io.WRITTEN)
     with pytest.raises(Interrupted), signals_handled():
         io.atomic_write_text(tmp_path / "f.json", "{}")
