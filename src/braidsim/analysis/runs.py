@@ -156,11 +156,22 @@ def _stop(pool: Any) -> None:
     """Cancel what has not started and end the worker processes now (not after they
     finish their current chunk, which is what ``shutdown`` alone waits for). SIGKILL: a
     worker holds nothing to save, and a forked worker would turn SIGTERM into a
-    KeyboardInterrupt traceback of its own (it inherits the command line's handler)."""
+    KeyboardInterrupt traceback of its own (it inherits the command line's handler).
+
+    Last, the pool's manager thread is joined: it notices the dead workers and closes its
+    wake-up pipe, and while it still runs as the interpreter exits, the exit handler of
+    :mod:`concurrent.futures` writes to that pipe without the pool's lock, and a close
+    between its test and its write printed "OSError: [Errno 9] Bad file descriptor" with a
+    traceback after the command's line (about 1 in 20 signals to ``bifurcation --workers 2``
+    under load; CPython gh-105829, gh-132969). ``shutdown(wait=False)`` forgets the thread,
+    so it is taken first."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         if p.is_alive():
             p.kill()
     for p in procs:
         p.join(5.0)
+    if manager is not None:
+        manager.join(10.0)
