@@ -368,6 +368,23 @@ def test_entry_point_subprocess() -> None:
     assert proc.stderr.strip().count("\n") == 0 and "carrier.mass" in proc.stderr
 
 
+@pytest.mark.parametrize(
+    "argv", [["run", "paper-3.1", "--duration", "1 ms", "--json"], ["scenarios"], ["--version"]]
+)
+def test_a_closed_stdout_is_one_line_exit_1(argv: list[str]) -> None:
+    """Started with stdout closed (``>&-``), Python sets sys.stdout to None: the first write
+    was an internal error (for --version, a traceback)."""
+    proc = subprocess.run(
+        ["sh", "-c", 'exec "$0" "$@" >&-', sys.executable, "-m", "braidsim", *argv],
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert proc.stderr.startswith("braidsim: error: stdout: Bad file descriptor (the command")
+    assert proc.stderr.count("\n") == 1
+
+
 def test_unknown_option_is_one_line_exit_2(capsys) -> None:
     code, out, err = run_cli(capsys, "run", "paper-3.1", "--bogus")
     assert code == 2 and out == ""

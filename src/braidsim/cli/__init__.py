@@ -53,7 +53,10 @@ def main(argv: list[str] | None = None) -> None:
     """Entry point of the ``braidsim`` command (``argv``: the arguments after the command's
     name; by default those of the process)."""
     from braidsim import startup, units
-    from braidsim.cli.common import run_app
+    from braidsim.cli.common import ClosedStream, run_app
+
+    if sys.stdout is None:  # started with stdout closed (``>&-``)
+        sys.stdout = ClosedStream("stdout")
 
     own_process = argv is None
     args = sys.argv[1:] if argv is None else argv

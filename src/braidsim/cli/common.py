@@ -10,6 +10,8 @@ traceback; an unexpected exception is reported as an internal error in one line 
 
 from __future__ import annotations
 
+import errno
+import io as _io
 import json
 import math
 import os
@@ -38,6 +40,29 @@ app = typer.Typer(
 
 F = TypeVar("F", bound=Callable[..., Any])
 T = TypeVar("T")
+
+
+class ClosedStream(_io.TextIOBase):
+    """Stands in for a standard stream the process was started without (``braidsim run
+    --json >&-``): Python then sets ``sys.stdout`` to None, and the command's first write
+    was an AttributeError, reported as an internal error (or, for ``--version``, a
+    traceback). Every write is an OSError naming the stream, which a verb reports as one
+    line with exit code 1, as it does any output it cannot write."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__()
+        self.name = name
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        raise OSError(
+            errno.EBADF,
+            f"{os.strerror(errno.EBADF)} (the command was started with it closed; what it "
+            "prints had nowhere to go)",
+            self.name,
+        )
 
 
 def _show_version(value: bool) -> None:
@@ -520,4 +545,7 @@ def run_app(argv: list[str] | None) -> int:
     except KeyboardInterrupt:  # a signal outside a verb (while parsing the arguments)
         sys.stderr.write("braidsim: error: interrupted\n")
         return 130
+    except OSError as exc:  # outside a verb: --version on a closed stdout
+        sys.stderr.write(f"braidsim: error: {' '.join(_os_error_text(exc).split())}\n")
+        return 1
     return 0
