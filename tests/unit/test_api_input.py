@@ -67,6 +67,25 @@ def test_analyze_accepts_unit_strings() -> None:
         analyze("paper-3.3", duration=0.05, per_cycle="256")  # type: ignore[arg-type]
 
 
+def test_analyze_refuses_a_window_too_short_for_the_spectra_before_running() -> None:
+    """The bound each message names is the one that works: 4 samples or more in the
+    half-open window (dt = T / 256)."""
+    from braidsim.analysis.regimes import reference_period
+
+    dt = reference_period(braidsim.load_scenario("paper-3.3")) / 256
+    with pytest.raises(InputError, match=r"^duration: 1e-300 s is out of range: .* holds 0 "):
+        analyze("paper-3.3", duration="1e-300 s")
+    with pytest.raises(InputError, match=rf"^duration: .* holds 3 .*allowed {10 * dt:.6g} s"):
+        analyze("paper-3.3", duration=6 * dt)
+    assert analyze("paper-3.3", duration=10 * dt).spectra
+    bound = 0.02 - 5 * dt
+    with pytest.raises(InputError, match=rf"^transient: .* allowed at most {bound:.6g} s$"):
+        analyze("paper-3.3", duration=0.02, transient=0.02 - 2 * dt)
+    assert analyze("paper-3.3", duration=0.02, transient=bound).spectra
+    with pytest.raises(InputError, match=r"^duration: .*or more with this transient$"):
+        analyze("paper-3.3", duration=3 * dt, transient=2 * dt)
+
+
 def test_run_machine_accepts_a_duration_with_a_unit() -> None:
     spec = load_machine_spec(MACHINE)
     run = run_machine(spec, duration="20 ms", workers=1, frames=0)

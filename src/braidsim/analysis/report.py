@@ -147,6 +147,42 @@ def sample_grid(sc: Scenario, duration: float, per_cycle: int) -> np.ndarray:
     return offset + dt * np.arange(n)
 
 
+def _check_spectrum_window(
+    grid: np.ndarray,
+    window: tuple[float, float],
+    duration: float,
+    transient: float,
+    default_transient: bool,
+    dt: float,
+) -> None:
+    """Refuse, before the run, a window too short for the spectra (4 samples or more).
+
+    The window is half-open, as :func:`braidsim.analysis.spectra.run_spectra` reads it. A
+    half-open window of 5 sample intervals ``dt`` holds at least 4 samples, so the bounds
+    named are: a duration of 10 dt with the default transient (half of a run this short),
+    or a transient that ends 5 dt before the run does.
+    """
+    t0, t1 = window
+    n = int(np.count_nonzero((grid >= t0 - 1e-12) & (grid < t1 - 1e-9 * max(abs(t1), 1e-3))))
+    if n >= 4:
+        return
+    held = f"holds {n} of the samples taken every {dt:.6g} s (fewer than the 4 the spectra need)"
+    if default_transient:
+        raise InputError(
+            f"duration: {duration:g} s is out of range: the analysed second half of the run "
+            f"{held}; allowed {10 * dt:.6g} s or more"
+        )
+    if duration - 5 * dt >= 0.0:
+        raise InputError(
+            f"transient: {transient:g} s is out of range: the window from it to the end of the "
+            f"{duration:g} s run {held}; allowed at most {duration - 5 * dt:.6g} s"
+        )
+    raise InputError(
+        f"duration: {duration:g} s is out of range: the window after the transient {held}; "
+        f"allowed {transient + 5 * dt:.6g} s or more with this transient"
+    )
+
+
 def analyze(
     scenario: Scenario | str | Any,
     overrides: Mapping[str, Any] | None = None,
@@ -204,10 +240,9 @@ def analyze(
     if per_cycle < 16:
         raise InputError(f"per_cycle: {per_cycle!r} is out of range; allowed an integer >= 16")
     grid = sample_grid(sc, T_run, int(per_cycle))
-    res = simulate(sc, duration=T_run, sample_times=grid)
     n_cyc = math.floor((T_run - t_tr) / T + 1e-9)
-    steady = None
     window = (t_tr, T_run)
+    strobes = None
     if n_cyc >= 2:
         st = strobe_times(sc, t_tr, n_cyc)
         if st[-1] > T_run + 1e-12:
@@ -217,7 +252,12 @@ def analyze(
         st = grid[idx]
         if st.size >= 3:
             window = (float(st[0]), float(st[-1]))
-            steady = steady_state_from_result(res, window, st, None, period_tol, max_period)
+            strobes = st
+    _check_spectrum_window(grid, window, T_run, t_tr, transient is None, T / per_cycle)
+    res = simulate(sc, duration=T_run, sample_times=grid)
+    steady = None
+    if strobes is not None:
+        steady = steady_state_from_result(res, window, strobes, None, period_tol, max_period)
     spectra = run_spectra(res, window)
     how = (
         f"given: transient {t_tr:g} s"
