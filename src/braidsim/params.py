@@ -698,7 +698,19 @@ def _check_start_between_walls(values: Mapping[str, Any]) -> None:
     1e9 N rather than an error. The track's inner wall is at x = h(0) at the start, with
     h(t) = h_a cos(omega_h t + phase) plus its harmonics; the slot's rear wall at y = 0."""
     h0 = inner_wall_at_start(values)
-    checks = [("initial.x", h0, "track.clearance", "the inner track wall at x = h(0)")]
+    # where the wall is set by the vibration (its amplitude, a harmonic), the range moves
+    # with it: name what put it there, or a wrong amplitude reads as a wrong start
+    where_x = "the inner track wall at x = h(0)"
+    if h0 != 0.0:
+        where_x += (
+            f" = {h0 * 1e3:g} mm, from track.vibration_amplitude "
+            f"({values['track.vibration_amplitude'] * 1e3:g} mm)"
+        )
+        if values["track.harmonics"]:
+            where_x += " and track.harmonics at their phases"
+        else:
+            where_x += " at its phase"
+    checks = [("initial.x", h0, "track.clearance", where_x)]
     if values["simulation.dof"] == "xy":
         checks.append(("initial.y", 0.0, "slot.clearance", "the rear slot wall at y = 0"))
     for key, wall, gap_key, where in checks:
