@@ -209,6 +209,23 @@ def test_resume_refuses_another_spec(tmp_path, local_store):
         run_sweep(other, local_store, resume=True, processes=1, progress=False)
 
 
+def test_resume_where_there_is_no_store_starts_one_and_says_so(tmp_path, capsys, local_store):
+    """A script may pass --resume every time: with no store yet the sweep starts there,
+    and one line on stderr says so (it was silent)."""
+    spec = write(tmp_path, SPEC)
+    store = tmp_path / "new.zarr"
+    argv = ["sweep", str(spec), "--out", str(store), "--processes", "1", "--resume", "--json"]
+    assert run_app(argv) == 0
+    out, err = capsys.readouterr()
+    said = f"--resume: there is no store at {store} yet; a new sweep is started there"
+    assert err == f"braidsim: note: {said}\n"
+    assert json.loads(out)["chunks_done_before"] == 0
+    assert files(store) == files(local_store)
+    assert run_app(argv) == 0  # now a finished store: nothing to say, nothing to compute
+    out, err = capsys.readouterr()
+    assert err == "" and json.loads(out)["chunks_computed"] == 0
+
+
 def test_spec_differences_name_axes_as_the_spec_check_does():
     """A resumed store's spec differences said ``axes.2.num`` (1-based), the spec's own
     checks ``axes[1].num``: one form."""

@@ -12,6 +12,7 @@ from braidsim.cli.common import (
     fail,
     flush_notices,
     guarded,
+    notice,
     print_json,
     result_console,
     spec_loaded,
@@ -53,6 +54,11 @@ def sweep(
     check_output_target(out, "--out", directory=True)
     if netcdf is not None:
         check_output_target(netcdf, "--netcdf", directory=False, suffixes=(".nc",))
+    if resume:
+        from braidsim.sweep.store import nothing_at
+
+        if nothing_at(out):  # (a script that always passes --resume starts this way)
+            notice(f"--resume: there is no store at {out} yet; a new sweep is started there")
     flush_notices()
 
     def resume_hint() -> str:

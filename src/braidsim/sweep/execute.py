@@ -495,7 +495,8 @@ def run_sweep(
         The zarr store (a folder).
     resume : bool
         Finish the chunks a previous run of the same spec left undone. Without it an
-        existing store is an error.
+        existing store is an error; with it, a path with no store yet starts a new one
+        (``braidsim sweep --resume`` says so on stderr).
     processes : int, optional
         Local worker processes (default: all cores).
     workers : int, optional
