@@ -702,9 +702,10 @@ def _onset_series_for(n_coords):
 
 @inline_helper
 def _track_contact_jvp(model, dm, t, y, s, mode, v0, dv0):
-    """Tangent of the track pair's normal force N (0 when free)."""
+    """Tangents (dp', dF_k, dN) of the track pair's penetration rate, elastic force and
+    normal force (0 when free)."""
     if mode == 0:
-        return 0.0
+        return 0.0, 0.0, 0.0
     h, hd, _ = wall_motion(model.track, t)
     dh, dhd, _ = wall_motion_jvp(model.track, dm.track, t)
     u = y[0] - h
@@ -713,15 +714,16 @@ def _track_contact_jvp(model, dm, t, y, s, mode, v0, dv0):
     drate = s[1] - dhd
     p, pd = penetration(mode, u, model.track_clearance - u, rate)
     dp, dpd = penetration_jvp(mode, du, dm.track_clearance - du, drate)
-    _, _, dn = contact_forces_jvp(model.track_law, dm.track_law, p, dp, pd, dpd, v0, dv0)
-    return dn
+    dfk, _, dn = contact_forces_jvp(model.track_law, dm.track_law, p, dp, pd, dpd, v0, dv0)
+    return dpd, dfk, dn
 
 
 @inline_helper
 def _slot_contact_jvp(model, dm, t, y, s, mode, v0, dv0, om, dom, sp, dsp):
-    """Tangent of the slot pair's normal force N (0 when free)."""
+    """Tangents (dp', dF_k, dN) of the slot pair's penetration rate, elastic force and
+    normal force (0 when free)."""
     if mode == 0:
-        return 0.0
+        return 0.0, 0.0, 0.0
     rc = model.horn_gear.turning_radius
     drc = dm.horn_gear.turning_radius
     u = y[2] - sp
@@ -730,8 +732,8 @@ def _slot_contact_jvp(model, dm, t, y, s, mode, v0, dv0, om, dom, sp, dsp):
     drate = s[3] - drc * om - rc * dom
     p, pd = penetration(mode, u, model.slot_clearance - u, rate)
     dp, dpd = penetration_jvp(mode, du, dm.slot_clearance - du, drate)
-    _, _, dn = contact_forces_jvp(model.slot_law, dm.slot_law, p, dp, pd, dpd, v0, dv0)
-    return dn
+    dfk, _, dn = contact_forces_jvp(model.slot_law, dm.slot_law, p, dp, pd, dpd, v0, dv0)
+    return dpd, dfk, dn
 
 
 @_for_each_carrier(derivatives_jvp)
@@ -742,8 +744,8 @@ def _derivs_jvp_for(n_coords):
         dom, dsp = horn_gear_state_jvp(model.horn_gear, dm.horn_gear, t)
         m = model.mass
         mt = modes[0]
-        _, _, nt = _track_contact(model, t, y, mt, v0s[0])
-        dnt = _track_contact_jvp(model, dm, t, y, s, mt, v0s[0], dv0s[0])
+        pdt, fkt, nt = _track_contact(model, t, y, mt, v0s[0])
+        dpdt, dfkt, dnt = _track_contact_jvp(model, dm, t, y, s, mt, v0s[0], dv0s[0])
         fx = friction_force(model.friction, y[1], model.normal_x, model.mu_x)
         dfx = friction_force_jvp(
             model.friction,
@@ -760,10 +762,17 @@ def _derivs_jvp_for(n_coords):
         ax = (-mt * nt - fx - load_x) / m
         out[0] = s[1]
         out[1] = (-mt * dnt - dfx - dload_x) / m - ax * dm.mass / m
+        if out.shape[0] > 2 * n_coords:
+            # the tangent of the track law's dissipation rate (N - F_k) p' (derivatives)
+            out[2 * n_coords] = (dnt - dfkt) * pdt + (nt - fkt) * dpdt
         if n_coords == 2:
             ms = modes[1]
-            _, _, ns = _slot_contact(model, t, y, ms, v0s[1], om, sp)
-            dns = _slot_contact_jvp(model, dm, t, y, s, ms, v0s[1], dv0s[1], om, dom, sp, dsp)
+            pds, fks, ns = _slot_contact(model, t, y, ms, v0s[1], om, sp)
+            dpds, dfks, dns = _slot_contact_jvp(
+                model, dm, t, y, s, ms, v0s[1], dv0s[1], om, dom, sp, dsp
+            )
+            if out.shape[0] > 5:
+                out[5] = (dns - dfks) * pds + (ns - fks) * dpds
             sgn = 1.0 if nt >= 0.0 else -1.0
             fy = friction_force(model.friction, y[3], abs(nt), model.mu_y)
             dfy = friction_force_jvp(

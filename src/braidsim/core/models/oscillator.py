@@ -279,12 +279,14 @@ def _onset_series(model, k, pair, modes, v0s, n_state, C, W):
 @derivatives_jvp.register(ImpactOscillator)
 def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
     mode = modes[0]
-    _, _, _, _, nn = _contact(model, mode, y, v0s[0])
+    _, pd, fk, _, nn = _contact(model, mode, y, v0s[0])
     dnn = 0.0
+    ddiss = 0.0  # the tangent of the law's dissipation rate (N - F_k) p'
     if mode != 0:
         p, pd = penetration(mode, y[0] + model.gap_inner, model.gap_outer - y[0], y[1])
         dp, dpd = penetration_jvp(mode, s[0] + dm.gap_inner, dm.gap_outer - s[0], s[1])
-        _, _, dnn = contact_forces_jvp(model.law, dm.law, p, dp, pd, dpd, v0s[0], dv0s[0])
+        dfk, _, dnn = contact_forces_jvp(model.law, dm.law, p, dp, pd, dpd, v0s[0], dv0s[0])
+        ddiss = (dnn - dfk) * pd + (nn - fk) * dpd
     arg = model.force_frequency * t + model.force_phase
     force = model.force_amplitude * math.cos(arg)
     dforce = dm.force_amplitude * math.cos(arg) - model.force_amplitude * math.sin(arg) * (
@@ -301,6 +303,8 @@ def _derivs_jvp(model, dm, t, y, s, modes, v0s, dv0s, out):
         - model.stiffness * s[0]
         - mode * dnn
     ) / m - ax * dm.mass / m
+    if out.shape[0] > 2:
+        out[2] = ddiss
 
 
 @pair_gaps_jvp.register(ImpactOscillator)
