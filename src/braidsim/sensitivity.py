@@ -309,12 +309,12 @@ class Sensitivities:
     final : np.ndarray (k, 4)
         d(x, vx, y, vy) at the end of the run / d key (y and vy are 0 for the x-only
         carrier).
-    impacts : np.ndarray (n_impacts, k, 6)
+    impacts : np.ndarray (n_impacts, k, 7)
         d(:data:`IMPACT_QUANTITIES`) / d key for each row of ``Result.impacts`` (NaN where
         undefined: the exit time and rebound speed of a contact still open at the end, the
         rebound speed of one cut by a transfer, the approach speed of a contact carried
-        into a continued run; the onset of a contact present at the
-        start is the start, its derivative 0).
+        into a continued run, the dissipated energy of a run that does not integrate it;
+        the onset of a contact present at the start is the start, its derivative 0).
     series : np.ndarray (n_rows, k, 8) or None
         d(:data:`SERIES_QUANTITIES`) / d key at the time of each row of ``Result.series``.
     latched : np.ndarray (k, 2)
@@ -350,8 +350,8 @@ class Sensitivities:
 
     def impact_dict(self, row: int) -> dict[str, dict[str, float | None]]:
         """``{key: {"t", "velocity", "peak_force", "max_depth", "t_end",
-        "rebound_velocity"}}`` of impact
-        ``row`` (None where undefined)."""
+        "rebound_velocity", "dissipated_energy"}}`` of impact ``row`` (None where
+        undefined)."""
         out: dict[str, dict[str, float | None]] = {}
         for i, key in enumerate(self.keys):
             vals = self.impacts[row, i]
@@ -435,7 +435,7 @@ class FlowMap:
     jac_p: np.ndarray  # (n, len(keys))
     dv0_dp: np.ndarray  # (2, len(keys))
     episodes: np.ndarray  # the run's impact table (EPISODE_DTYPE rows)
-    impact_sens: np.ndarray  # (n_impacts, n + 2 + len(keys), 6)
+    impact_sens: np.ndarray  # (n_impacts, n + 2 + len(keys), 7)
     min_gaps: np.ndarray  # (2, 2)
 
     @functools.cached_property

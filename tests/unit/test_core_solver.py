@@ -683,7 +683,9 @@ def test_sensitivity_work_is_typed_as_numba_types_it() -> None:
     assert len(typed_list) == 2 and typed_list[1].mass == 2.0
     ep = np.empty(8, dtype=L.EPISODE_DTYPE)
     tangents = Tangents(recs, np.eye(2), np.zeros((2, 2)), np.zeros((2, 0)), np.ones(2))
-    work = driver._sensitivity_work(tangents, ep, None, np.zeros(0), False, None, model.options)
+    work = driver._sensitivity_work(
+        tangents, ep, None, np.zeros(0), False, None, model.options, rec, 5
+    )
     ctx = numba_typeof._TypeofContext(numba_typeof.Purpose.argument)
     for _ in range(2):  # (made, then kept)
         assert driver._typeof_sensitivity_work(work, ctx) == numba_typeof._typeof_tuple(work, ctx)

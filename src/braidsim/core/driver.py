@@ -86,7 +86,7 @@ class SensitivityRun:
         Tangents of the final coordinates and speeds.
     DV0 : array (k, 2)
         Tangents of the final latched speeds.
-    impacts : array (n_impacts, k, 6)
+    impacts : array (n_impacts, k, 7)
         :data:`~braidsim.core.layout.IMPACT_SENS_FIELDS` of each row of the impact table.
     series : array (rows, k, 8) or None
         :data:`~braidsim.core.layout.SERIES_SENS_FIELDS` of each row of the series.
@@ -629,7 +629,7 @@ def run(
     closed: list[np.ndarray] = []
     SENS = None
     if tangents is not None:
-        SENS = _sensitivity_work(tangents, EP, rows, TR, keep, sink, opts)
+        SENS = _sensitivity_work(tangents, EP, rows, TR, keep, sink, opts, model, n)
     # the implicit step of resting contacts, where asked and no tangents are carried
     IMP = None
     if implicit and SENS is None:
@@ -716,17 +716,18 @@ def run(
         if np.any(order != np.arange(order.size)):
             by_onset = order
             episodes = episodes[order]
-    _close_open(episodes, r, y, model, n)
+    sens_impacts = np.concatenate(sens_closed)[by_onset] if SENS is not None else None
+    _close_open(episodes, r, y, model, n, sens_impacts, None if SENS is None else SENS.S)
     series_rows = None
     if keep:
         series_rows = np.concatenate(chunks) if chunks else np.zeros((0, ncol))
     sens = None
-    if SENS is not None:
+    if SENS is not None and sens_impacts is not None:
         k = SENS.S.shape[0]
         sens = SensitivityRun(
-            SENS.S.copy(),
+            SENS.S[:, : SENS.n_dof2].copy(),  # (the dissipations' tangents left out)
             SENS.DV0.copy(),
-            np.concatenate(sens_closed)[by_onset],
+            sens_impacts,
             (np.concatenate(sens_chunks) if sens_chunks else np.zeros((0, k, 8)))
             if SENS.RSENS is not None
             else None,
@@ -836,13 +837,27 @@ def _sensitivity_work(
     keep: bool,
     sink: SeriesSink | None,
     opts: L.SolverOptions,
+    model: Any,
+    n: int,
 ) -> L.SensitivityWork:
     """The arrays the solver fills with the tangents, sized like the impact table and the
-    series buffer."""
-    S = np.array(tangents.S0, dtype=float, ndmin=2)
-    k = S.shape[0]
+    series buffer. The tangents of the coordinates and speeds come from ``tangents.S0``;
+    where the state of n entries holds the energy each pair dissipates, their tangents
+    follow, from 0 (they give the impacts' dissipated energies)."""
+    S0 = np.array(tangents.S0, dtype=float, ndmin=2)
+    k = S0.shape[0]
     if k == 0:
         raise ValueError("tangents: at least one direction is needed")
+    n_coords, n_pairs, _ = model_sizes(model)
+    n_dof2 = 2 * n_coords
+    if S0.shape[1] != n_dof2:
+        raise ValueError(f"tangents.S0: shape {S0.shape}, expected {(k, n_dof2)}")
+    slots = [dissipation_slot(model, pair) for pair in range(n_pairs)]
+    n_tan = n_dof2
+    if slots == list(range(n_dof2, n_dof2 + n_pairs)) and n >= n_dof2 + n_pairs:
+        n_tan = n_dof2 + n_pairs
+    S = np.zeros((k, n_tan))
+    S[:, :n_dof2] = S0
     DV0 = np.array(tangents.DV0, dtype=float).reshape(k, 2)
     DTR = np.zeros((k, TR.shape[0])) if TR.shape[0] == 0 else np.array(tangents.DTR, dtype=float)
     if DTR.shape != (k, TR.shape[0]):
@@ -859,7 +874,7 @@ def _sensitivity_work(
     scale = np.abs(np.array(tangents.scale, dtype=float).reshape(k))
     scale[~(np.isfinite(scale) & (scale > 0))] = 1.0
     ATOL = np.array([opts.atol_position, opts.atol_velocity])[None, :] / scale[:, None]
-    return L.SensitivityWork(records, S, DV0, DTR, ESENS, RSENS, np.zeros((k, 2)), ATOL)
+    return L.SensitivityWork(records, S, DV0, DTR, ESENS, RSENS, np.zeros((k, 2)), ATOL, n_dof2)
 
 
 def _flush_episodes(
@@ -899,9 +914,19 @@ def _last_open(episodes: np.ndarray, pair: int) -> int:
     return -1
 
 
-def _close_open(episodes: np.ndarray, r: Any, y: np.ndarray, model: Any, n: int) -> None:
+def _close_open(
+    episodes: np.ndarray,
+    r: Any,
+    y: np.ndarray,
+    model: Any,
+    n: int,
+    sens_impacts: np.ndarray | None = None,
+    S: np.ndarray | None = None,
+) -> None:
     """Close, in the output table, the contacts still open at the end of the run (``r``:
-    the restart record at the end, :func:`~braidsim.core.layout.record_view`)."""
+    the restart record at the end, :func:`~braidsim.core.layout.record_view`), and the
+    tangents of their dissipated energies (``sens_impacts``, from the final tangents ``S``
+    with the dissipations' after the coordinates and speeds)."""
     modes = (int(r.mode_0), int(r.mode_1))
     if modes == (0, 0):
         return
@@ -919,3 +944,6 @@ def _close_open(episodes: np.ndarray, r: Any, y: np.ndarray, model: Any, n: int)
         episodes["t_end"][i] = t
         episodes["dissipated_energy"][i] = energy - episodes["dissipated_energy"][i]
         episodes["end_reason"][i] = L.END_ONGOING
+        if sens_impacts is not None and S is not None and k < S.shape[1]:
+            # (6) at the run's end, a fixed instant
+            sens_impacts[i, :, L.ES_DISS] = S[:, k] - sens_impacts[i, :, L.ES_DISS]

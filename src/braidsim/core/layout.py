@@ -225,16 +225,17 @@ class SensitivityWork(NamedTuple):
     ----------
     tangents : numba.typed.List
         k tangent records of the model's class (d field / d key; integer fields copied).
-    S : array (k, 2 n_coords)
-        Tangent of the coordinates and speeds; in (at the start) and out (at the end).
+    S : array (k, 2 n_coords) or (k, 2 n_coords + n_pairs)
+        Tangent of the coordinates and speeds, and of the energy each pair dissipates where
+        the run integrates it (those start at 0); in (at the start) and out (at the end).
     DV0 : array (k, 2)
         Tangents of the latched approach speeds of the pairs; in and out.
     DTR : array (k, n_transfers)
         Tangents of the transfer times.
-    ESENS : array (episode capacity, k, 6)
+    ESENS : array (episode capacity, k, 7)
         Tangents of each impact's onset time, approach speed, peak force, maximum depth,
-        exit time and rebound speed (:data:`IMPACT_SENS_FIELDS`), rows matching the impact
-        table.
+        exit time, rebound speed and dissipated energy (:data:`IMPACT_SENS_FIELDS`), rows
+        matching the impact table.
     RSENS : array (row capacity, k, 8) or None
         Tangents of each series row's :data:`SERIES_SENS_FIELDS`, rows matching the series.
     SMAX : array (k, 2)
@@ -243,6 +244,8 @@ class SensitivityWork(NamedTuple):
     ATOL : array (k, 2)
         Absolute tolerances of the tangents of positions and speeds in each direction: the
         state's, divided by the scale of the direction's parameter.
+    n_dof2 : int
+        2 n_coords: where the dissipations' tangents start in S.
     """
 
     tangents: Any
@@ -253,9 +256,18 @@ class SensitivityWork(NamedTuple):
     RSENS: Any
     SMAX: np.ndarray
     ATOL: np.ndarray
+    n_dof2: int
 
 
-IMPACT_SENS_FIELDS = ("t", "velocity", "peak_force", "max_depth", "t_end", "rebound_velocity")
+IMPACT_SENS_FIELDS = (
+    "t",
+    "velocity",
+    "peak_force",
+    "max_depth",
+    "t_end",
+    "rebound_velocity",
+    "dissipated_energy",
+)
 SERIES_SENS_FIELDS = (
     "x",
     "vx",
@@ -266,7 +278,7 @@ SERIES_SENS_FIELDS = (
     "track_contact_force",
     "slot_contact_force",
 )
-ES_T, ES_VELOCITY, ES_PEAK, ES_DEPTH, ES_T_END, ES_REBOUND = range(len(IMPACT_SENS_FIELDS))
+ES_T, ES_VELOCITY, ES_PEAK, ES_DEPTH, ES_T_END, ES_REBOUND, ES_DISS = range(len(IMPACT_SENS_FIELDS))
 
 
 # ---- one row of the impact table (a contact episode) ----------------------------------------

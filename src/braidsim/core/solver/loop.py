@@ -24,6 +24,8 @@ from braidsim.core.interfaces import (
 from braidsim.core.layout import (
     END_EXIT,
     END_TRANSFER,
+    ES_DISS,
+    ES_T,
     KIND_END,
     KIND_EXIT,
     KIND_ONSET,
@@ -330,14 +332,18 @@ def integrate(
     GS = np.empty((N_EVENTS, N_SUB + 1))
     if SENS is not None:
         nsens = SENS.S.shape[0]
-        KS = np.empty((nsens, 7, n_dof2))
+        # a tangent: the coordinates and speeds (n_dof2), then the dissipations where the
+        # run integrates them (tangent.py); the dense output and the stage states need the
+        # first part only
+        n_tan = SENS.S.shape[1]
+        KS = np.empty((nsens, 7, n_tan))
         RCS = np.empty((nsens, 5, n_dof2))
-        S1 = np.empty((nsens, n_dof2))
+        S1 = np.empty((nsens, n_tan))
         SQ = np.empty((nsens, n_dof2))  # tangents at an instant inside a step
-        ss = np.empty(n_dof2)
+        ss = np.empty(n_tan)
         YS = np.empty((7, n_dof2))  # stage states of a step, for the tangents
-        sw = np.empty(n_dof2)
-        f_minus = np.empty(n_dof2)
+        sw = np.empty(n_tan)
+        f_minus = np.empty(n)
         y_minus = np.empty(n)
         prev_depth_t = np.zeros(2)
         prev_peak_t = np.zeros(2)
@@ -345,7 +351,7 @@ def integrate(
         yc = np.empty(n)  # the state on the wall at an event, and the fields there
         fm = np.empty(n)
         fp = np.empty(n)
-        if not arrays_fit(SENS, SENS.RSENS, rows, n_dof2, EP.shape[0]):
+        if not arrays_fit(SENS, SENS.RSENS, rows, n, n_dof2, n_pairs, EP.shape[0]):
             return ST_BAD_ARRAYS
     modes = np.empty(2, dtype=np.int64)  # (all three set from the restart record below)
     v0s = np.empty(2)
@@ -399,7 +405,9 @@ def integrate(
                     )
                     if SENS is not None:
                         for d in range(nsens):
-                            SENS.ESENS[nep - 1, d, 0] = 0.0
+                            SENS.ESENS[nep - 1, d, ES_T] = 0.0
+                            if n_dof2 + pair < n_tan:  # (D from this run's start)
+                                SENS.ESENS[nep - 1, d, ES_DISS] = SENS.S[d, n_dof2 + pair]
         if SENS is not None:
             for pair in range(n_pairs):
                 ie = open_ep[pair]
@@ -486,7 +494,7 @@ def integrate(
             if SENS is not None:
                 for i in range(n):
                     y_minus[i] = y[i]
-                for i in range(n_dof2):
+                for i in range(n_tan):
                     f_minus[i] = K[0, i]
             reset = _transfer(model, t, y)
             if IMP is not None:
@@ -506,7 +514,7 @@ def integrate(
                         END_TRANSFER,
                     )
                     if SENS is not None:
-                        transfer_cut(SENS, itr - 1, ie)
+                        transfer_cut(SENS, itr - 1, ie, pair, f_minus)
                     open_ep[pair] = -1
                 modes[pair] = 0
             nrow_tr = nrow
@@ -515,7 +523,7 @@ def integrate(
                 # the tangents jump with the state (the new contacts need them)
                 rhs(model, t, y, modes, v0s, n, K0)
                 transfer_jump(model, SENS, itr - 1, t, y_minus, f_minus, K0, n_dof2, ss, sw)
-                for i in range(n_dof2):
+                for i in range(n_tan):
                     f_minus[i] = K0[i]  # the flow after the transfer, before its contacts
             nep = _start_contacts(
                 model, t, y, modes, v0s, open_ep, EP, nep, reset, n, SENS, itr - 1, K0
@@ -1142,7 +1150,7 @@ def integrate(
                     sw,
                 )
             for d in range(nsens):
-                for i in range(n_dof2):
+                for i in range(n_tan):
                     SENS.S[d, i] = S1[d, i]
                     KS[d, 0, i] = KS[d, 6, i]
         if j_ev >= 0:

@@ -35,6 +35,23 @@ on the side where the force presses, dN = 0 where it is clamped. The solver ends
 the kink, so that each step's stages see one side only; those at the kink itself are read
 on the side of their step (:func:`clamp_step_end`, :func:`clamp_event`).
 
+Where the run integrates the energy each contact pair dissipates, D' = (N - F_k) p' (the
+work of the law's non-conservative part), the tangents carry D's too, after the coordinates
+and speeds: (1) for them is the tangent of that integrand, (N - F_k)' along the direction
+times p' plus (N - F_k) times the tangent of p', which the model's ``derivatives_jvp``
+writes beside the others where its output has room (from the forces' tangents it computes
+anyway: a generic function here, which computed the forces again, made a run with one key
+on paper-3.3 15-20 % slower). They are integrated with the same stages and jump at events
+and transfers by (3) and (5) like the others (the transfer map leaves D as it is). An
+impact's dissipated energy is D at its exit less D at its onset, each read at the moving
+instant: its tangent is
+
+    dE = (s_D + D' dt_e)(exit) - (s_D + D' dt_e)(onset)                   (6)
+
+(D' is 0 at both ends for the power laws, whose force and depth vanish together; a
+Kelvin-Voigt dashpot dissipates from the onset's first instant). The tangents of D are not
+in the step's error control: they follow the steps the state and its tangents take.
+
 Peak force and maximum depth are stationary in time where they occur, so their tangents
 are the partial ones at that instant (plus their slope times dt_e when the maximum sits at
 the onset instant itself). See ``docs/sensitivities.md`` for the derivation. (2), (3) and
@@ -60,7 +77,15 @@ from braidsim.core.interfaces import (
     penetration,
     penetration_jvp,
 )
-from braidsim.core.layout import ES_DEPTH, ES_PEAK, ES_REBOUND, ES_T, ES_T_END, ES_VELOCITY
+from braidsim.core.layout import (
+    ES_DEPTH,
+    ES_DISS,
+    ES_PEAK,
+    ES_REBOUND,
+    ES_T,
+    ES_T_END,
+    ES_VELOCITY,
+)
 from braidsim.core.solver.calls import rhs
 from braidsim.core.solver.dense import dense_eval
 from braidsim.core.solver.dopri5 import (
@@ -88,7 +113,9 @@ tangent_helper = cached_njit(error_model="numpy")
 
 @tangent_helper
 def tangent_rhs(model, SENS, d, t, y, s, modes, v0s, out):
-    """Write (1) for direction d into ``out[:2 n_coords]``."""
+    """Write (1) for direction d into ``out[:2 n_coords]``, and into the rest of ``out``
+    (where it has room) the tangents of the dissipation rates (the model's
+    :func:`~braidsim.core.interfaces.derivatives_jvp`)."""
     derivatives_jvp(model, SENS.tangents[d], t, y, s, modes, v0s, SENS.DV0[d], out)
 
 
@@ -102,8 +129,10 @@ def tangent_start(model, SENS, t, y, modes, v0s, KS):
 @tangent_helper
 def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1):
     """Integrate (1) over the step [t, t + h] the state took (stages K): fills KS[:, 1..6]
-    and the tangents at the end of the step S1 (KS[:, 0] holds (1) at the start). ``YS``
-    (7, n_dof2) work space for the stage states."""
+    and the tangents at the end of the step S1 (KS[:, 0] holds (1) at the start), the
+    dissipations' included where the run carries them. ``YS`` (7, n_dof2) work space for
+    the stage states."""
+    n_tan = SENS.S.shape[1]
     for st in range(1, 7):
         for i in range(n_dof2):
             acc = 0.0
@@ -115,7 +144,9 @@ def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1):
         dv0 = SENS.DV0[d]
         for st in range(1, 7):
             sd = S1[d] if st == 6 else ss
-            for i in range(n_dof2):
+            # (the field reads the coordinates and speeds only: the dissipations' stage
+            # tangents are needed for S1 alone)
+            for i in range(n_tan if st == 6 else n_dof2):
                 acc = 0.0
                 for j in range(st):
                     acc += RK_A[st, j] * KS[d, j, i]
@@ -282,8 +313,13 @@ def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plu
         dg = dg_in if side < 0 else dg_out
         dpen_rate = -drate_in if side < 0 else drate_in
         dt_e = 0.0 if pinned else -dg / gdot
-        for i in range(n_dof2):
+        for i in range(s.shape[0]):
             s[i] += (f_minus[i] - f_plus[i]) * dt_e
+        if ie >= 0 and s.shape[0] > n_dof2:
+            # (6): D at the moving instant (s + f dt_e is the same on either side of the jump)
+            k = n_dof2 + pair
+            d_at = s[k] + f_plus[k] * dt_e
+            SENS.ESENS[ie, d, ES_DISS] = d_at if onset else d_at - SENS.ESENS[ie, d, ES_DISS]
         if onset:
             dvel = dpen_rate + pen_acc * dt_e
             SENS.DV0[d, pair] = dvel if pen_rate > vmin else dm.min_impact_velocity
@@ -300,11 +336,12 @@ def contact_event(model, SENS, pair, side, onset, at_start, t, y, f_minus, f_plu
 @tangent_helper
 def tangent_shift(model, SENS, t, y, dt, modes, v0s, n_dof2, work):
     """Carry every direction's tangent over a time ``dt`` (of either sign) by one Euler step
-    of (1) in the contact modes ``modes`` at (t, y); ``work``: n_dof2 of work space."""
+    of (1) in the contact modes ``modes`` at (t, y); ``work``: work space as long as a
+    tangent."""
     for d in range(SENS.S.shape[0]):
         tangent_rhs(model, SENS, d, t, y, SENS.S[d], modes, v0s, work)
         s = SENS.S[d]
-        for i in range(n_dof2):
+        for i in range(s.shape[0]):
             s[i] += dt * work[i]
 
 
@@ -456,7 +493,8 @@ def clamp_step_end(
         S1 += h b6 (J- s5 - KS5),
 
     then stage 6 (the step's end, FSAL: the dense output's slope) is read there at S1.
-    ``yn``, ``work``: n_dof2 of work space each."""
+    ``yn``: n_dof2 of work space, ``work``: as long as a tangent."""
+    n_tan = SENS.S.shape[1]
     mode = modes[pair]
     v0 = v0s[pair]
     moved = False
@@ -476,7 +514,7 @@ def clamp_step_end(
                     acc += RK_A[st, j] * KS[d, j, i]
                 ss[i] = SENS.S[d, i] + h * acc
             tangent_rhs(model, SENS, d, t + h + tau, yn, ss, modes, v0s, work)
-            for i in range(n_dof2):
+            for i in range(n_tan):
                 S1[d, i] += h * RK_A[6, st] * (work[i] - KS[d, st, i])
                 KS[d, st, i] = work[i]
         moved = True
@@ -497,7 +535,7 @@ def clamp_event(model, SENS, pair, post_clamped, t, y, f, h_step, modes, v0s, n_
 
         s += dt_k (J- s) - dt_k (J+ s).
 
-    ``yn``, ``work``: n_dof2 of work space each."""
+    ``yn``: n_dof2 of work space, ``work``: as long as a tangent."""
     mode = modes[pair]
     v0 = v0s[pair]
     fsum, fdot, _ = clamp_force_rate(model, pair, t, y, f, mode, v0)
@@ -512,10 +550,10 @@ def clamp_event(model, SENS, pair, post_clamped, t, y, f, h_step, modes, v0s, n_
     for d in range(SENS.S.shape[0]):
         s = SENS.S[d]
         if dtk != 0.0:
-            for i in range(n_dof2):
+            for i in range(s.shape[0]):
                 s[i] += dtk * KS[d, 6, i]
             tangent_rhs(model, SENS, d, t + tau, yn, s, modes, v0s, work)
-            for i in range(n_dof2):
+            for i in range(s.shape[0]):
                 s[i] -= dtk * work[i]
         tangent_rhs(model, SENS, d, t + tau, yn, s, modes, v0s, KS[d, 0])
 
@@ -577,14 +615,26 @@ def start_contact(model, SENS, pair, t, y, mode, ie, initial, itr, f_free):
         if ie >= 0:
             SENS.ESENS[ie, d, ES_T] = dtau
             SENS.ESENS[ie, d, ES_VELOCITY] = dvel
+            k = SENS.n_dof2 + pair
+            if k < SENS.S.shape[1]:
+                # (6) at an onset that moves with the transfer (on its free flow, before the
+                # contact's jump: transfer_contacts)
+                SENS.ESENS[ie, d, ES_DISS] = SENS.S[d, k] + f_free[k] * dtau
 
 
 @tangent_helper
-def transfer_cut(SENS, itr, ie):
-    """The end time of episode ``ie``, cut by the transfer ``itr``, moves with it."""
-    if itr < SENS.DTR.shape[1]:
-        for d in range(SENS.S.shape[0]):
-            SENS.ESENS[ie, d, ES_T_END] = SENS.DTR[d, itr]
+def transfer_cut(SENS, itr, ie, pair, f_minus):
+    """The end time of episode ``ie`` of ``pair``, cut by the transfer ``itr``, moves with
+    it, and so does its dissipated energy (6), on the flow ``f_minus`` before the transfer
+    (the tangents not yet jumped)."""
+    k = SENS.n_dof2 + pair
+    for d in range(SENS.S.shape[0]):
+        dtau = SENS.DTR[d, itr] if itr < SENS.DTR.shape[1] else 0.0
+        if itr < SENS.DTR.shape[1]:
+            SENS.ESENS[ie, d, ES_T_END] = dtau
+        if k < SENS.S.shape[1]:
+            d_at = SENS.S[d, k] + f_minus[k] * dtau
+            SENS.ESENS[ie, d, ES_DISS] = d_at - SENS.ESENS[ie, d, ES_DISS]
 
 
 @tangent_helper
@@ -597,7 +647,7 @@ def transfer_contacts(SENS, itr, f_free, f_after, n_dof2):
     for d in range(SENS.S.shape[0]):
         dtau = SENS.DTR[d, itr]
         s = SENS.S[d]
-        for i in range(n_dof2):
+        for i in range(s.shape[0]):
             s[i] += (f_free[i] - f_after[i]) * dtau
 
 
@@ -621,6 +671,9 @@ def transfer_jump(model, SENS, itr, t, y_minus, f_minus, f_plus, n_dof2, v, out)
         apply_transfer_jvp(model, SENS.tangents[d], t, y_minus, v, dtau, out)
         for i in range(n_dof2):
             s[i] = out[i] - f_plus[i] * dtau
+        # (the dissipations are left as they are by the transfer map)
+        for i in range(n_dof2, s.shape[0]):
+            s[i] += (f_minus[i] - f_plus[i]) * dtau
 
 
 @tangent_helper
@@ -680,10 +733,14 @@ def step_series_tangents(
 
 
 @tangent_helper
-def arrays_fit(SENS, R, rows, n_dof2, n_episodes):
-    """Whether the tangent arrays match the run's state, impact table and series buffer."""
+def arrays_fit(SENS, R, rows, n, n_dof2, n_pairs, n_episodes):
+    """Whether the tangent arrays match the run's state (the coordinates and speeds, and
+    the dissipations where the state has them), impact table and series buffer."""
     k = SENS.S.shape[0]
-    if SENS.S.shape[1] != n_dof2 or SENS.DV0.shape[0] != k or SENS.ESENS.shape[0] != n_episodes:
+    n_tan = SENS.S.shape[1]
+    if SENS.n_dof2 != n_dof2 or not (n_tan == n_dof2 or (n_tan == n_dof2 + n_pairs and n >= n_tan)):
+        return False
+    if SENS.DV0.shape[0] != k or SENS.ESENS.shape[0] != n_episodes:
         return False
     if R is None:
         return True
