@@ -131,6 +131,60 @@ def test_contacts_that_transfers_cut_and_start_match_finite_differences() -> Non
             assert res.sensitivity.final[i, j] == pytest.approx(fd, rel=1e-3), (key, name)
 
 
+def test_dissipated_energy_through_clamped_contacts_matches_finite_differences() -> None:
+    """A Gonthier wall at e = 0.1 (paper-3.3, x only): contact forces reach their clamp
+    N = 0 before the depth returns to 0, and the body then flies free while the law still
+    turns its stored energy into dissipation, D' = -F_k p'. The tangent of that integrand
+    goes as sqrt(p) towards the exit; the tangents of the motion, smooth there, took long
+    steps, and the first impact's dissipated energy had its tangent 1.6e-5 (mass) and
+    3.2e-5 (clearance) off its central differences here (8.3e-5 and 1.8e-4 in a run with
+    four keys, whose steps differ), converging only slowly with the tolerance; now 1.2e-7
+    and 1.2e-6 (tangent.dissipation_tangent_error bounds those steps). A run continued
+    from inside such a clamped phase, whose tangents start at 0 there, is held to the same
+    bound (a bound relative to the tangent and its change over the step alone collapsed
+    the step at the exit of such a continued run on a Flores wall)."""
+    sc = braidsim.load_scenario(
+        "paper-3.3",
+        overrides={**TIGHT, "contact.track.model": "gonthier", "contact.track.restitution": 0.1},
+    )
+    q = L.IMPACT_SENS_FIELDS.index("dissipated_energy")
+
+    def check(res, keys, start=None):
+        for i, key in enumerate(keys):
+            p = sc[key]
+            fds = []
+            for f in (1e-4, 0.5e-4):  # (clamped runs: steps of 1e-5 spread the quotients)
+                h = f * p
+                a, b = (
+                    braidsim.simulate(
+                        sc, duration=0.03, series=False, start=start, overrides={key: p + s * h}
+                    ).impacts["dissipated_energy"]
+                    for s in (1, -1)
+                )
+                assert len(a) == len(b) == len(res.impacts)
+                fds.append((a.to_numpy() - b.to_numpy()) / (2 * h))
+            fd, spread = fds[0], np.abs(fds[1] - fds[0])
+            tan = res.sensitivity.impacts[:, i, q]
+            big = np.abs(fd) > 1e-3 * np.abs(fd).max()
+            assert np.any(big)
+            err = np.abs(tan - fd)
+            bound = 2e-6 * np.abs(fd) + 2 * spread
+            assert np.all(err[big] <= bound[big]), (key, err[big] / np.abs(fd[big]))
+
+    keys = ["carrier.mass", "track.clearance"]
+    res = braidsim.simulate(sc, duration=0.03, series=False, sensitivities=keys)
+    imp = res.impacts
+    # (the clamps are events of their own, beside the onsets and exits)
+    assert res.stats["events"] > 2 * len(imp) - imp["initial"].sum() - imp["ongoing"].sum()
+    check(res, keys)
+    # continued from the middle of the first impact's clamped phase (0.00225-0.0024 s)
+    start = braidsim.simulate(sc, duration=0.0023, series=False).final_state
+    keys = ["track.vibration_amplitude", "track.clearance"]
+    res = braidsim.simulate(sc, duration=0.03, series=False, start=start, sensitivities=keys)
+    assert res.impacts["initial"].iloc[0] and np.isfinite(res.sensitivity.impacts[0, :, q]).all()
+    check(res, keys, start)
+
+
 def test_a_start_touching_a_wall_refuses_keys_that_move_its_gap() -> None:
     """paper-3.2 starts the carrier touching its outer wall (x0 = the clearance) and moving
     into it at 2 mm/s: a contact latched at that speed from t = 0. A wider clearance starts
