@@ -337,13 +337,15 @@ def integrate(
         # run integrates them (tangent.py); the dense output and the stage states need the
         # first part only
         n_tan = SENS.S.shape[1]
-        KS = np.empty((nsens, 7, n_tan))
+        # (NaN where a model's derivatives_jvp would not write the dissipations' tangents:
+        # their impacts' derivatives then come out NaN, not from uninitialised memory)
+        KS = np.full((nsens, 7, n_tan), np.nan)
         RCS = np.empty((nsens, 5, n_dof2))
         S1 = np.empty((nsens, n_tan))
         SQ = np.empty((nsens, n_dof2))  # tangents at an instant inside a step
-        ss = np.empty(n_tan)
+        ss = np.full(n_tan, np.nan)
         YS = np.empty((7, n_dof2))  # stage states of a step, for the tangents
-        sw = np.empty(n_tan)
+        sw = np.full(n_tan, np.nan)
         f_minus = np.empty(n)
         y_minus = np.empty(n)
         prev_depth_t = np.zeros(2)

@@ -219,7 +219,9 @@ def dissipation_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_positio
                 + E6 * KS[d, 5, i]
                 + E7 * KS[d, 6, i]
             )
-            if err == 0.0:
+            if err == 0.0 or not math.isfinite(err):
+                # (not finite: a model that does not write these tangents, NaN from the
+                # start; they are reported NaN, and must not hold the step)
                 continue
             per_unit = dsize * SENS.ATOL[d, 0] / atol_position
             sc = rtol * (max(abs(SENS.S[d, i]), abs(S1[d, i])) + per_unit)
