@@ -25,9 +25,12 @@ NOISE_T = 1e-4  # s
 REL = 0.03  # noise of peak forces and speeds, relative to their median
 
 
-def impact_table(vx: float = 0.5, n: int = 5, seed: int = 0, rebound: bool = False) -> dict:
+def impact_table(
+    vx: float = 0.5, n: int = 5, seed: int = 0, rebound: bool = False, energy: bool = False
+) -> dict:
     """The first ``n`` track impacts of the paper-3.1 carrier started at ``vx`` [m/s], with
-    white noise: onset times NOISE_T, peak forces and speeds REL of their median."""
+    white noise: onset times NOISE_T, peak forces, speeds (and dissipated energies) REL of
+    their median."""
     sc = braidsim.load_scenario(SC).with_overrides({"initial.vx": vx})
     im = braidsim.simulate(sc, duration=0.15, record_events=False).impacts
     im = im[(im["pair"] == "track") & ~im["initial"] & ~im["ongoing"]].iloc[:n]
@@ -35,11 +38,12 @@ def impact_table(vx: float = 0.5, n: int = 5, seed: int = 0, rebound: bool = Fal
     rng = np.random.default_rng(seed)
     out = {"t [ms]": 1e3 * (im["t"].to_numpy() + rng.normal(0.0, NOISE_T, n))}
     cols = ["peak_force", "velocity"] + (["rebound_velocity"] if rebound else [])
+    cols += ["dissipated_energy"] if energy else []
+    unit = {"peak_force": ("kN", 1e-3), "dissipated_energy": ("mJ", 1e3)}
     for q in cols:
         v = np.abs(im[q].to_numpy())
-        out[f"{q} [{'kN' if q == 'peak_force' else 'mm/s'}]"] = (
-            v + rng.normal(0.0, REL * np.median(v), n)
-        ) * (1e-3 if q == "peak_force" else 1e3)
+        name, f = unit.get(q, ("mm/s", 1e3))
+        out[f"{q} [{name}]"] = (v + rng.normal(0.0, REL * np.median(v), n)) * f
     return out
 
 
@@ -51,6 +55,8 @@ def noise_of(table: dict) -> dict:
     noise["velocity"] = f"{REL * np.median(v)} mm/s"
     if "rebound_velocity [mm/s]" in table:
         noise["rebound_velocity"] = f"{REL * np.median(table['rebound_velocity [mm/s]'])} mm/s"
+    if "dissipated_energy [mJ]" in table:
+        noise["dissipated_energy"] = f"{REL * np.median(table['dissipated_energy [mJ]'])} mJ"
     return noise
 
 
@@ -131,9 +137,10 @@ def test_exact_impact_jacobian_matches_central_differences(monkeypatch):
     monkeypatch.setattr(problem, "FD_STEP", 1e-3)
     sc = braidsim.load_scenario(SC)
     spec = parse_fit_spec({"fit": {"free": FREE2}}, scenario=sc)
-    rec = read_record(impact_table(seed=1, rebound=True))
+    rec = read_record(impact_table(seed=1, rebound=True, energy=True))
     pr = ImpactProblem(sc, rec, spec.free, (), None, "exact")
     assert "rebound_velocity" in pr.quantities  # (its rows were central differences)
+    assert "dissipated_energy" in pr.quantities  # (the impacts' sensitivities since 12-01)
     u = pr.u_start + 0.03
     Je = pr.residuals(u, jac=True).J
     Jf = pr.jacobian_fd(u)
@@ -153,6 +160,22 @@ def test_truth_is_recovered_from_a_noisy_impact_list():
         assert lo <= TRUTH[k] <= hi, (k, lo, TRUTH[k], hi)
         assert hi - lo < 0.2 * FREE2_SI[k], (k, hi - lo)
     assert not any("rebound_velocity" in n for n in res.notes)  # exact rows since
+
+
+def test_truth_is_recovered_from_the_dissipated_energies_of_an_impact_list():
+    """Impact times and each impact's dissipated energy (a force-penetration loop's area)
+    alone identify the restitution and the clearance."""
+    table = impact_table(seed=3, energy=True)
+    table = {k: v for k, v in table.items() if k.split(" ")[0] in ("t", "dissipated_energy")}
+    res = fit(
+        SC, table, FREE2, noise=noise_of(impact_table(seed=3, energy=True)), global_method="none"
+    )
+    assert res.converged
+    assert res.quantities == ("t", "dissipated_energy")
+    for i, k in enumerate(res.keys):
+        lo, hi = res.stats.ci95[i]
+        assert lo <= TRUTH[k] <= hi, (k, lo, TRUTH[k], hi)
+        assert hi - lo < 0.2 * FREE2_SI[k], (k, hi - lo)
 
 
 def _cli(argv, capsys):

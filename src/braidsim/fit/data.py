@@ -28,6 +28,8 @@ name                      SI unit     what the model compares it with
 ``peak_force``            N           the impact's largest contact-force magnitude
 ``velocity``              m/s         its approach speed at onset (>= 0)
 ``rebound_velocity``      m/s         its separation speed at the end of the contact
+``dissipated_energy``     J           the energy its contact law dissipated (a force -
+                                      penetration loop's area)
 ========================  ==========  ==================================================
 
 The kind is told by the columns: impact columns make an impact list, sample columns a
@@ -55,6 +57,7 @@ IMPACT_UNITS: dict[str, str] = {
     "peak_force": "N",
     "velocity": "m/s",
     "rebound_velocity": "m/s",
+    "dissipated_energy": "J",
 }
 #: other names accepted for a quantity (the column names of ``braidsim run --out``)
 ALIASES: dict[str, str] = {"track_contact_force": "contact_force", "ax": "acceleration"}

@@ -1071,7 +1071,7 @@ def fit(
     quantity : str or list of str
         The record's columns to fit (``x``, ``acceleration``, ``contact_force``); an impact
         list fits its onset times and every column it has unless some are named here
-        (``peak_force``, ``velocity``, ``rebound_velocity``).
+        (``peak_force``, ``velocity``, ``rebound_velocity``, ``dissipated_energy``).
     overrides : mapping, optional
         Applied to the scenario first.
     progress : callable, optional

@@ -54,7 +54,7 @@ Jacobians
 ---------
 ``exact``: the forward sensitivities of the simulator (``simulate(..., sensitivities=keys)``,
 derivatives of the sampled state, acceleration and contact force and of each impact's onset
-time, approach speed, peak force and rebound speed), times d p / d u.
+time, approach speed, peak force, rebound speed and dissipated energy), times d p / d u.
 ``fd``: central differences in u with step h = 1e-5 (one-sided at the bounds); the solver's
 tolerance (relative 1e-8) makes their error about 1e-8 / h relative, small against the noise
 of a measurement, and they need no support from the core.
@@ -681,7 +681,7 @@ class ImpactProblem(Problem):
         rows = self.model_rows(res, u)
         peak = np.asarray(res.impacts["peak_force"], dtype=float)[rows]
         k = len(self.keys)
-        S = np.zeros((rows.size, k, len(IMPACT_QUANTITIES)))  # (n, k, 6)
+        S = np.zeros((rows.size, k, len(IMPACT_QUANTITIES)))  # (n, k, 7)
         if self.scenario_keys:
             S[:, self._scenario_columns()] = np.asarray(res.sensitivity.impacts)[rows]
         if self.i_offset is not None:
@@ -744,7 +744,7 @@ def single_problem(
     return Problem(scenario, record, free, qs, noise, jacobian, 0.0, part)
 
 
-_IMPACT_NAMES = ("t", "peak_force", "velocity", "rebound_velocity")
+_IMPACT_NAMES = ("t", "peak_force", "velocity", "rebound_velocity", "dissipated_energy")
 
 
 class MultiProblem(Problem):

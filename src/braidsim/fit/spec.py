@@ -20,7 +20,8 @@
     quantity = "x"                       # a column, or a list: ["x", "acceleration"];
                                          # an impact list fits t and all its columns
                                          # unless some (peak_force, velocity,
-                                         # rebound_velocity) are named
+                                         # rebound_velocity, dissipated_energy)
+                                         # are named
     start = { "track.clearance" = "3 mm" }   # optional; default the scenario's value
     noise = { x = "2 um" }               # optional sensor noise (standard deviation) per
                                          # quantity; default estimated from the record
