@@ -96,14 +96,9 @@ from braidsim.core.solver.dopri5 import (
     D5,
     D6,
     D7,
-    E1,
-    E3,
-    E4,
-    E5,
-    E6,
-    E7,
     RK_A,
     RK_C,
+    embedded_error,
 )
 from braidsim.core.solver.pairs import gaps, pair_forces
 
@@ -165,15 +160,9 @@ def tangent_error(SENS, S1, h, KS, n_dof2, rtol, SMAX):
     acc = 0.0
     cnt = 0
     for d in range(SENS.S.shape[0]):
+        KSd = KS[d]
         for i in range(n_dof2):
-            err = h * (
-                E1 * KS[d, 0, i]
-                + E3 * KS[d, 2, i]
-                + E4 * KS[d, 3, i]
-                + E5 * KS[d, 4, i]
-                + E6 * KS[d, 5, i]
-                + E7 * KS[d, 6, i]
-            )
+            err = embedded_error(h, KSd, i)
             cnt += 1
             if err == 0.0:
                 continue
@@ -211,14 +200,7 @@ def dissipation_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_positio
             continue
         dsize = max(abs(y[i]), abs(y1[i]))
         for d in range(SENS.S.shape[0]):
-            err = h * (
-                E1 * KS[d, 0, i]
-                + E3 * KS[d, 2, i]
-                + E4 * KS[d, 3, i]
-                + E5 * KS[d, 4, i]
-                + E6 * KS[d, 5, i]
-                + E7 * KS[d, 6, i]
-            )
+            err = embedded_error(h, KS[d], i)
             if err == 0.0 or not math.isfinite(err):
                 # (not finite: a model that does not write these tangents, NaN from the
                 # start; they are reported NaN, and must not hold the step)
@@ -228,6 +210,23 @@ def dissipation_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_positio
             if sc > 0.0:  # (0: nothing dissipated, no tangent; the estimate is rounding)
                 worst = max(worst, abs(err) / sc)
     return worst
+
+
+@tangent_helper
+def step_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_position, modes, clamped):
+    """The tangents' error over a step (:func:`tangent_error`), and where a contact force is
+    clamped and the run carries the dissipations, theirs (:func:`dissipation_tangent_error`):
+    the larger of the two."""
+    err = tangent_error(SENS, S1, h, KS, n_dof2, rtol, SENS.SMAX)
+    if clamped[0] + clamped[1] > 0 and SENS.S.shape[1] > n_dof2:
+        # (the dissipations' tangents where a clamped force leaves them unbounded)
+        err = max(
+            err,
+            dissipation_tangent_error(
+                SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_position, modes, clamped
+            ),
+        )
+    return err
 
 
 @tangent_helper
