@@ -191,6 +191,40 @@ def test_two_records_have_an_offset_each():
     assert np.all(np.linalg.norm(Je - Jf, axis=0) < 1e-2 * np.linalg.norm(Jf, axis=0))
 
 
+def test_one_records_offset_of_several_has_a_profile():
+    """``profile = ["record[1].time_offset"]``: that record's offset fixed on the grid, the
+    other record's offset and the shared keys refitted; its interval holds the truth (71
+    us) and agrees with the linearised one where the fit is near linear. A profile of the
+    offsets as one key, of a record that is not there, or by a record's name with one
+    record, is refused in one line."""
+    r1 = synthetic_record(SC, 0.15, noise={"acceleration": 20.0}, seed=31, time_offset=27e-6)
+    r2 = synthetic_record(
+        SC,
+        0.15,
+        noise={"acceleration": 20.0},
+        seed=32,
+        time_offset=71e-6,
+        overrides={"initial.vx": 0.3},
+    )
+    data = [r1, (r2, {"initial.vx": 0.3})]
+    key = "record[1].time_offset"
+    res = fit(SC, data, FREE3, quantity="acceleration", starts=3, profile=[key], profile_points=7)
+    (prof,) = res.profiles
+    assert prof.key == key
+    lo, hi = prof.ci95
+    assert lo is not None and hi is not None and lo <= 71e-6 <= hi, (lo, hi)
+    i = res.keys.index(key)
+    llo, lhi = res.stats.ci95[i]
+    assert abs(lo - llo) < 0.3 * (lhi - llo) and abs(hi - lhi) < 0.3 * (lhi - llo)
+    assert np.min(prof.delta) == pytest.approx(0.0, abs=0.1)  # (the optimum on the grid)
+    with pytest.raises(InputError, match=r"allowed record\[0\].time_offset to record\[1\]"):
+        fit(SC, data, FREE3, quantity="acceleration", profile=["record[2].time_offset"])
+    with pytest.raises(InputError, match=r"not a free parameter with 1 record; allowed record"):
+        fit(SC, r1, FREE3, quantity="acceleration", profile=["record[0].time_offset"])
+    with pytest.raises(InputError, match=r"'record\[0\].time_offset' is not a free parameter"):
+        fit(SC, data, FREE2, quantity="acceleration", profile=["record[0].time_offset"])
+
+
 def test_bad_offsets_are_refused_in_one_line(late_record):
     sc = braidsim.load_scenario(SC)
     # a lower bound that puts the first sample (t = 0.1 ms) before the model's t = 0

@@ -50,7 +50,14 @@ from braidsim.fit.problem import (
     Problem,
     single_problem,
 )
-from braidsim.fit.spec import TIME_OFFSET, FitSpec, FreeParameter, per_record_offsets
+from braidsim.fit.spec import (
+    TIME_OFFSET,
+    FitSpec,
+    FreeParameter,
+    is_offset,
+    offset_key,
+    per_record_offsets,
+)
 from braidsim.params import Scenario, load_scenario
 from braidsim.units import to_si
 
@@ -408,8 +415,10 @@ def profile(
     delta = np.empty(points)
     u_others = np.delete(u_opt, i)
     for j, v in enumerate(grid):
-        # (the record's time offset is fixed on the problem, the others on its scenario)
-        off = float(v) if key == TIME_OFFSET else None
+        # (a record's time offset is fixed on the problem, the others on its scenario; of
+        # several records' offsets the others stay free, and a part whose offset is free
+        # does not read the fixed one)
+        off = float(v) if is_offset(key) else None
         sc = problem.scenario if off is not None else problem.scenario.with_overrides({key: v})
         if others:
             sub = problem.rebuild(sc, others, "exact" if problem.exact else "fd", off)
@@ -668,7 +677,16 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
         if TIME_OFFSET in spec.profile:
             raise InputError(
                 f"fit.profile: {TIME_OFFSET} stands for {len(items)} offsets with "
-                f"{len(items)} records; allowed a profile of it with one record"
+                f"{len(items)} records; allowed one of them, {offset_key(0)} to "
+                f"{offset_key(len(items) - 1)}"
+            )
+    offsets = {p.key for p in free_parameters if is_offset(p.key)}
+    for k in spec.profile:
+        if is_offset(k) and k != TIME_OFFSET and k not in offsets:
+            many = f"{offset_key(0)} to {offset_key(len(items) - 1)}" if several else TIME_OFFSET
+            raise InputError(
+                f"fit.profile: {k!r} is not a free parameter with {len(items)} "
+                f"record{'s' if several else ''}; allowed {many}"
             )
     parts = []
     for i, (rec, ov) in enumerate(items):

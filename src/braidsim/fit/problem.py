@@ -832,8 +832,9 @@ class MultiProblem(Problem):
         jacobian: str,
         time_offset: float | None = None,
     ) -> MultiProblem:
-        # (a time offset is fixed only where it is one record's: a profile of the offsets
-        # of several is refused, build_problem)
+        # (a time offset given here is each part's where its own offset is not free: a
+        # profile of one record's offset of several, record[i].time_offset, leaves the
+        # others free)
         parts = [
             p.rebuild(scenario.with_overrides(o) if o else scenario, free, jacobian, time_offset)
             for p, o in zip(self.parts, self.part_overrides, strict=True)

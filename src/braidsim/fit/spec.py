@@ -346,11 +346,16 @@ def parse_fit_spec(
         profile = [profile]
     if not isinstance(profile, list):
         raise InputError(f"fit.profile: {profile!r} is not allowed; allowed a list of free keys")
+    keys = [p.key for p in free]
     for k in profile:
-        if k not in [p.key for p in free]:
+        # (record[i].time_offset: one record's offset of several, checked against the
+        # number of records where they are known, estimate.build_problem)
+        per_record = isinstance(k, str) and is_offset(k) and k != TIME_OFFSET
+        if k not in keys and not (per_record and TIME_OFFSET in keys):
+            one = [f"{offset_key(0)}, ... (one record's of several)"] if TIME_OFFSET in keys else []
             raise InputError(
                 f"fit.profile: {k!r} is not a free parameter; allowed one of "
-                f"{', '.join(p.key for p in free)}"
+                f"{', '.join(keys + one)}"
             )
     laws = fit.get("laws", [])
     if isinstance(laws, str):
