@@ -150,14 +150,9 @@ def test_cli_fits_the_offset_and_writes_a_scenario_that_runs(tmp_path, capsys, l
 OFF_KEY = "record.time_offset"
 
 
-def test_two_records_have_an_offset_each():
-    """Two records triggered apart (27 and 71 us late; the second launched at 0.3 m/s),
-    fitted together: one offset each (record[0].time_offset, record[1].time_offset), both
-    and the shared parameters' truth within the intervals; each record's residuals depend
-    on its own offset only (the other's Jacobian column is exactly 0, exact and central
-    differences alike, and the differences do not run for it)."""
-    from braidsim.fit.estimate import build_problem
-
+def _two_late_records() -> list:
+    """Two records of paper-3.1 triggered 27 and 71 us late, the second launched at 0.3 m/s
+    (with that override)."""
     r1 = synthetic_record(SC, 0.15, noise={"acceleration": 20.0}, seed=31, time_offset=27e-6)
     r2 = synthetic_record(
         SC,
@@ -167,7 +162,19 @@ def test_two_records_have_an_offset_each():
         time_offset=71e-6,
         overrides={"initial.vx": 0.3},
     )
-    data = [r1, (r2, {"initial.vx": 0.3})]
+    return [r1, (r2, {"initial.vx": 0.3})]
+
+
+def test_two_records_have_an_offset_each():
+    """Two records triggered apart (27 and 71 us late; the second launched at 0.3 m/s),
+    fitted together: one offset each (record[0].time_offset, record[1].time_offset), both
+    and the shared parameters' truth within the intervals; each record's residuals depend
+    on its own offset only (the other's Jacobian column is exactly 0, exact and central
+    differences alike, and the differences do not run for it)."""
+    from braidsim.fit.estimate import build_problem
+
+    data = _two_late_records()
+    r1 = data[0]
     res = fit(SC, data, FREE3, quantity="acceleration", starts=3)
     assert res.keys[2:] == ("record[0].time_offset", "record[1].time_offset")
     truth = {**TRUTH, "record[0].time_offset": 27e-6, "record[1].time_offset": 71e-6}
@@ -197,16 +204,8 @@ def test_one_records_offset_of_several_has_a_profile():
     us) and agrees with the linearised one where the fit is near linear. A profile of the
     offsets as one key, of a record that is not there, or by a record's name with one
     record, is refused in one line."""
-    r1 = synthetic_record(SC, 0.15, noise={"acceleration": 20.0}, seed=31, time_offset=27e-6)
-    r2 = synthetic_record(
-        SC,
-        0.15,
-        noise={"acceleration": 20.0},
-        seed=32,
-        time_offset=71e-6,
-        overrides={"initial.vx": 0.3},
-    )
-    data = [r1, (r2, {"initial.vx": 0.3})]
+    data = _two_late_records()
+    r1 = data[0]
     key = "record[1].time_offset"
     res = fit(SC, data, FREE3, quantity="acceleration", starts=3, profile=[key], profile_points=7)
     (prof,) = res.profiles
