@@ -160,11 +160,12 @@ def _stop(pool: Any) -> None:
 
     Last, the pool's manager thread is joined: it notices the dead workers and closes its
     wake-up pipe, and while it still runs as the interpreter exits, the exit handler of
-    :mod:`concurrent.futures` writes to that pipe without the pool's lock, and a close
-    between its test and its write printed "OSError: [Errno 9] Bad file descriptor" with a
-    traceback after the command's line (about 1 in 20 signals to ``bifurcation --workers 2``
-    under load; CPython gh-105829, gh-132969). ``shutdown(wait=False)`` forgets the thread,
-    so it is taken first."""
+    :mod:`concurrent.futures` writes to that pipe without the pool's lock: a close between
+    its test and its write raises there, a traceback after the command's line ("OSError:
+    [Errno 9] Bad file descriptor" in about 1 in 20 signals to ``bifurcation --workers 2``
+    under load; with that window widened by a delay, in every run of a pool stopped this
+    way, and in none with the join; CPython gh-105829, gh-132969). ``shutdown(wait=False)``
+    forgets the thread, so it is taken first."""
     procs = list((getattr(pool, "_processes", None) or {}).values())
     manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
