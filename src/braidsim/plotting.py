@@ -225,6 +225,11 @@ def plot_impacts(result: Result, title: str | None = None) -> Figure:
 
     for ax in (ax1, ax2):
         ax.grid(True, which="both", lw=0.3, alpha=0.5)
+        if ax.get_yscale() != "log":
+            # (a panel with nothing drawn, a run without impacts: no log ticks on its
+            # empty linear axis, whose range starts at 0)
+            ax.set_yticks([])
+            continue
         # plain numbers (0.2, 0.5, 1, 2, ...) instead of 2x10^-1 on the log axes
         ax.yaxis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
         ax.yaxis.set_major_formatter(ticker.FuncFormatter(lambda v, _: f"{v:g}"))

@@ -147,3 +147,17 @@ def test_a_far_off_paper_value_does_not_flatten_the_trace(report) -> None:
     ax = fig.axes[0]
     assert ax.get_ylim()[1] < 50_000
     assert any("338954" in t.get_text() and "off scale" in t.get_text() for t in ax.texts)
+
+
+def test_a_run_without_impacts_has_its_figures(tmp_path) -> None:
+    """paper-3.1 over 1 ms has no contact at all: the impacts figure's empty panels took
+    log ticks on a linear axis from 0, and `braidsim run --out` failed with an internal
+    error ("Data cannot be log-scaled")."""
+    import braidsim
+    from braidsim.plotting import run_figures
+
+    res = braidsim.simulate("paper-3.1", duration=1e-3)
+    assert len(res.impacts) == 0
+    paths = run_figures(res, tmp_path)
+    assert {p.name for p in paths} >= {"impacts.png", "phase.png", "x.png"}
+    assert all(p.stat().st_size > 0 for p in paths)
