@@ -385,6 +385,23 @@ def test_a_closed_stdout_is_one_line_exit_1(argv: list[str]) -> None:
     assert proc.stderr.count("\n") == 1
 
 
+def test_a_closed_stdout_leaves_the_out_folder_whole(tmp_path) -> None:
+    """The outputs are written before the result is printed: a closed stdout fails the
+    print, not the files (one line, exit 1, the folder there whole)."""
+    out = tmp_path / "r"
+    argv = ["run", "paper-3.1", "--duration", "1 ms", "--out", str(out)]
+    proc = subprocess.run(
+        ["sh", "-c", 'exec "$0" "$@" >&-', sys.executable, "-m", "braidsim", *argv],
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "stdout: Bad file descriptor" in proc.stderr
+    assert {"impacts.csv", "series.nc", "summary.json"} <= {p.name for p in out.iterdir()}
+    assert [p.name for p in tmp_path.iterdir()] == ["r"]  # (no temporary left beside it)
+
+
 def test_unknown_option_is_one_line_exit_2(capsys) -> None:
     code, out, err = run_cli(capsys, "run", "paper-3.1", "--bogus")
     assert code == 2 and out == ""
