@@ -66,7 +66,7 @@ from __future__ import annotations
 
 import math
 
-from braidsim.core.generic import cached_njit
+from braidsim.core.generic import cached_njit, inline_helper
 from braidsim.core.interfaces import (
     apply_transfer_jvp,
     derivatives_jvp,
@@ -96,9 +96,14 @@ from braidsim.core.solver.dopri5 import (
     D5,
     D6,
     D7,
+    E1,
+    E3,
+    E4,
+    E5,
+    E6,
+    E7,
     RK_A,
     RK_C,
-    embedded_error,
 )
 from braidsim.core.solver.pairs import gaps, pair_forces
 
@@ -150,6 +155,22 @@ def tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1):
             derivatives_jvp(model, dm, t + RK_C[st] * h, YS[st], sd, modes, v0s, dv0, KS[d, st])
 
 
+@inline_helper
+def tangent_embedded_error(h, KS, d, i):
+    """The embedded error estimate of component i of direction d's tangent over the step,
+    h sum_s E_s KS[d, s, i] (as :func:`~braidsim.core.solver.dopri5.embedded_error` of the
+    state's; indexed in place: a view KS[d] per direction made a run with one key 10 %
+    slower)."""
+    return h * (
+        E1 * KS[d, 0, i]
+        + E3 * KS[d, 2, i]
+        + E4 * KS[d, 3, i]
+        + E5 * KS[d, 4, i]
+        + E6 * KS[d, 5, i]
+        + E7 * KS[d, 6, i]
+    )
+
+
 @tangent_helper
 def tangent_error(SENS, S1, h, KS, n_dof2, rtol, SMAX):
     """RMS of the embedded error estimate of the tangents over the step, each component
@@ -160,9 +181,8 @@ def tangent_error(SENS, S1, h, KS, n_dof2, rtol, SMAX):
     acc = 0.0
     cnt = 0
     for d in range(SENS.S.shape[0]):
-        KSd = KS[d]
         for i in range(n_dof2):
-            err = embedded_error(h, KSd, i)
+            err = tangent_embedded_error(h, KS, d, i)
             cnt += 1
             if err == 0.0:
                 continue
@@ -200,7 +220,7 @@ def dissipation_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_positio
             continue
         dsize = max(abs(y[i]), abs(y1[i]))
         for d in range(SENS.S.shape[0]):
-            err = embedded_error(h, KS[d], i)
+            err = tangent_embedded_error(h, KS, d, i)
             if err == 0.0 or not math.isfinite(err):
                 # (not finite: a model that does not write these tangents, NaN from the
                 # start; they are reported NaN, and must not hold the step)
@@ -210,23 +230,6 @@ def dissipation_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_positio
             if sc > 0.0:  # (0: nothing dissipated, no tangent; the estimate is rounding)
                 worst = max(worst, abs(err) / sc)
     return worst
-
-
-@tangent_helper
-def step_tangent_error(SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_position, modes, clamped):
-    """The tangents' error over a step (:func:`tangent_error`), and where a contact force is
-    clamped and the run carries the dissipations, theirs (:func:`dissipation_tangent_error`):
-    the larger of the two."""
-    err = tangent_error(SENS, S1, h, KS, n_dof2, rtol, SENS.SMAX)
-    if clamped[0] + clamped[1] > 0 and SENS.S.shape[1] > n_dof2:
-        # (the dissipations' tangents where a clamped force leaves them unbounded)
-        err = max(
-            err,
-            dissipation_tangent_error(
-                SENS, S1, h, KS, n_dof2, y, y1, rtol, atol_position, modes, clamped
-            ),
-        )
-    return err
 
 
 @tangent_helper
