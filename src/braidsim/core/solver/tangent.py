@@ -41,7 +41,7 @@ and speeds: (1) for them is the tangent of that integrand, (N - F_k)' along the 
 times p' plus (N - F_k) times the tangent of p', which the model's ``derivatives_jvp``
 writes beside the others where its output has room (from the forces' tangents it computes
 anyway: a generic function here, which computed the forces again, made a run with one key
-on paper-3.3 8-24 % slower in the three forms tried, and a monodromy up to 45 % slower).
+on paper-3.3 8-24 % slower in the three forms tried, and a monodromy up to 50 % slower).
 They are integrated with the same stages and jump at events and transfers by (3) and (5)
 like the others (the transfer map leaves D as it is). An impact's dissipated energy is D
 at its exit less D at its onset, each read at the moving instant: its tangent is
