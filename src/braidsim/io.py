@@ -102,6 +102,21 @@ def check_output_target(
         raise InputError(
             f"{option}: {str(p)!r} has no known extension; allowed {', '.join(suffixes)}"
         )
+    try:
+        _check_target(p, option, directory, what)
+    except OSError as exc:  # a name too long, a loop of links: the path itself is refused
+        why = exc.strerror or exc.__class__.__name__
+        shown = str(p) if len(str(p)) <= 60 else f"{str(p)[:40]}...{str(p)[-12:]}"
+        raise InputError(
+            f"{option}: {shown!r} cannot be used as a path ({why}); allowed {what} path the "
+            "file system takes (names of at most 255 bytes a part)"
+        ) from None
+
+
+def _check_target(p: Path, option: str, directory: bool, what: str) -> None:
+    """The checks of :func:`check_output_target` after the extension's."""
+    from braidsim.errors import InputError
+
     if p.is_symlink() and not p.exists():
         raise InputError(f"{option}: {str(p)!r} is a broken link; allowed {what} path")
     p = _target(p)  # the writers follow a link: its target is what they replace

@@ -30,7 +30,9 @@ def check_choice(where: str, value: Any, choices: Sequence[str]) -> None:
 
 
 def check_keys(where: str, table: Mapping[str, Any], allowed: Sequence[str]) -> None:
-    """Raise :class:`InputError` for the first key of ``table`` not in ``allowed``."""
+    """Raise :class:`InputError` for the first key of ``table`` not in ``allowed`` (or for a
+    ``table`` that is no table: a spec handed to the API as something else)."""
+    expect_table(where.rstrip(".") or "spec", table)
     for k in table:
         if k not in allowed:
             raise InputError(

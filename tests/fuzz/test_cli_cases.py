@@ -165,6 +165,15 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("run-out-nonempty", [*R, "--out", "{fx}"], BAD, ("--out",)),
     ("run-out-ro", [*R, "--out", "{ro}/out"], BAD, ("{ro}",)),
     ("run-out-nw", [*R, "--out", "{nw}/out"], BAD, ("--out", "{nw}/out")),
+    # a name longer than any file system takes (255 bytes): the path refused, not an OSError
+    ("run-out-long-name", [*R, "--out", "{o}/" + "a" * 300], BAD, ("--out", "255 bytes")),
+    ("run-long-scenario-name", ["run", "a" * 300 + ".toml"], BAD, ("SCENARIO", "255 bytes")),
+    (
+        "sweep-out-long-name",
+        ["sweep", "{fx}/good_sweep.toml", "--out", "{o}/" + "a" * 300],
+        BAD,
+        ("--out",),
+    ),
     ("run-unknown-option", [*R, "--nope"], BAD, ("--nope", "No such option")),
     ("run-missing-arg", ["run"], BAD, ("SCENARIO", "scenario", "Missing")),
     # ---------------------------------------------------------------- impact

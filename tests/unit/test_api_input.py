@@ -636,3 +636,40 @@ def test_a_failed_run_of_extreme_values_is_a_simulation_error(key, value) -> Non
 
     with pytest.raises(SimulationError, match=r"at t = "):
         braidsim.simulate("paper-3.1", 0.01, overrides={key: value}, sample_interval=0.0)
+
+
+@pytest.mark.parametrize(
+    ("call", "named"),
+    [
+        (lambda: braidsim.machine.parse_machine_spec(3), "spec: expected a table, got 3"),
+        (lambda: braidsim.design.parse_design_spec(None), "spec: expected a table"),
+        (lambda: braidsim.design.run_design(None), "spec: None is not a DesignSpec"),
+        (lambda: braidsim.sweep.open_sweep(3), "path: 3 is not a path"),
+        (
+            lambda: braidsim.continuation.ScenarioSystem("paper-3.3"),
+            "scenario: 'paper-3.3' is not a Scenario",
+        ),
+    ],
+)
+def test_specs_and_systems_of_the_wrong_kind_are_refused_naming_the_argument(
+    call: object, named: str
+) -> None:
+    """Not a TypeError or AttributeError from deep inside: the argument and what it must be."""
+    with pytest.raises(InputError) as exc:
+        call()  # type: ignore[operator]
+    assert one_line(exc).startswith(named)
+
+
+def test_an_unknown_orbit_method_is_refused_before_the_transient_is_simulated(
+    monkeypatch,
+) -> None:
+    from braidsim.continuation import ScenarioSystem, orbit, seed_orbit
+
+    def no_simulation(*args: object, **kwargs: object) -> None:
+        raise AssertionError("simulated before checking the method")
+
+    monkeypatch.setattr(orbit, "simulate_state", no_simulation)
+    system = ScenarioSystem(braidsim.load_scenario("paper-3.3"))
+    with pytest.raises(InputError) as exc:
+        seed_orbit(system, {"track.vibration_amplitude": 1e-4}, method="magic")
+    assert one_line(exc) == "continuation.method: 'magic' is not allowed; allowed auto, exact, fd"

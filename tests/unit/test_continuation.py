@@ -137,6 +137,28 @@ def test_dataset_round_trip_and_restart(system, bouncing, tmp_path) -> None:
     assert open_branch(z).sizes["point"] == len(br.points)
 
 
+def test_a_damaged_or_foreign_branch_file_is_refused_naming_the_key(tmp_path) -> None:
+    """A restart file that is not a readable branch (text under .nc, a truncated netCDF, an
+    empty folder, a dataset without a branch's parameter) is an input error naming the key
+    and the path, not an OSError without either."""
+    import xarray as xr
+
+    garbage = tmp_path / "garbage.nc"
+    garbage.write_text("not netCDF\n")
+    folder = tmp_path / "folder.nc"
+    folder.mkdir()
+    whole = tmp_path / "other.nc"
+    xr.Dataset({"regime": ("run", np.zeros(3))}).to_netcdf(whole, engine="h5netcdf")
+    truncated = tmp_path / "truncated.nc"
+    truncated.write_bytes(whole.read_bytes()[: whole.stat().st_size // 2])
+    for path in (garbage, folder, truncated, whole):
+        with pytest.raises(InputError) as err:
+            open_branch(path, "continuation.restart")
+        text = str(err.value)
+        assert text.startswith(f"continuation.restart: {str(path)!r} ") and "\n" not in text
+        assert "allowed a branch_*.nc or branch_*.zarr" in text
+
+
 def test_not_continuable_keys(system) -> None:
     for key, word in (
         ("initial.x", "not a parameter"),

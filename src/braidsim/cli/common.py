@@ -361,12 +361,30 @@ def signals_handled() -> Iterator[None]:
 
 
 def _os_error_text(exc: OSError) -> str:
-    path = exc.filename if exc.filename is not None else "output"
-    why = exc.strerror or exc.__class__.__name__
+    why = exc.strerror or (str(exc).splitlines()[0][:200] if str(exc) else "")
+    why = why or exc.__class__.__name__
     hint = ""
     if exc.errno in (28, 27, 122):  # ENOSPC, EFBIG, EDQUOT
         hint = "; free space (or raise the file-size limit), then run again"
+    # (no file named: "a file" rather than a guess of which one, input or output)
+    path = exc.filename if exc.filename is not None else "reading or writing a file"
     return f"{path}: {why}{hint}"
+
+
+def _name_too_long_text(exc: OSError, names: dict[str, str], given: dict[str, Any]) -> str:
+    """One line for a path whose name the file system refuses as too long, naming the
+    option or argument that gave it where one did (the path itself, or a file under it)."""
+    path = str(exc.filename) if exc.filename is not None else ""
+    head = path
+    for name, value in given.items():
+        if isinstance(value, str | os.PathLike) and str(value) and path.startswith(str(value)):
+            head = names.get(name, name.upper())
+            break
+    shown = path if len(path) <= 60 else f"{path[:40]}...{path[-12:]}"
+    return (
+        f"{head}: {shown!r} ({len(os.fsencode(path))} bytes) is a name too long for the file "
+        "system; allowed names of at most 255 bytes a part"
+    )
 
 
 def _written_since(first: int) -> str:
@@ -455,6 +473,9 @@ def guarded(func: F) -> F:
         except KeyboardInterrupt:
             fail(f"interrupted by SIGINT; {_written_since(first)}", 130)
         except OSError as exc:
+            if exc.errno == errno.ENAMETOOLONG:
+                # a path the user typed that no file system takes: their input, not a failure
+                fail(_name_too_long_text(exc, option_names(func), kwargs), 2)
             fail(_os_error_text(exc), 1)
         except MemoryError:
             fail("out of memory; reduce the size of the work (see the limits in the docs)", 1)

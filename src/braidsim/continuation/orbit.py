@@ -916,6 +916,10 @@ def seed_orbit(
         raise InputError(
             f"continuation.segments: {segments!r} is out of range; allowed an integer >= 1"
         )
+    if method not in METHODS:  # (before the transient's simulation, not after it)
+        raise InputError(
+            f"continuation.method: {method!r} is not allowed; allowed {', '.join(METHODS)}"
+        )
     prep = system.prepare(values)
     T = prep.period
     if state is not None:

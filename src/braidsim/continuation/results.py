@@ -209,21 +209,41 @@ def write_branch(ds: Any, path: str | Path) -> Path:
     return write_netcdf4(ds, p)
 
 
-def open_branch(path: str | Path) -> Any:
-    """Read a branch dataset written by :func:`write_branch`."""
+def open_branch(path: str | Path, key: str = "restart") -> Any:
+    """Read a branch dataset written by :func:`write_branch`.
+
+    Raises
+    ------
+    InputError
+        One line naming ``key`` (the spec's key or the argument) and the path: a path that
+        does not exist, or a file that cannot be read as a branch (damaged, truncated, of
+        another format, or a dataset without the branch's ``parameter``)."""
     import xarray as xr
 
-    p = Path(path)
-    if not p.exists():
-        from braidsim.errors import InputError
+    from braidsim.errors import InputError
 
+    p = Path(path)
+    allowed = "allowed a branch_*.nc or branch_*.zarr that braidsim continue wrote"
+    if not p.exists():
+        raise InputError(f"{key}: {str(p)!r} does not exist; {allowed}")
+    try:
+        if p.suffix == ".zarr" or p.is_dir():
+            ds = xr.open_zarr(str(p), consolidated=False, chunks=None).load()
+        else:
+            with xr.open_dataset(p, engine="h5netcdf") as opened:
+                ds = opened.load()
+    except Exception as exc:  # (h5py, zarr and xarray each raise their own kinds)
+        text = str(exc).splitlines()[0][:120] if str(exc) else ""
+        why = getattr(exc, "strerror", None) or text or exc.__class__.__name__
         raise InputError(
-            f"restart: {str(p)!r} does not exist; allowed a branch file (.nc or .zarr)"
+            f"{key}: {str(p)!r} cannot be read as a saved branch ({why}); {allowed}"
+        ) from None
+    if "parameter" not in ds.attrs or "value" not in ds.variables:
+        raise InputError(
+            f"{key}: {str(p)!r} is a dataset but not a saved branch (no parameter and points); "
+            f"{allowed}"
         )
-    if p.suffix == ".zarr" or p.is_dir():
-        return xr.open_zarr(str(p), consolidated=False, chunks=None).load()
-    with xr.open_dataset(p, engine="h5netcdf") as ds:
-        return ds.load()
+    return ds
 
 
 def branch_json(br: Branch) -> dict[str, Any]:

@@ -385,7 +385,7 @@ def run_study(
     key = spec.parameter
     t_start = time.process_time()
     if spec.restart:
-        ds = open_branch(spec.restart)
+        ds = open_branch(spec.restart, "continuation.restart")
         if str(ds.attrs.get("parameter")) != key:
             raise InputError(
                 f"continuation.restart: the saved branch continues {ds.attrs.get('parameter')!r}, "

@@ -170,6 +170,13 @@ class ScenarioSystem:
         default_factory=dict, init=False, repr=False, compare=False
     )
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.scenario, Scenario):
+            raise InputError(
+                f"scenario: {self.scenario!r} is not a Scenario; allowed a loaded scenario "
+                "(braidsim.load_scenario(name or path))"
+            )
+
     @property
     def name(self) -> str:
         """The scenario's name."""

@@ -53,6 +53,7 @@ from braidsim.design.speed_limits import (
     transfer_speed_estimate,
     transfer_speed_limit,
 )
+from braidsim.errors import InputError
 
 
 def random_profiles(spec: DesignSpec, n: int, seed: int, tries: int = 20000) -> list[SpeedProfile]:
@@ -238,6 +239,11 @@ def run_design(
     full_workers : int, optional
         Processes for the two full machine runs (default: the spec's workers).
     """
+    if not isinstance(spec, DesignSpec):
+        raise InputError(
+            f"spec: {spec!r} is not a DesignSpec; allowed what load_design_spec(path) or "
+            "parse_design_spec(table) returns"
+        )
     say = progress or (lambda _s: None)
     base, mpath = spec.machine_table, spec.machine_path
     cycles = spec.optimizer.cycles

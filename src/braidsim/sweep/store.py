@@ -650,6 +650,8 @@ def open_sweep(path: str | Path) -> xr.Dataset:
     a store of an earlier format), so xarray's ``to_netcdf`` saves it with any engine."""
     import xarray as xr
 
+    if not isinstance(path, str | os.PathLike):
+        raise InputError(f"path: {path!r} is not a path; allowed the path of a sweep store")
     coords = damaged_coordinates(path)
     if coords:
         raise StoreError(
