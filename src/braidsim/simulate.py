@@ -180,23 +180,35 @@ def run_windows(t_start: float, t_end: float, windows: object) -> np.ndarray:
     return np.array(W, dtype=float)
 
 
-def _extreme_parameters(model: Model, bound: float = 1e15) -> str:
+def _extreme_parameters(model: Model, bound: float = 1e15, tiny: float = 1e-15) -> str:
     """The parameters of a magnitude no machine has, as ``key = value unit``, for a run
     whose state overflowed or whose step collapsed: a real-valued SI value beyond ``bound``
-    (a speed of 1e100 m/s), or a contact stiffness whose force at a depth of 1 mm does
-    (1e300 N/m^1.5; K is in N/m^n, so a stiff contact of exponent 3 legitimately has K ~
-    1e20). Counts (simulation.max_steps) are not physical magnitudes and are left out."""
+    (a speed of 1e100 m/s), a number in a table (harmonics) beyond it, a physical value
+    closer to 0 than ``tiny`` (a mass of 1e-300 kg, which makes every rate overflow; the
+    solver's own settings, simulation.*, are left out: tolerances are legitimately small),
+    or a contact stiffness whose force at a depth of 1 mm passes ``bound`` (1e300
+    N/m^1.5; K is in N/m^n, so a stiff contact of exponent 3 legitimately has K ~ 1e20).
+    Counts (simulation.max_steps) are not physical magnitudes and are left out."""
     sc = model.scenario
     out = []
     for key, value in sc.values.items():
+        unit = SCHEMA[key].unit
+        if isinstance(value, tuple | list):
+            flat = np.asarray(value, dtype=object).ravel()
+            nums = [float(v) for v in flat if isinstance(v, float | int)]
+            big = [v for v in nums if math.isfinite(v) and abs(v) > bound]
+            if big:
+                out.append(f"{key} holds {big[0]:.3g}")
+            continue
         if not isinstance(value, float) or not math.isfinite(value):
             continue
-        unit = SCHEMA[key].unit
         if key.endswith(".stiffness"):
             n = (model.track if key.startswith("contact.track.") else model.slot).exponent
             if abs(value) * 1e-3**n > bound:
                 out.append(f"{key} = {value:.3g} N/m^{n:g}")
-        elif abs(value) > bound:
+        elif abs(value) > bound or (
+            0.0 < abs(value) < tiny and not key.startswith("simulation.")
+        ):
             out.append(f"{key} = {value:.3g} {unit}".rstrip())
     return ", ".join(out)
 
@@ -264,7 +276,7 @@ def failure_message(status: int, t: float, model: Model, stats: Mapping[str, Any
                 f"the state became NaN or infinite at t = {t:.9g} s: a force or the state "
                 f"overflowed; check the values of extreme magnitude ({extreme})"
             )
-        return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters or {hint}"
+        return f"the state became NaN or infinite at t = {t:.9g} s; check the parameters; {hint}"
     if status == L.ST_MAX_STEPS:
         budget = model.options.max_steps
         head = (

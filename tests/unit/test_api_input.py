@@ -414,6 +414,18 @@ def test_a_collapse_without_stiffness_does_not_blame_friction_or_damping() -> No
             "initial.vx = 1e+100 m/s",
             "collapsed",
         ),
+        # a value too close to 0 (every rate overflows; the hint had named another key) and
+        # a table's entry (the harmonics were not read)
+        (
+            {"carrier.mass": "1e-300 kg", "initial.x": "0.2 mm"},
+            "carrier.mass = 1e-300 kg",
+            "collapsed",
+        ),
+        (
+            {"horn_gear.speed_harmonics": [[1e300, 1, 0]]},
+            "horn_gear.speed_harmonics holds 1e+300",
+            "NaN or infinite",
+        ),
     ],
 )
 def test_a_failure_names_the_values_of_extreme_magnitude(overrides, named, status) -> None:
