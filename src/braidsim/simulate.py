@@ -206,9 +206,7 @@ def _extreme_parameters(model: Model, bound: float = 1e15, tiny: float = 1e-15) 
             n = (model.track if key.startswith("contact.track.") else model.slot).exponent
             if abs(value) * 1e-3**n > bound:
                 out.append(f"{key} = {value:.3g} N/m^{n:g}")
-        elif abs(value) > bound or (
-            0.0 < abs(value) < tiny and not key.startswith("simulation.")
-        ):
+        elif abs(value) > bound or (0.0 < abs(value) < tiny and not key.startswith("simulation.")):
             out.append(f"{key} = {value:.3g} {unit}".rstrip())
     return ", ".join(out)
 
