@@ -94,7 +94,15 @@ def resume_command(path: str | Path) -> str:
     )
 
 
-def _damaged(path: str | Path, what: str) -> StoreError:
+def _damaged(path: str | Path, what: str, repairable: bool = True) -> StoreError:
+    """The error of a damaged store: ``repairable`` where ``--resume`` computes the damaged
+    part again (a chunk), not where the store's structure itself is lost (its root or an
+    array's metadata: ``--resume`` reads those first and would fail the same way)."""
+    if not repairable:
+        return StoreError(
+            f"STORE: {path} is damaged ({what}); --resume cannot repair the store's structure: "
+            "run the sweep again into a new store"
+        )
     return StoreError(
         f"STORE: {path} is damaged ({what}); recompute its damaged chunks with "
         f"{resume_command(path)}, or run the sweep again into a new store"
@@ -436,12 +444,20 @@ def check_store(path: str | Path) -> Any:
     try:
         g = zarr.open_group(str(path), mode="r")
     except Exception as exc:  # zarr raises several types for damaged metadata
-        raise _damaged(path, f"root: {exc.__class__.__name__}") from None
+        where = Path(path) / "zarr.json"
+        raise _damaged(
+            path, f"root: {where} missing or unreadable, {exc.__class__.__name__}", False
+        ) from None
     for name in ["_sweep/done", *names_attr(attrs.get("arrays"))]:
         try:
             g[name]
         except Exception as exc:  # a missing array (KeyError) or damaged metadata
-            raise _damaged(path, f"array {name!r}: {exc.__class__.__name__}") from None
+            where = Path(path) / name / "zarr.json"
+            raise _damaged(
+                path,
+                f"array {name!r}: {where} missing or unreadable, {exc.__class__.__name__}",
+                False,
+            ) from None
     return g
 
 
