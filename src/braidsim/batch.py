@@ -351,6 +351,11 @@ def check_options(
     if window is not None:
         t0, t1 = time_window("window", window, 0.0, tmin, "the shortest run")
         win = (t0, min(t1, tmin))
+    if isinstance(series, str):
+        # (tuple("x") would be the letters)
+        raise InputError(
+            f"series: {series!r} is one string; allowed a list of variable names ([{series!r}])"
+        )
     names = tuple(series)
     for name in names:
         if name not in SERIES_VARIABLES:

@@ -73,7 +73,9 @@ def read_text(path: str | Path, what: str = "SPEC") -> str:
     except OSError as exc:
         raise InputError(f"{p}: cannot read ({exc.strerror or exc})") from None
     try:
-        return data.decode("utf-8")
+        # (a byte-order mark, which Windows editors write, is not TOML; it is invisible to
+        # the user, so it is dropped rather than reported as malformed TOML at line 1)
+        return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         raise InputError(
             f"{p}: not UTF-8 text (byte {data[exc.start]:#04x} at offset {exc.start}); "

@@ -58,6 +58,7 @@ FILES: dict[str, str | bytes] = {
     "unknown_key.toml": "[carrier]\nmas = 1.2\n",
     "extends_missing.toml": 'extends = "nope.toml"\n',
     "extends_self.toml": 'extends = "extends_self.toml"\n',
+    "extends_list.toml": 'extends = ["paper-3.1"]\n',
     "malformed.toml": "[track\n",
     "dup_key.toml": "[carrier]\nmass = 1\nmass = 2\n",
     # sweep specs

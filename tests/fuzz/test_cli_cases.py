@@ -57,6 +57,7 @@ CASES: list[tuple[str, list[str], tuple[int, ...] | int, tuple[str, ...]]] = [
     ("run-unknown-key", ["run", "{fx}/unknown_key.toml"], BAD, ("carrier.mas",)),
     ("run-extends-missing", ["run", "{fx}/extends_missing.toml"], BAD, ("nope.toml",)),
     ("run-extends-cycle", ["run", "{fx}/extends_self.toml"], BAD, ("extends",)),
+    ("run-extends-list", ["run", "{fx}/extends_list.toml"], BAD, ("extends: ['paper-3.1']",)),
     ("run-malformed", ["run", "{fx}/malformed.toml"], BAD, ("malformed TOML",)),
     ("run-dup-key", ["run", "{fx}/dup_key.toml"], BAD, ("dup_key.toml",)),
     ("run-dir-as-scenario", ["run", "{fx}"], BAD, ("scenario",)),
