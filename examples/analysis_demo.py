@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from braidsim.analysis import basins, bifurcation, contact_loss_bound
+from braidsim.analysis.bifurcation import class_text
 from braidsim.analysis.plots import plot_basins, plot_bifurcation
 from braidsim.io import atomic_write_text
 from braidsim.plotting import save
@@ -99,7 +100,8 @@ def main(argv: list[str] | None = None) -> int:
     atomic_write_text(args.out / "demo.json", json.dumps(summary, indent=1, default=str))
     print(f"bifurcation over h_a: {len(ha)} values, transitions:")
     for tr in diag.transitions():
-        print(f"  {tr['lower'] * 1e3:.4f}-{tr['upper'] * 1e3:.4f} mm: {tr['from']} -> {tr['to']}")
+        change = f"{class_text(tr['from'])} -> {class_text(tr['to'])}"
+        print(f"  {tr['lower'] * 1e3:.4f}-{tr['upper'] * 1e3:.4f} mm: {change}")
     print(f"basins: {bmap.ids.size} starts, {len(bmap.attractors)} attractors:")
     for a in bmap.attractors:
         print(f"  {a.id}: {a.describe()} ({a.count} starts)")

@@ -258,8 +258,11 @@ class Result:
     def impacts(self) -> pd.DataFrame:
         """The impact table, one row per contact episode (pandas DataFrame, SI units).
 
-        Columns: t, t_end, duration, pair, wall, velocity (approach speed at onset),
-        latched_velocity (v0 used by the law), rebound_velocity (NaN while still in contact),
+        Columns: t, t_end, duration, pair, wall, velocity (approach speed at onset; in a row
+        present at the start, ``initial``, the depth rate at t = 0, which is no approach),
+        latched_velocity (v0 used by the law; inf in a row present at the start, released
+        elastically, unless contact.initial_impact_velocity sets one), rebound_velocity (NaN
+        while still in contact),
         max_depth, t_max_depth, peak_force, t_peak_force, min/max_damping_force,
         dissipated_energy, ongoing (still in contact at the end), cut_by_transfer (ended by
         a transfer), initial (present at the start).

@@ -159,6 +159,11 @@ def test_run_table_counts_impacts_not_the_contact_present_at_the_start(capsys) -
     code, out, err = run_cli(capsys, "run", "paper-3.3", "--duration", "0.01")
     assert code == 0, err
     assert f"{len(imp) - 1} impacts (+1 contact at the start);" in out
+    # its row shows no approach speed (its velocity is the depth rate at t = 0); the next
+    # row's is the onset's
+    rows = [line for line in out.splitlines() if "│ track │" in line]
+    assert rows[0].split("│")[4].strip() == "-"
+    assert float(rows[1].split("│")[4]) == pytest.approx(imp[1]["velocity"], rel=1e-3)
 
 
 @pytest.mark.parametrize("command", ["models", "scenarios"])

@@ -177,3 +177,11 @@ def test_classification_rules() -> None:
         **common,
     )
     assert (r.label, r.period, r.walls) == ("irregular", None, "inner")
+
+
+def test_a_regime_class_prints_as_words() -> None:
+    """The bifurcation verb and the demo printed the (label, period) tuples themselves."""
+    from braidsim.analysis.bifurcation import class_text
+
+    assert class_text(("periodic_one_sided", 2)) == "periodic_one_sided (period 2)"
+    assert class_text(("irregular", None)) == "irregular"

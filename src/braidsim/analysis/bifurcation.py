@@ -136,6 +136,15 @@ class BifurcationDiagram:
         }
 
 
+def class_text(cls: Hashable) -> str:
+    """A (regime label, period) class as printed: ``periodic_one_sided (period 2)``, or the
+    label alone where the period is None (``irregular``)."""
+    if isinstance(cls, tuple) and len(cls) == 2:
+        label, period = cls
+        return str(label) if period is None else f"{label} (period {period})"
+    return str(cls)
+
+
 def transitions(
     values: Sequence[float] | np.ndarray, classes: Sequence[Hashable]
 ) -> list[dict[str, Any]]:

@@ -293,6 +293,7 @@ def bifurcation(
     """Stroboscopic bifurcation diagram of the settled motion against one parameter."""
     import braidsim
     from braidsim.analysis.bifurcation import bifurcation as run_bifurcation
+    from braidsim.analysis.bifurcation import class_text
     from braidsim.cli.progress import progress_bar, sigterm_as_interrupt
 
     _check_out(out, "bifurcation")
@@ -342,7 +343,8 @@ def bifurcation(
     con.print(f"steady-state window: {settings['window_rule']}")
     for tr in diag.transitions():
         con.print(
-            f"change between {tr['lower']:.6g} and {tr['upper']:.6g}: {tr['from']} -> {tr['to']}"
+            f"change between {tr['lower']:.6g} and {tr['upper']:.6g}: "
+            f"{class_text(tr['from'])} -> {class_text(tr['to'])}"
         )
     if out is not None:
         con.print(f"written to {out}")

@@ -188,7 +188,9 @@ def _print_summary(summary: dict, out: Path | None) -> None:
         )
         for r in imp[:12]:
             reb = r["rebound_velocity"]
-            vel = r["velocity"]
+            # (a contact present at the start has no approach: its row's velocity is the
+            # depth rate at t = 0, which the table of approach speeds does not show)
+            vel = None if r["initial"] else r["velocity"]
             t2.add_row(
                 f"{r['t']:.6f}",
                 r["pair"],
