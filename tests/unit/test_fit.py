@@ -419,6 +419,39 @@ def test_cli_refuses_the_example_in_ms_read_as_s_before_any_simulation(
     assert not out.exists()
 
 
+def _example_with(tmp_path: Path, row: int, value: str) -> Path:
+    """The shipped example record with data row ``row`` (from 0) measuring ``value``."""
+    lines = (EXAMPLES / "fit_record.csv").read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("t [ms],"))
+    t = lines[head + 1 + row].split(",")[0]
+    lines[head + 1 + row] = f"{t},{value}"
+    path = tmp_path / "rec.csv"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _cli_refusal(tmp_path, capsys, data: Path, spec_text: str = SPEC) -> str:
+    """The one line of a refused ``braidsim fit`` (exit 2, nothing written); returns it."""
+    spec = tmp_path / "spec.toml"
+    spec.write_text(spec_text)
+    out = tmp_path / "out"
+    code, stdout, err = _cli(["fit", str(spec), "--data", str(data), "--out", str(out)], capsys)
+    assert (code, stdout) == (2, ""), err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert not out.exists()
+    return err
+
+
+@pytest.mark.filterwarnings("error")  # numpy's overflow warning fails the test
+@pytest.mark.parametrize("value", ["1e308", "1e200"])
+def test_cli_refuses_a_value_beyond_the_float_range_naming_the_column(tmp_path, capsys, value):
+    # (it was an internal error, OverflowError of the time-scale check, after numpy's
+    # warning "overflow encountered in subtract")
+    err = _cli_refusal(tmp_path, capsys, _example_with(tmp_path, 5, value))
+    assert f"column acceleration has {float(value):.3g} m/s**2 at row 5" in err, err
+    assert "allowed magnitudes up to 1e+100 m/s**2" in err, err
+
+
 @pytest.mark.parametrize("method", ["multistart", "differential_evolution"])
 def test_displacement_record_needs_and_gets_a_global_start(method):
     # a laser displacement record (2 um noise) of a carrier with other parameters than the

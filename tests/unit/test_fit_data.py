@@ -62,8 +62,16 @@ def test_xarray_and_netcdf_records(tmp_path):
         ("t,x", [[0, 1, 9], [1, 2, 9], [2, 3, 9]], "more fields than the header's 2"),
         ("t,y", [[0, 1], [1, 2], [2, 3]], "no measured column"),
         ("t,x", [[-1, 1], [1, 2], [2, 3]], "allowed times >= 0"),
+        # (a glitch of 1e308: the noise estimate's differences overflowed, then the
+        # time-scale check raised OverflowError, an internal error)
+        ("t,acceleration", [[0, 1], [1, 1e308], [2, 3]], "column acceleration has 1e+308"),
+        ("t,acceleration", [[0, 1], [1, -1e200], [2, 3]], "allowed magnitudes up to 1e+100"),
+        # (finite as written, beyond the float range once converted to SI)
+        ("t,x [km]", [[0, 1], [1, 1e306], [2, 3]], "column x has inf m at row 1"),
+        ("t,peak_force", [[0, 1], [1, 1e150]], "column peak_force has 1e+150 N"),
     ],
 )
+@pytest.mark.filterwarnings("error")
 def test_bad_records_are_named_in_one_line(tmp_path, header, rows, words):
     p = _csv(tmp_path / "r.csv", header, np.array(rows, dtype=float))
     with pytest.raises(InputError) as err:

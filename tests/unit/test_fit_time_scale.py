@@ -93,6 +93,10 @@ def test_the_closed_forms_against_the_simulator():
     got = pulse_duration(hertz, one["max_force"])
     assert got == pytest.approx(one["contact_duration"], rel=1e-6)
     assert pulse_duration(sc, 0.0) == math.inf
+    # far beyond the physical, the bound stays a number (the direct form's p_m^(n+1)
+    # raised OverflowError at 1e200 N)
+    assert 0.0 <= pulse_duration(sc, 1e300) < pulse_duration(sc, 1e3)
+    assert pulse_duration(sc, 1e-300) > pulse_duration(sc, 1.0)
     # every flight of the paper-3.1 carrier between two impacts is shorter than the bound
     res = braidsim.simulate(sc, duration=0.3, record_events=False)
     imp = res.impacts

@@ -63,6 +63,12 @@ IMPACT_UNITS: dict[str, str] = {
 ALIASES: dict[str, str] = {"track_contact_force": "contact_force", "ax": "acceleration"}
 #: largest record read [samples]
 MAX_SAMPLES = 50_000_000
+#: largest magnitude of a measured value [SI]. Far beyond any sensor's range (an
+#: accelerometer's 1e6 m/s^2, a force washer's 1e7 N), and small enough that the fit's
+#: differences, squares and sums of squares of such values stay finite in float64 (1e200
+#: per square, over MAX_SAMPLES samples); a glitch of 1e308 overflowed the noise estimate's
+#: second differences and then the time-scale check (an internal error).
+MAX_MAGNITUDE = 1e100
 
 _HEADER = re.compile(r"^\s*([^\[\]]*?)\s*(?:\[\s*([^\]]*?)\s*\])?\s*$")
 
@@ -139,6 +145,28 @@ def _factor(where: str, unit: str, quantity: str) -> float:
         ) from None
 
 
+def _to_si(values: Any, where: str, unit: str, quantity: str) -> np.ndarray:
+    """``values`` (a flat float array) in ``unit`` converted to the SI unit of ``quantity``;
+    a value the conversion takes past the float range becomes inf, without numpy's
+    overflow warning (the checks that follow refuse it in one line)."""
+    v = np.asarray(values, dtype=float).ravel()
+    with np.errstate(over="ignore"):
+        return v * _factor(where, unit, quantity)
+
+
+def _check_magnitude(source: str, name: str, v: np.ndarray, t: np.ndarray, q: str) -> None:
+    """Refuse a value of column ``name`` (SI, quantity ``q``) beyond :data:`MAX_MAGNITUDE`."""
+    bad = np.flatnonzero(~(np.abs(v) <= MAX_MAGNITUDE))
+    if bad.size:
+        i = int(bad[0])
+        unit = {**QUANTITY_UNITS, **IMPACT_UNITS}[q]
+        raise InputError(
+            f"{source}: column {name} has {v[i]:.3g} {unit} at row {i} (t = {t[i]:.9g} s); "
+            f"allowed magnitudes up to {MAX_MAGNITUDE:g} {unit} (a glitch or a wrong unit? "
+            "check the record)"
+        )
+
+
 def make_record(
     t: Any,
     columns: Mapping[str, Any],
@@ -154,9 +182,7 @@ def make_record(
         negative, fewer than 3 samples, a unit that does not match its quantity.
     """
     units = dict(units or {})
-    tt = np.asarray(t, dtype=float).ravel() * _factor(
-        f"{source}: column t", units.get("t", ""), "t"
-    )
+    tt = _to_si(t, f"{source}: column t", units.get("t", ""), "t")
     if tt.size < 3:
         raise InputError(f"{source}: {tt.size} samples; allowed a record of at least 3 samples")
     if tt.size > MAX_SAMPLES:
@@ -194,7 +220,8 @@ def make_record(
                 f"{bad[0]} (t = {tt[bad[0]]:.9g} s); allowed finite numbers (drop or fill "
                 "the gap first)"
             )
-        out[q] = v * _factor(f"{source}: column {name}", units.get(name, ""), q)
+        out[q] = _to_si(v, f"{source}: column {name}", units.get(name, ""), q)
+        _check_magnitude(source, name, out[q], tt, q)
     if not out:
         raise InputError(
             f"{source}: no measured column; allowed one or more of {', '.join(QUANTITY_UNITS)}"
@@ -217,9 +244,7 @@ def make_impact_list(
         peak forces or speeds, a unit that does not match its quantity.
     """
     units = dict(units or {})
-    tt = np.asarray(t, dtype=float).ravel() * _factor(
-        f"{source}: column t", units.get("t", ""), "t"
-    )
+    tt = _to_si(t, f"{source}: column t", units.get("t", ""), "t")
     if tt.size == 0:
         raise InputError(f"{source}: no impact; allowed an impact list of at least one row")
     bad = np.flatnonzero(~np.isfinite(tt))
@@ -253,7 +278,8 @@ def make_impact_list(
                 f"{source}: column {name} has a missing, non-finite or negative value at row "
                 f"{bad[0]} (t = {tt[bad[0]]:.9g} s); allowed finite magnitudes >= 0"
             )
-        out[name] = v * _factor(f"{source}: column {name}", units.get(name, ""), name)
+        out[name] = _to_si(v, f"{source}: column {name}", units.get(name, ""), name)
+        _check_magnitude(source, name, out[name], tt, name)
     if not out:
         raise InputError(
             f"{source}: no impact quantity; allowed one or more of {', '.join(IMPACT_UNITS)}"

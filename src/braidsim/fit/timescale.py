@@ -67,16 +67,25 @@ def pulse_duration(scenario: Scenario, peak_force: float) -> float:
 
     At a given peak force ``T`` scales as ``sqrt(m / K) (F / K)^((1 - n) / (2 n))``: for
     n > 1 the impact of the smallest peak lasts longest."""
-    from braidsim.contact import hertz_impact_closed_form
+    from scipy import special
+
     from braidsim.model import pair_model
 
     if not peak_force > 0:
         return math.inf
     pm = pair_model(scenario, "track")
     k, n, m = pm.stiffness, pm.exponent, float(scenario["carrier.mass"])
-    depth = (peak_force / k) ** (1.0 / n)
-    v0 = math.sqrt(2.0 * k * depth ** (n + 1.0) / ((n + 1.0) * m))
-    return float(hertz_impact_closed_form(m, k, n, v0)["contact_duration"])
+    # In logarithms: with v0 eliminated, T = 2 B / (n+1) sqrt((n+1) m / (2 K))
+    # p_m^((1-n)/2). The powers p_m^(n+1) of the direct form overflow for a peak force far
+    # beyond the physical (a glitch of 1e200 m/s^2 in a record raised OverflowError), where
+    # this one only gives a duration of 0 or inf.
+    log_depth = (math.log(peak_force) - math.log(k)) / n
+    log_t = (
+        math.log(2.0 * float(special.beta(1.0 / (n + 1.0), 0.5)) / (n + 1.0))
+        + 0.5 * math.log((n + 1.0) * m / (2.0 * k))
+        + 0.5 * (1.0 - n) * log_depth
+    )
+    return math.exp(log_t) if log_t < 700.0 else math.inf
 
 
 def longest_flight(scenario: Scenario) -> float:
