@@ -452,6 +452,27 @@ def test_cli_refuses_a_value_beyond_the_float_range_naming_the_column(tmp_path, 
     assert "allowed magnitudes up to 1e+100 m/s**2" in err, err
 
 
+def test_cli_refuses_a_record_without_an_impact_pulse(tmp_path, capsys, monkeypatch):
+    # the example's acceleration all 0 (a sensor not connected) was fitted, cost 1e85
+    lines = (EXAMPLES / "fit_record.csv").read_text().splitlines()
+    head = next(i for i, line in enumerate(lines) if line.startswith("t [ms],"))
+    rows = [f"{line.split(',')[0]},0" for line in lines[head + 1 :]]
+    data = tmp_path / "rec.csv"
+    data.write_text("\n".join([lines[head], *rows]) + "\n")
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a simulation ran before the record was refused")
+
+    monkeypatch.setattr(importlib.import_module("braidsim.simulate"), "simulate", refuse)
+    err = _cli_refusal(tmp_path, capsys, data)
+    assert "holds no impact: column acceleration is constant (0 m/s**2)" in err, err
+    # noise alone: no sample beyond 6 noise levels
+    rng = np.random.default_rng(1)
+    t = np.arange(1, 1001) * 1e-4
+    with pytest.raises(braidsim.InputError, match=r"column acceleration shows no pulse \(its"):
+        fit(SC, {"t": t, "acceleration": rng.normal(0.0, 20.0, t.size)}, FREE2, "acceleration")
+
+
 @pytest.mark.parametrize("method", ["multistart", "differential_evolution"])
 def test_displacement_record_needs_and_gets_a_global_start(method):
     # a laser displacement record (2 um noise) of a carrier with other parameters than the

@@ -779,6 +779,42 @@ def _check_covers_an_impact(problem: Problem) -> None:
             )
 
 
+def _check_shows_pulses(problem: Problem) -> None:
+    """Refuse, before any simulation, a record whose fitted acceleration or force columns
+    show no impact pulse (:func:`braidsim.fit.data.detect_pulses`: every sample within
+    ``max(6 noise, 5 % of the largest)`` of the median), unless its displacement is fitted
+    too (whose impacts the model is judged on, :func:`_check_covers_an_impact`).
+
+    A constant column (all 0: a sensor not connected) or noise alone holds nothing about
+    the contact: fitted, its residuals pulled the model's impacts out of the record and the
+    fit reported estimates with a cost of 1e85."""
+    from braidsim.fit.data import QUANTITY_UNITS, detect_pulses, pulse_levels
+
+    for part in _parts(problem):
+        if isinstance(part, ImpactProblem) or "x" in part.quantities:
+            continue
+        record = part.record
+        pulses = [q for q in part.quantities if q in ("acceleration", "contact_force")]
+        if not pulses or any(
+            detect_pulses(record.t, record.columns[q], part.sigma[q])[0].size for q in pulses
+        ):
+            continue
+        q = pulses[0]
+        base, thr, top = pulse_levels(record.columns[q], part.sigma[q])
+        unit = QUANTITY_UNITS[q]
+        why = (
+            f"is constant ({base:.6g} {unit})"
+            if top == 0.0
+            else f"shows no pulse (its largest distance from its median, {top:.3g} {unit}, "
+            f"is within the detection threshold {thr:.3g} {unit}, max(6 noise, 5 % of the "
+            "largest))"
+        )
+        raise InputError(
+            f"data (--data): the record {record.source} ({record.duration:g} s) holds no "
+            f"impact: column {q} {why}; allowed a record of at least one impact pulse"
+        )
+
+
 #: time units a refusal of a too coarse time column may suggest, coarsest first [s]
 _FINER_UNITS = {"ms": 1e-3, "us": 1e-6}
 
@@ -971,6 +1007,7 @@ def fit_record(spec: FitSpec, record: Records, progress: Progress | None = None)
     say = progress or (lambda s: None)
     problem = build_problem(spec, record)
     problem.use_events = spec.events
+    _check_shows_pulses(problem)
     _check_time_scale(problem, spec.laws)
     _check_covers_an_impact(problem)
     check_informed(problem, problem.u_start)
