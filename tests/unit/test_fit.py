@@ -359,6 +359,13 @@ def test_cli_writes_the_report_and_a_scenario_that_runs(tmp_path, capsys, accel_
             None,
             "not a column",
         ),
+        # (an impact list's quantity of a sampled record: the record's columns were fitted
+        # in its place without a word)
+        (
+            SPEC.replace('quantity = "acceleration"', 'quantity = "velocity"'),
+            None,
+            "fit.quantity: 'velocity' is not a column of the record",
+        ),
         # times in seconds under a [ms] header: a record 1000 times shorter, whose pulses
         # the model cannot reach (the line blamed the restitution's influence)
         (SPEC, "s-as-ms", "shows 2 impact pulses, but the scenario at the start values"),

@@ -121,6 +121,18 @@ def test_an_impact_list_csv_is_read_and_bad_csv_refused(tmp_path):
         read_record(p)
 
 
+def test_a_fitted_quantity_no_record_has_is_refused():
+    # (it was replaced by the record's own columns without a word)
+    table = {"t [ms]": [6.64, 15.86], "peak_force [kN]": [5.49, 5.55]}
+    with pytest.raises(InputError, match=r"'velocity' is not a column of the impact list dict"):
+        fit(SC, table, FREE2, quantity="velocity")
+    with pytest.raises(InputError, match=r"'x' is not a column of the impact list dict"):
+        fit(SC, table, FREE2, quantity="x")
+    rec = read_record({"t": [0.001, 0.002, 0.003], "acceleration": [0.0, 9.0, 0.0]})
+    with pytest.raises(InputError, match=r"'velocity' is not a column of any record; allowed"):
+        fit(SC, [rec, table], FREE2, quantity=["acceleration", "peak_force", "velocity"])
+
+
 def test_more_measured_impacts_than_the_model_gives_is_refused():
     t = np.linspace(0.005, 0.14, 40)
     lst = make_impact_list(t, {"peak_force": np.full(40, 1000.0)}, source="too many")

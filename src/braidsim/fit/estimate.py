@@ -664,6 +664,55 @@ def _items(records: Any) -> list[tuple[Record | ImpactList, dict[str, Any]]]:
     return out
 
 
+def record_quantities(
+    spec: FitSpec, records: Sequence[Record | ImpactList]
+) -> list[tuple[str, ...]]:
+    """The quantities each record fits: where the spec names none, ``x`` of a sampled
+    record and every column of an impact list (``()``); else the named ones of its kind.
+
+    Raises
+    ------
+    InputError
+        A record that has none of the named quantities, or a named quantity that no record
+        has (``velocity`` of an acceleration record was once replaced by its acceleration
+        without a word). A sampled record lacking a named sampled quantity is refused by
+        its :class:`Problem`.
+    """
+    from braidsim.fit.data import QUANTITY_UNITS
+
+    if not spec.quantity_given:
+        return [() if isinstance(rec, ImpactList) else ("x",) for rec in records]
+    named = spec.quantities
+    out: list[tuple[str, ...]] = []
+    have_all: dict[str, None] = {}
+    for rec in records:
+        if isinstance(rec, ImpactList):
+            have = tuple(rec.columns)
+            mine = tuple(q for q in named if q in have)
+            kind = "impact list"
+        else:
+            have = tuple(rec.columns)
+            mine = tuple(q for q in named if q in QUANTITY_UNITS)
+            kind = "record"
+        have_all.update(dict.fromkeys(have))
+        if not mine:
+            listed = ", ".join(repr(q) for q in named)
+            raise InputError(
+                f"fit.quantity: {listed} {'is' if len(named) == 1 else 'are'} not a column of "
+                f"the {kind} {rec.source}; allowed {', '.join(have)}"
+            )
+        out.append(mine)
+    fitted = {q for qs in out for q in qs}
+    for q in named:
+        if q not in fitted:
+            raise InputError(
+                f"fit.quantity: {q!r} is not a column of "
+                f"{'the record ' + records[0].source if len(records) == 1 else 'any record'}; "
+                f"allowed {', '.join(have_all)}"
+            )
+    return out
+
+
 def build_problem(spec: FitSpec, records: Records) -> Problem:
     """The problem of one record, or a :class:`MultiProblem` of several (each on the
     scenario with its own overrides)."""
@@ -689,6 +738,7 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
                 f"record{'s' if several else ''}; allowed {many}"
             )
     parts = []
+    fitted = record_quantities(spec, [rec for rec, _ in items])
     for i, (rec, ov) in enumerate(items):
         for key in ov:
             if key in free:
@@ -702,7 +752,7 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
                 sc,
                 rec,
                 free_parameters,
-                spec.quantities,
+                fitted[i],
                 spec.noise,
                 spec.jacobian,
                 i if several else None,
@@ -1104,7 +1154,7 @@ def fit(
     scenario: Scenario | str | Mapping[str, Any],
     data: Any,
     free: Mapping[str, Sequence[Any]],
-    quantity: str | Sequence[str] = "x",
+    quantity: str | Sequence[str] | None = None,
     overrides: Mapping[str, Any] | None = None,
     progress: Progress | None = None,
     **options: Any,
@@ -1123,10 +1173,11 @@ def fit(
         overrides (e.g. ``{"initial.vx": "0.5 m/s"}``).
     free : mapping
         ``{key: [low, high]}``, numbers in SI or unit strings.
-    quantity : str or list of str
-        The record's columns to fit (``x``, ``acceleration``, ``contact_force``); an impact
-        list fits its onset times and every column it has unless some are named here
-        (``peak_force``, ``velocity``, ``rebound_velocity``, ``dissipated_energy``).
+    quantity : str or list of str, optional
+        The record's columns to fit (``x``, ``acceleration``, ``contact_force``; default
+        ``x``); an impact list fits its onset times and every column it has unless some are
+        named here (``peak_force``, ``velocity``, ``rebound_velocity``,
+        ``dissipated_energy``). A named quantity that no record has is refused.
     overrides : mapping, optional
         Applied to the scenario first.
     progress : callable, optional
@@ -1146,7 +1197,9 @@ def fit(
     if "global_method" in options:  # `global` is a Python keyword
         options["global"] = options.pop("global_method")
 
-    table: dict[str, Any] = {"fit": {"free": dict(free), "quantity": quantity, **options}}
+    table: dict[str, Any] = {"fit": {"free": dict(free), **options}}
+    if quantity is not None:
+        table["fit"]["quantity"] = quantity
     if overrides:
         table["overrides"] = dict(overrides)
     if isinstance(scenario, Scenario):

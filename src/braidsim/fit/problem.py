@@ -588,7 +588,10 @@ class ImpactProblem(Problem):
         self.scenario = scenario
         self.impacts = record
         self._set_free(free, time_offset, part)
-        chosen = [q for q in quantities if q in record.columns] or list(record.columns)
+        # (none named: every column; the onset times are fitted always)
+        chosen = (
+            [q for q in quantities if q in record.columns] if quantities else list(record.columns)
+        )
         self.quantities = ("t", *chosen)
         noise = noise or {}
         sig = {"t": float(noise.get("t") or IMPACT_TIME_NOISE)}
@@ -717,7 +720,7 @@ class ImpactProblem(Problem):
     ) -> ImpactProblem:
         off = self.fixed_offset if time_offset is None else time_offset
         return ImpactProblem(
-            scenario, self.impacts, free, self.quantities[1:], self.sigma, jacobian, off, self.part
+            scenario, self.impacts, free, self.quantities, self.sigma, jacobian, off, self.part
         )
 
     def jacobian_fd(self, u: np.ndarray, kind: str = "record") -> np.ndarray:
@@ -735,16 +738,12 @@ def single_problem(
     jacobian: str,
     part: int | None = None,
 ) -> Problem:
-    """The problem of one record of either kind (``part``: its index among several)."""
+    """The problem of one record of either kind (``part``: its index among several), fitting
+    ``quantities`` (of an impact list: its onset times and these columns, every column where
+    none is named)."""
     if isinstance(record, ImpactList):
         return ImpactProblem(scenario, record, free, quantities, noise, jacobian, 0.0, part)
-    qs = [q for q in quantities if q in record.columns or q not in _IMPACT_NAMES] or list(
-        record.columns
-    )
-    return Problem(scenario, record, free, qs, noise, jacobian, 0.0, part)
-
-
-_IMPACT_NAMES = ("t", "peak_force", "velocity", "rebound_velocity", "dissipated_energy")
+    return Problem(scenario, record, free, quantities, noise, jacobian, 0.0, part)
 
 
 class MultiProblem(Problem):

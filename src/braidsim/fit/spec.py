@@ -157,6 +157,9 @@ class FitSpec:
     free: tuple[FreeParameter, ...]
     quantities: tuple[str, ...]
     noise: Mapping[str, float] = field(default_factory=dict)
+    #: whether the spec names the quantities (else ``x`` of a sampled record, every column of
+    #: an impact list)
+    quantity_given: bool = True
     jacobian: str = "auto"
     global_method: str = "multistart"
     starts: int = 6
@@ -379,6 +382,7 @@ def parse_fit_spec(
         free=free,
         quantities=quantities,
         noise=noise,
+        quantity_given="quantity" in fit,
         jacobian=_choice("fit.jacobian", fit.get("jacobian", "auto"), JACOBIANS),
         global_method=_choice("fit.global", fit.get("global", "multistart"), GLOBALS),
         starts=_int("fit.starts", fit.get("starts", 6), 1, 1000),
