@@ -480,6 +480,16 @@ def test_cli_refuses_a_record_without_an_impact_pulse(tmp_path, capsys, monkeypa
         fit(SC, {"t": t, "acceleration": rng.normal(0.0, 20.0, t.size)}, FREE2, "acceleration")
 
 
+@pytest.mark.parametrize("value", ["1e15", "1e30"])
+def test_cli_names_a_lone_glitch_sample_not_the_time_unit(tmp_path, capsys, value):
+    # one sample of 1e15 m/s^2 set the pulse threshold (5 % of the largest) beyond every
+    # impact a 10 kHz record resolves: the line blamed the time column ("head the column
+    # t [us]"; with 1e30 "a record sampled faster"), where the example's pulses are resolved
+    err = _cli_refusal(tmp_path, capsys, _example_with(tmp_path, 499, value))
+    assert f"column acceleration has {float(value):.3g} m/s**2 at t = 0.05 s (row 499)" in err
+    assert "a glitch?" in err and "head the column" not in err, err
+
+
 @pytest.mark.parametrize("method", ["multistart", "differential_evolution"])
 def test_displacement_record_needs_and_gets_a_global_start(method):
     # a laser displacement record (2 um noise) of a carrier with other parameters than the

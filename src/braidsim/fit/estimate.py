@@ -888,8 +888,7 @@ def _check_time_scale(problem: Problem, laws: Sequence[str] = ()) -> None:
     between them: no closed form bounds their times (:func:`_check_covers_an_impact`
     compares them with the run at the start values).
     """
-    from braidsim.fit.data import pulse_levels
-    from braidsim.fit.timescale import longest_flight, pulse_duration, variants
+    from braidsim.fit.timescale import longest_flight, variants
 
     for part in _parts(problem):
         if isinstance(part, ImpactProblem):
@@ -909,13 +908,9 @@ def _check_time_scale(problem: Problem, laws: Sequence[str] = ()) -> None:
             # longer than this bound leaves every pulse one sample at most: the impacts are
             # not in the record at this time scale. (The example record, 10 kHz: 8.6 sample
             # intervals in its bound of 0.86 ms; its times in ms read as s, 0.1 s: 117 bounds.)
-            bound = 0.0
-            for q in pulses:
-                _, thr, top = pulse_levels(record.columns[q], part.sigma[q])
-                for sc in scenarios:
-                    mass = float(sc["carrier.mass"]) if q == "acceleration" else 1.0
-                    for level in (thr, top):
-                        bound = max(bound, pulse_duration(sc, mass * level))
+            bound = _pulse_bound(record.columns, pulses, part.sigma, scenarios)
+            if dt > bound:
+                _check_lone_sample(record, pulses, part.sigma, scenarios)
             what = (
                 f"the longest impact pulse it can show ({bound * 1e3:.3g} ms, the elastic "
                 "contact of an impact at its detection threshold, over the free parameters' "
@@ -948,6 +943,63 @@ def _check_time_scale(problem: Problem, laws: Sequence[str] = ()) -> None:
             f"data (--data): {record.source}: column {header} has a sample interval of "
             f"{dt:.3g} s ({record.t.size} samples over {record.duration:.3g} s), longer than "
             f"{what}; allowed a time column in the unit its header says: {fix}"
+        )
+
+
+def _pulse_bound(
+    columns: Mapping[str, np.ndarray],
+    pulses: Sequence[str],
+    sigma: Mapping[str, float],
+    scenarios: Sequence[Scenario],
+) -> float:
+    """The longest impact pulse [s] that the acceleration or force ``columns`` named in
+    ``pulses`` can show, over ``scenarios`` (see :func:`_check_time_scale`)."""
+    from braidsim.fit.data import pulse_levels
+    from braidsim.fit.timescale import pulse_duration
+
+    bound = 0.0
+    for q in pulses:
+        _, thr, top = pulse_levels(columns[q], sigma[q])
+        for sc in scenarios:
+            mass = float(sc["carrier.mass"]) if q == "acceleration" else 1.0
+            for level in (thr, top):
+                bound = max(bound, pulse_duration(sc, mass * level))
+    return bound
+
+
+def _check_lone_sample(
+    record: Record,
+    pulses: Sequence[str],
+    sigma: Mapping[str, float],
+    scenarios: Sequence[Scenario],
+) -> None:
+    """Refuse, naming it, a lone sample that alone makes :func:`_check_time_scale` refuse
+    ``record``: where the bound :func:`_pulse_bound` passes the sample interval once the
+    sample farthest from the median of a pulse column is left out.
+
+    One glitch sets the pulse threshold (5 % of the largest pulse) so high that only
+    impacts much shorter than a sample could reach it: the check then blamed the time
+    column's unit (1e15 m/s^2 in the example: "head the column t [us]"), where the record's
+    real pulses are resolved."""
+    from braidsim.fit.data import QUANTITY_UNITS, pulse_levels
+
+    dt = record.sample_interval
+    for q in pulses:
+        y = record.columns[q]
+        base = pulse_levels(y, sigma[q])[0]
+        dist = np.abs(y - base)
+        i = int(np.argmax(dist))
+        if not dt <= _pulse_bound({**record.columns, q: np.delete(y, i)}, pulses, sigma, scenarios):
+            continue
+        rest = float(np.max(np.delete(dist, i)))
+        times = f"{dist[i] / rest:.3g} times" if rest > 0 else "infinitely far beyond"
+        unit = QUANTITY_UNITS[q]
+        raise InputError(
+            f"data (--data): {record.source}: column {q} has {y[i]:.3g} {unit} at t = "
+            f"{record.t[i]:.9g} s (row {i}), {times} the largest distance of any other sample "
+            f"from the median ({base:.3g} {unit}): a glitch? Alone it sets the pulse threshold "
+            "(5 % of the largest) beyond every impact the sample interval can resolve; allowed "
+            "a record without it (check that sample)"
         )
 
 
