@@ -111,6 +111,24 @@ def test_spec_refuses_bad_entries():
             parse_fit_spec({"scenario": "paper-3.1", "fit": fit})
 
 
+def test_api_arguments_of_the_wrong_type_are_named():
+    # (each raised TypeError)
+    from braidsim.fit import fit
+
+    rec = {"t": [0.001, 0.002, 0.003], "acceleration": [0.0, 9.0, 0.0]}
+    for free in ([1, 2], None):
+        with pytest.raises(InputError, match=r"^free: .* allowed a mapping \{key: \[low, high\]\}"):
+            fit("paper-3.1", rec, free=free, quantity="acceleration")
+    free = {"track.clearance": ["2.5 mm", "3.5 mm"]}
+    with pytest.raises(InputError, match=r"^overrides: list is not allowed; allowed a mapping"):
+        fit("paper-3.1", rec, free, quantity="acceleration", overrides=[1])
+    with pytest.raises(InputError, match=r"^data\[0\]: a tuple of 3 items is not allowed"):
+        fit("paper-3.1", [(rec, {}, 1)], free, quantity="acceleration")
+    for table in ([1], None):
+        with pytest.raises(InputError, match=r"^fit spec: table is a .* allowed a mapping"):
+            parse_fit_spec(table)
+
+
 def test_make_record_checks_lengths():
     with pytest.raises(InputError, match="3 values for 4 times"):
         make_record([0, 1, 2, 3], {"x": [0, 1, 2]})

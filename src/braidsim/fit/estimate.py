@@ -1248,6 +1248,17 @@ def fit(
 
     if "global_method" in options:  # `global` is a Python keyword
         options["global"] = options.pop("global_method")
+    # (a list or None here raised TypeError from dict())
+    if not isinstance(free, Mapping):
+        raise InputError(
+            f"free: {type(free).__name__} is not allowed; allowed a mapping {{key: [low, high]}}, "
+            'e.g. {"track.clearance": ["2.5 mm", "3.5 mm"]}'
+        )
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise InputError(
+            f"overrides: {type(overrides).__name__} is not allowed; allowed a mapping "
+            "{key: value}"
+        )
 
     table: dict[str, Any] = {"fit": {"free": dict(free), **options}}
     if quantity is not None:
@@ -1263,6 +1274,17 @@ def fit(
             scenario=load_scenario(scenario) if isinstance(scenario, Mapping) else None,
         )
     if isinstance(data, list):
+        for i, d in enumerate(data):
+            if isinstance(d, tuple) and (len(d) != 2 or not isinstance(d[1], Mapping | None)):
+                got = (
+                    f"a tuple of {len(d)} items"
+                    if len(d) != 2
+                    else f"overrides of type {type(d[1]).__name__}"
+                )
+                raise InputError(
+                    f"data[{i}]: {got} is not allowed; allowed a record or (record, overrides) "
+                    "with overrides a mapping"
+                )
         items: list[Any] = [
             (read_record(d[0]), d[1]) if isinstance(d, tuple) else read_record(d) for d in data
         ]

@@ -311,6 +311,11 @@ def parse_fit_spec(
     from braidsim.contact import law_names
     from braidsim.params import builtin_names
 
+    if not isinstance(table, Mapping):  # (a list raised TypeError in check_keys)
+        raise InputError(
+            f"{origin}: table is a {type(table).__name__}, which is not allowed; allowed a "
+            f"mapping of the keys {', '.join(TOP_KEYS)}"
+        )
     check_keys("", table, TOP_KEYS)
     base = path.parent if path is not None else None
     overrides = dict(expect_table("overrides", table.get("overrides", {})))
