@@ -366,6 +366,8 @@ def test_cli_writes_the_report_and_a_scenario_that_runs(tmp_path, capsys, accel_
             None,
             "fit.quantity: 'velocity' is not a column of the record",
         ),
+        # (a noise level of a quantity not fitted was accepted and ignored)
+        (SPEC + 'noise = { x = "2 um" }\n', None, "fit.noise.x: x is not fitted; allowed"),
         # times in seconds under a [ms] header: a record 1000 times shorter, whose pulses
         # the model cannot reach (the line blamed the restitution's influence)
         (SPEC, "s-as-ms", "shows 2 impact pulses, but the scenario at the start values"),

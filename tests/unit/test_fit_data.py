@@ -105,6 +105,9 @@ def test_spec_refuses_bad_entries():
         ({"free": {"track.clearance": [0.002, 0.004]}, "laws": ["hunt"]}, "not a contact law"),
         ({"free": {"track.clearance": [0.002, 0.004]}, "profile": ["initial.x"]}, "not a free"),
         ({"free": {}}, "no free parameter"),
+        # (solver settings: the refusal came from the sensitivities, "sensitivity: ...")
+        ({"free": {"simulation.duration": ["0.1 s", "0.2 s"]}}, "fit.free: 'simulation.duration"),
+        ({"free": {"simulation.rtol": [1e-8, 1e-6]}}, "setting of the solver"),
     ]
     for fit, words in bad:
         with pytest.raises(InputError, match=words.replace("(", r"\(")):

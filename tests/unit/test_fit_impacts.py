@@ -101,6 +101,9 @@ def test_a_table_with_impact_columns_is_an_impact_list():
         ({"t": [0.01, 0.02], "velocity": [0.1, np.nan]}, "non-finite"),
         ({"t": [0.01, 0.02], "velocity": [0.1, 0.2], "x": [0, 0]}, "mix sampled"),
         ({"t": [0.01, 0.02], "peak_force": [-1.0, 2.0]}, "negative"),
+        # (taken for a record of 2 samples: "allowed a record of at least 3 samples")
+        ({"t": [0.01, 0.02]}, "no measured column beside t; allowed"),
+        ({"t": [0.01, 0.02], "peak_force": [1.0, 0.0]}, "peak_force is 0 at row 1"),
     ],
 )
 def test_bad_impact_lists_are_one_line(table, words):
@@ -131,6 +134,42 @@ def test_a_fitted_quantity_no_record_has_is_refused():
     rec = read_record({"t": [0.001, 0.002, 0.003], "acceleration": [0.0, 9.0, 0.0]})
     with pytest.raises(InputError, match=r"'velocity' is not a column of any record; allowed"):
         fit(SC, [rec, table], FREE2, quantity=["acceleration", "peak_force", "velocity"])
+
+
+def test_cli_refuses_an_impact_list_of_zero_peak_forces(tmp_path, capsys):
+    # (its fit ended where the model gave fewer impacts: exit 1, "simulation failed")
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        f'scenario = "{SC}"\n[fit]\nfree = {{ "track.clearance" = ["2.5 mm", "3.5 mm"] }}\n'
+    )
+    data = tmp_path / "impacts.csv"
+    data.write_text("t [ms],peak_force [N]\n6.64,0\n15.86,0\n")
+    code, stdout, err = _cli(["fit", str(spec), "--data", str(data)], capsys)
+    assert (code, stdout) == (2, ""), err
+    assert err.count("\n") == 1 and "column peak_force is 0 at row 0" in err, err
+
+
+def test_noise_of_a_quantity_not_fitted_or_of_no_scale_is_refused():
+    table = {"t [ms]": [6.64, 15.86], "peak_force [kN]": [5.49, 5.55]}
+    with pytest.raises(InputError, match=r"fit.noise.velocity: velocity is not fitted; allowed "):
+        fit(SC, table, FREE2, noise={"velocity": "0.01 m/s"})
+    # speeds of 0 give no default noise (5 % of their median): the floor of 1e-9 made
+    # every residual beyond the one of a failed run
+    with pytest.raises(InputError, match=r"fit.noise.velocity: not given, and the default"):
+        fit(SC, {"t [ms]": [6.64, 15.86], "velocity": [0.0, 0.0]}, FREE2)
+
+
+def test_a_fit_that_ends_short_of_the_lists_impacts_is_bad_input(monkeypatch):
+    from braidsim.fit import estimate
+    from braidsim.fit.problem import TooFewImpacts
+
+    def short(*args, **kwargs):
+        raise TooFewImpacts("the model gives 1 track impacts, fewer than the 2 of the list")
+
+    monkeypatch.setattr(estimate, "_fit_checked", short)
+    table = {"t [ms]": [6.64, 15.86], "peak_force [kN]": [5.49, 5.55]}
+    with pytest.raises(InputError, match=r"^data \(--data\): at the fitted values the model"):
+        fit(SC, table, FREE2)
 
 
 def test_more_measured_impacts_than_the_model_gives_is_refused():
@@ -177,11 +216,12 @@ def test_truth_is_recovered_from_a_noisy_impact_list():
 def test_truth_is_recovered_from_the_dissipated_energies_of_an_impact_list():
     """Impact times and each impact's dissipated energy (a force-penetration loop's area)
     alone identify the restitution and the clearance."""
+    names = ("t", "dissipated_energy")
     table = impact_table(seed=3, energy=True)
-    table = {k: v for k, v in table.items() if k.split(" ")[0] in ("t", "dissipated_energy")}
-    res = fit(
-        SC, table, FREE2, noise=noise_of(impact_table(seed=3, energy=True)), global_method="none"
-    )
+    table = {k: v for k, v in table.items() if k.split(" ")[0] in names}
+    # (the noise of the columns fitted only: one of a quantity not fitted is refused)
+    noise = {k: v for k, v in noise_of(impact_table(seed=3, energy=True)).items() if k in names}
+    res = fit(SC, table, FREE2, noise=noise, global_method="none")
     assert res.converged
     assert res.quantities == ("t", "dissipated_energy")
     for i, k in enumerate(res.keys):

@@ -280,6 +280,14 @@ def make_impact_list(
             )
         out[name] = _to_si(v, f"{source}: column {name}", units.get(name, ""), name)
         _check_magnitude(source, name, out[name], tt, name)
+        if name == "peak_force" and not np.all(v > 0):
+            # (a contact has a positive peak force: a list of zeros gave no noise scale, its
+            # fit ended where the model lacked impacts, "simulation failed")
+            i = int(np.flatnonzero(~(v > 0))[0])
+            raise InputError(
+                f"{source}: column peak_force is 0 at row {i} (t = {tt[i]:.9g} s); allowed "
+                "peak forces > 0 (an impact's; leave out a row without one)"
+            )
     if not out:
         raise InputError(
             f"{source}: no impact quantity; allowed one or more of {', '.join(IMPACT_UNITS)}"
@@ -314,6 +322,14 @@ def from_table(table: Mapping[Any, Any], source: str) -> Record | ImpactList:
     if t_col is None:
         raise InputError(
             f"{source}: no column t (the sample or impact times); allowed a header with t [s]"
+        )
+    if not cols:
+        # (a t column alone was taken for a record of samples: "2 samples; allowed a record
+        # of at least 3 samples")
+        raise InputError(
+            f"{source}: no measured column beside t; allowed one or more of "
+            f"{', '.join(QUANTITY_UNITS)} (a record) or {', '.join(IMPACT_UNITS)} (an impact "
+            "list)"
         )
     impact = [q for q in cols if q in IMPACT_UNITS]
     if impact and len(impact) != len(cols):

@@ -48,6 +48,7 @@ from braidsim.fit.problem import (
     ImpactProblem,
     MultiProblem,
     Problem,
+    TooFewImpacts,
     single_problem,
 )
 from braidsim.fit.spec import (
@@ -758,6 +759,14 @@ def build_problem(spec: FitSpec, records: Records) -> Problem:
                 i if several else None,
             )
         )
+    fitted_all = list(dict.fromkeys(q for part in parts for q in part.quantities))
+    for q in spec.noise:
+        if q not in fitted_all:
+            # (it was accepted and ignored: a typo'd or misplaced level weighted nothing)
+            raise InputError(
+                f"fit.noise.{q}: {q} is not fitted; allowed the fitted quantities "
+                f"{', '.join(fitted_all)}"
+            )
     if len(parts) == 1 and not items[0][1]:
         return parts[0]
     return MultiProblem(spec.scenario, parts, [ov for _, ov in items])
@@ -1113,6 +1122,20 @@ def fit_record(spec: FitSpec, record: Records, progress: Progress | None = None)
     _check_time_scale(problem, spec.laws)
     _check_covers_an_impact(problem)
     check_informed(problem, problem.u_start)
+    try:
+        return _fit_checked(spec, problem, say, t0)
+    except TooFewImpacts as exc:
+        # (the start's own run is checked above; the fit can still end where the model
+        # gives fewer impacts than a list, as bad input as the same list at the start)
+        raise InputError(
+            f"data (--data): at the fitted values {exc}; allowed an impact list the scenario "
+            "can reach (check its times and values, the scenario's overrides, the start and "
+            "the bounds)"
+        ) from None
+
+
+def _fit_checked(spec: FitSpec, problem: Problem, say: Progress, t0: float) -> FitResult:
+    """The fit of :func:`fit_record` once its input is checked."""
     laws = list(spec.laws)
     law0 = str(spec.scenario["contact.track.model"])
     law_results: list[LawResult] = []

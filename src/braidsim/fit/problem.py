@@ -129,6 +129,10 @@ def predict(res: Result, quantity: str) -> np.ndarray:
     raise InputError(f"quantity: {quantity!r} is not a measured quantity")
 
 
+class TooFewImpacts(SimulationError):
+    """The model gives fewer track impacts than an impact list holds."""
+
+
 class _ExactUnavailable(SimulationError):
     """The simulator's sensitivities failed with an error outside their contract."""
 
@@ -598,7 +602,15 @@ class ImpactProblem(Problem):
         for q in chosen:
             med = float(np.median(np.abs(record.columns[q])))
             s = noise.get(q) or IMPACT_RELATIVE_NOISE * med
-            sig[q] = float(s) if s > 0 else 1e-9
+            if not s > 0:
+                # (a floor of 1e-9 made residuals beyond FAILED_RESIDUAL: the fit then
+                # preferred parameters where the model failed)
+                raise InputError(
+                    f"fit.noise.{q}: not given, and the default (5 % of the median of "
+                    f"{record.source}'s column {q}) is 0; allowed a noise level > 0 in "
+                    "fit.noise, or a column whose median is > 0"
+                )
+            sig[q] = float(s)
         self.sigma = sig
         latest = max([self.fixed_offset, *(p.high for p in self.free if p.key == self.offset_key)])
         self.duration = 1.2 * (record.duration + max(latest, 0.0)) + 0.01
@@ -644,7 +656,7 @@ class ImpactProblem(Problem):
         rows = np.flatnonzero(np.asarray(imp["pair"] == "track") & ~np.asarray(imp["initial"]))
         n = self.impacts.t.size
         if rows.size < n:
-            raise SimulationError(
+            raise TooFewImpacts(
                 f"the model gives {rows.size} track impacts up to t = {self.duration:g} s, "
                 f"fewer than the {n} of the impact list {self.impacts.source}"
             )

@@ -109,6 +109,9 @@ def scenario_values(values: Mapping[str, Any]) -> dict[str, Any]:
 
 
 GLOBALS = ("multistart", "differential_evolution", "none")
+#: key prefixes of the solver's settings, which no fit may free (as the simulator's
+#: sensitivities do not differentiate by them)
+SOLVER_SETTINGS = ("simulation.",)
 
 
 @dataclass(frozen=True)
@@ -201,6 +204,14 @@ def _numeric_key(where: str, key: Any) -> Any:
         hint = closest_hint(str(key), [*SCHEMA, TIME_OFFSET])
         raise InputError(f"{where}: unknown scenario key {key!r}{hint}")
     spec = SCHEMA[key]
+    if key.startswith(SOLVER_SETTINGS):
+        # (the runs' duration and sample times are the record's, and a tolerance or step
+        # changes the model only by its error: the simulator's sensitivities refused them
+        # in a line that began "sensitivity:")
+        raise InputError(
+            f"{where}: {key!r} is a setting of the solver, not a parameter of the model; "
+            "allowed a numeric model key, e.g. contact.track.restitution, track.clearance"
+        )
     if spec.kind != "float":
         raise InputError(
             f"{where}: {key!r} is not a numeric scenario key ({spec.kind}); allowed a key with "
