@@ -6,6 +6,7 @@ scenario that runs; and the refusals."""
 
 from __future__ import annotations
 
+import importlib
 import json
 import tomllib
 
@@ -239,6 +240,26 @@ def test_bad_offsets_are_refused_in_one_line(late_record):
         parse_fit_spec({"fit": {"free": {"record.time_offset": ["1 ms", "0 ms"]}}}, scenario=sc)
     with pytest.raises(InputError, match=r"time_offset: -1e-05 s is out of range"):
         synthetic_record(SC, 0.01, time_offset="-10 us")
+
+
+@pytest.mark.parametrize("high", ["1e6 s", "1e9 s"])
+def test_an_offset_beyond_the_step_limit_is_refused_before_any_simulation(
+    late_record, monkeypatch, high
+):
+    # (1e6 s ran for many minutes, each run half an hour; 1e9 s was refused by the first
+    # long run, naming only its duration)
+    def refuse(*args, **kwargs):
+        raise AssertionError("a simulation ran before the offset was refused")
+
+    monkeypatch.setattr(importlib.import_module("braidsim.simulate"), "simulate", refuse)
+    free = {**FREE2, OFF_KEY: ["0 s", high]}
+    with pytest.raises(InputError, match=r"^fit.free.record.time_offset: an upper bound of") as e:
+        fit(SC, late_record, free, quantity="acceleration", starts=1)
+    assert "(allowed upper bounds up to 999999." in str(e.value)
+    assert "BRAIDSIM_MAX_STEPS" in str(e.value)
+    table = {"t [ms]": [6.64, 15.86], "peak_force [kN]": [5.49, 5.55]}
+    with pytest.raises(InputError, match=r"allowed upper bounds up to 833333"):
+        fit(SC, table, free, starts=1)
 
 
 def test_a_misspelt_offset_key_is_named():

@@ -976,6 +976,44 @@ def _pulse_bound(
     return bound
 
 
+def _check_offset_reach(problem: Problem, laws: Sequence[str] = ()) -> None:
+    """Refuse, before any simulation, a free time offset whose upper bound asks for a run
+    over the ``steps`` limit (:mod:`braidsim.limits`: duration / simulation.max_step, the
+    smallest step over the scenario variants the fit may reach).
+
+    A record's run lasts to its last sample plus the offset, an impact list's to 1.2 times
+    its last onset plus the largest offset, plus 10 ms. The fit may step to the upper bound
+    (the trust region's first step, a start of the global stage), where the run would be
+    refused anyway, after minutes of fitting and naming only its duration; an offset of
+    1e6 s made runs of half an hour each."""
+    from braidsim import limits
+    from braidsim.fit.timescale import variants
+    from braidsim.model import default_max_step
+
+    for part in _parts(problem):
+        if part.i_offset is None:
+            continue
+        p = part.free[part.i_offset]
+        hmax = min(
+            float(sc["simulation.max_step"] or default_max_step(sc))
+            for sc in variants(part.scenario, part.free, laws)
+        )
+        reach = limits.limit("steps") * hmax
+        if isinstance(part, ImpactProblem):
+            longest = part.duration
+            allowed = (reach - 0.01) / 1.2 - part.impacts.duration
+        else:
+            longest = part.record.duration + p.high
+            allowed = reach - part.record.duration
+        limits.check(
+            "steps",
+            longest / hmax,
+            f"fit.free.{TIME_OFFSET}: an upper bound of {p.high:g} s runs the model to "
+            f"{longest:g} s at simulation.max_step = {hmax:.3g} s (allowed upper bounds up to "
+            f"{allowed:.9g} s), at least",
+        )
+
+
 def _check_lone_sample(
     record: Record,
     pulses: Sequence[str],
@@ -1120,6 +1158,7 @@ def fit_record(spec: FitSpec, record: Records, progress: Progress | None = None)
     problem.use_events = spec.events
     _check_shows_pulses(problem)
     _check_time_scale(problem, spec.laws)
+    _check_offset_reach(problem, spec.laws)
     _check_covers_an_impact(problem)
     check_informed(problem, problem.u_start)
     try:
