@@ -135,3 +135,20 @@ def test_api_arguments_of_the_wrong_type_are_named():
 def test_make_record_checks_lengths():
     with pytest.raises(InputError, match="3 values for 4 times"):
         make_record([0, 1, 2, 3], {"x": [0, 1, 2]})
+
+
+def test_a_series_csv_of_braidsim_run_is_read_as_a_record(tmp_path) -> None:
+    """`braidsim run --csv` repeats a sample time in its start and end rows (kind 5, 6): the
+    record keeps the last row of each time, as series.nc does (the CSV was refused: "column
+    t is not strictly increasing at row 1")."""
+    import braidsim
+    from braidsim.fit.data import read_record
+
+    res = braidsim.simulate("paper-3.1", 0.01, sample_interval=1e-4)
+    (path,) = [p for p in res.to_csv(tmp_path) if p.name == "series.csv"]
+    rec = read_record(path)
+    ds = res.to_xarray()
+    # (the CSV keeps 10 significant digits)
+    assert rec.t.size == ds["t"].size
+    np.testing.assert_allclose(rec.t, ds["t"].values, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(rec.columns["x"], ds["x"].values, rtol=1e-9, atol=1e-18)

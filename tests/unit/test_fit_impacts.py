@@ -321,3 +321,14 @@ def test_two_records_at_two_speeds_narrow_the_intervals(tmp_path, capsys):
     code, _, err = _cli(["fit", str(bad)], capsys)
     assert code == 2
     assert "data[0]: 3 is not allowed" in err
+
+
+def test_the_report_says_where_each_noise_level_comes_from() -> None:
+    """An impact list's levels are defaults (the onset times' 0.1 ms said "estimated from the
+    record", without a unit)."""
+    from braidsim.cli.fit import noise_origin
+
+    assert noise_origin("t", {}) == "default, 0.1 ms"
+    assert noise_origin("peak_force", {}) == "default, 5 % of the median"
+    assert noise_origin("peak_force", {"peak_force": 150.0}) == "given"
+    assert noise_origin("acceleration", {}) == "estimated from the record"

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -70,12 +71,12 @@ def fit(
         f"residual std {res.stats.residual_std:.3g} (in units of the noise)"
     ]
     given = s.noise or {}
-    units = {**QUANTITY_UNITS, **IMPACT_UNITS}
+    units = {**QUANTITY_UNITS, **IMPACT_UNITS, "t": "s"}
+
     lines.append(
         "  noise: "
         + ", ".join(
-            f"{q} {sigma:.4g} {units.get(q, '')}".rstrip()
-            + (" (given)" if given.get(q) else " (estimated from the record)")
+            f"{q} {sigma:.4g} {units.get(q, '')}".rstrip() + f" ({noise_origin(q, given)})"
             for q, sigma in res.noise.items()
         )
     )
@@ -96,3 +97,18 @@ def fit(
     if out is not None:
         lines.append(f"report: {out}")
     sys.stdout.write("\n".join(lines) + "\n")
+
+
+def noise_origin(quantity: str, given: Mapping[str, Any]) -> str:
+    """Where a fitted quantity's noise level came from, as the report line says it: given in
+    the spec, an impact list's default (0.1 ms for the onset times, 5 % of the median for
+    its other columns: docs/fit.md), or estimated from a sampled record."""
+    from braidsim.fit.data import IMPACT_UNITS
+
+    if given.get(quantity):
+        return "given"
+    if quantity == "t":
+        return "default, 0.1 ms"
+    if quantity in IMPACT_UNITS:
+        return "default, 5 % of the median"
+    return "estimated from the record"

@@ -353,6 +353,15 @@ def from_table(table: Mapping[Any, Any], source: str) -> Record | ImpactList:
             )
         data[q] = v
     t = data.pop("t")
+    if "kind" in table and not impact and t.size:
+        # braidsim's own series (`braidsim run --csv`'s series.csv) repeats a sample time in
+        # its start and end rows and at a transfer's state map (before and after): kept as
+        # Result.to_xarray and series.nc keep them, the last row of each equal time. A
+        # measured record has no kind column; its times must increase strictly.
+        last = np.ones(t.size, dtype=bool)
+        last[:-1] = t[1:] != t[:-1]
+        t = t[last]
+        data = {q: v[last] for q, v in data.items()}
     if impact:
         return make_impact_list(t, data, units, source)
     return make_record(t, data, units, source)
