@@ -603,7 +603,8 @@ def flow_map(
             S0[n + 2 :] = dirs.S0
     # series tangents are not needed, but asking for them shares the compiled solver with
     # simulate(..., sensitivities=...) and its series (one compile less)
-    tangents = Tangents(records, S0, DV0, DTR, scale, series=True)
+    # (the dissipations' tangents are not needed either, and would hold the step at a clamp)
+    tangents = Tangents(records, S0, DV0, DTR, scale, series=True, dissipations=False)
     restart = L.new_restart()
     r = restart[0]
     r["t"] = t0
@@ -822,7 +823,7 @@ def record_flow_map(
     DV0 = np.zeros((k, 2))
     DV0[n, 0] = 1.0 if modes_t[0] != 0 else 0.0
     DV0[n + 1, 1] = 1.0 if modes_t[1] != 0 else 0.0
-    tangents = Tangents(records, S0, DV0, np.zeros((k, 0)), scale, series=False)
+    tangents = Tangents(records, S0, DV0, np.zeros((k, 0)), scale, series=False, dissipations=False)
     restart = L.new_restart()
     r = restart[0]
     r["t"] = t0

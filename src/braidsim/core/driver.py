@@ -66,6 +66,12 @@ class Tangents:
         state): the tangents' absolute tolerances are the state's divided by it.
     series : bool
         Also give the tangents of every series row.
+    dissipations : bool
+        Also carry the tangents of the energy each contact pair dissipates, where the run's
+        state holds those energies (they give the sensitivities of the impacts' dissipated
+        energies). A flow map, which needs the coordinates' and speeds' alone, leaves them
+        out: their own error estimate bounds the step while a contact force is clamped,
+        which on a resting orbit near its lift-off made each map several times dearer.
     """
 
     records: Any
@@ -74,6 +80,7 @@ class Tangents:
     DTR: np.ndarray
     scale: np.ndarray
     series: bool = True
+    dissipations: bool = True
 
 
 @dataclass
@@ -854,7 +861,11 @@ def _sensitivity_work(
         raise ValueError(f"tangents.S0: shape {S0.shape}, expected {(k, n_dof2)}")
     slots = [dissipation_slot(model, pair) for pair in range(n_pairs)]
     n_tan = n_dof2
-    if slots == list(range(n_dof2, n_dof2 + n_pairs)) and n >= n_dof2 + n_pairs:
+    if (
+        tangents.dissipations
+        and slots == list(range(n_dof2, n_dof2 + n_pairs))
+        and n >= n_dof2 + n_pairs
+    ):
         n_tan = n_dof2 + n_pairs
     S = np.zeros((k, n_tan))
     S[:, :n_dof2] = S0
