@@ -106,11 +106,17 @@ def check_output_target(
         _check_target(p, option, directory, what)
     except OSError as exc:  # a name too long, a loop of links: the path itself is refused
         why = exc.strerror or exc.__class__.__name__
-        shown = str(p) if len(str(p)) <= 60 else f"{str(p)[:40]}...{str(p)[-12:]}"
         raise InputError(
-            f"{option}: {shown!r} cannot be used as a path ({why}); allowed {what} path the "
-            "file system takes (names of at most 255 bytes a part)"
+            f"{option}: {shown_path(p)!r} cannot be used as a path ({why}); allowed {what} "
+            "path the file system takes (names of at most 255 bytes a part)"
         ) from None
+
+
+def shown_path(path: str | Path) -> str:
+    """``path`` for a one-line message: whole up to 60 characters, else its first 40 and
+    last 12 around an ellipsis (a name of 300 characters would fill the terminal)."""
+    text = str(path)
+    return text if len(text) <= 60 else f"{text[:40]}...{text[-12:]}"
 
 
 def _check_target(p: Path, option: str, directory: bool, what: str) -> None:

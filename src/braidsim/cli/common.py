@@ -366,7 +366,7 @@ def _os_error_text(exc: OSError) -> str:
     hint = ""
     if exc.errno in (28, 27, 122):  # ENOSPC, EFBIG, EDQUOT
         hint = "; free space (or raise the file-size limit), then run again"
-    # (no file named: "a file" rather than a guess of which one, input or output)
+    # (no file named: said so, rather than a guess of which one, input or output)
     path = exc.filename if exc.filename is not None else "reading or writing a file"
     return f"{path}: {why}{hint}"
 
@@ -380,10 +380,9 @@ def _name_too_long_text(exc: OSError, names: dict[str, str], given: dict[str, An
         if isinstance(value, str | os.PathLike) and str(value) and path.startswith(str(value)):
             head = names.get(name, name.upper())
             break
-    shown = path if len(path) <= 60 else f"{path[:40]}...{path[-12:]}"
     return (
-        f"{head}: {shown!r} ({len(os.fsencode(path))} bytes) is a name too long for the file "
-        "system; allowed names of at most 255 bytes a part"
+        f"{head}: {io.shown_path(path)!r} ({len(os.fsencode(path))} bytes) is a name too long "
+        "for the file system; allowed names of at most 255 bytes a part"
     )
 
 
