@@ -246,6 +246,11 @@ class SensitivityWork(NamedTuple):
         state's, divided by the scale of the direction's parameter.
     n_dof2 : int
         2 n_coords: where the dissipations' tangents start in S.
+    controlled : bool
+        Whether the tangents' own error estimate bounds the step (True: they are held to
+        the state's relative tolerance). False: they follow the steps the state's error
+        control chooses, as a Newton iteration's Jacobian can (see
+        :class:`braidsim.core.driver.Tangents`).
     """
 
     tangents: Any
@@ -257,6 +262,7 @@ class SensitivityWork(NamedTuple):
     SMAX: np.ndarray
     ATOL: np.ndarray
     n_dof2: int
+    controlled: bool
 
 
 IMPACT_SENS_FIELDS = (

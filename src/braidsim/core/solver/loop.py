@@ -774,10 +774,13 @@ def integrate(
             continue
         tangents_cut = False  # (the tangents below made over the part before a kink)
         if SENS is not None:
-            # the tangents over the step, held to the same tolerance as the state
+            # the tangents over the step, held to the same tolerance as the state (unless
+            # the caller asked for them over the state's steps only: err_s stays 0)
             tangent_step(model, SENS, t, y, h, K, KS, modes, v0s, n_dof2, YS, ss, S1)
-            err_s = tangent_error(SENS, S1, h, KS, n_dof2, opts.rtol, SENS.SMAX)
-            if clamped[0] + clamped[1] > 0 and n_tan > n_dof2:
+            err_s = 0.0
+            if SENS.controlled:
+                err_s = tangent_error(SENS, S1, h, KS, n_dof2, opts.rtol, SENS.SMAX)
+            if SENS.controlled and clamped[0] + clamped[1] > 0 and n_tan > n_dof2:
                 # (the dissipations' tangents where a clamped force leaves them unbounded;
                 # written out here and below: one function for both, called every step,
                 # made a run with one key 4 % slower)
