@@ -101,6 +101,41 @@ def test_multipliers_do_not_depend_on_the_cut(system, bouncing) -> None:
         assert np.all(np.abs(mu[2:]) < 1e-6)
 
 
+def test_continuation_maps_hold_the_state_to_rtol_times_its_scales(system, bouncing) -> None:
+    """The continuation's maps integrate with absolute tolerances of at most rtol times the
+    state scales (L, L omega_h), not the plain run's 1e-13 m and 1e-9 m/s (2.7e-8 of L
+    omega_h, above Newton's 1e-8): a period's map of the bouncing orbit started inside its
+    contact (the latched speed in the state) converges with rtol. Against the same map at
+    rtol / 100, measured: 1.1e-9 L and 1.1e-7 L omega_h at rtol 1e-10, 7e-12 and 7.4e-10 at
+    1e-12; with the plain run's absolute tolerances 6.2e-8 and 6.3e-6 at 1e-10, 1.2e-7 and
+    1.3e-5 at 1e-12 (the absolute tolerances, not rtol, bounded the error)."""
+    from braidsim.continuation.fdmap import advance
+
+    L, V = system.scales(bouncing.values)
+    sc = system.scenario_at(bouncing.values)
+    assert sc["simulation.atol_position"] == pytest.approx(system.rtol * L, rel=1e-15)
+    assert sc["simulation.atol_velocity"] == pytest.approx(system.rtol * V, rel=1e-15)
+    # a scenario's own tighter tolerance is kept
+    tight = ScenarioSystem(system.scenario.with_overrides({"simulation.atol_velocity": 1e-15}))
+    assert tight.scenario_at(bouncing.values)["simulation.atol_velocity"] == 1e-15
+    prof = bouncing.profile
+    w = system.prepare(bouncing.values).omega
+    t_on = float(prof.onsets[0])
+    inside = recut(bouncing, system, w * (t_on + 0.5 * (float(prof.exits[0]) - t_on)), method="fd")
+    cut, z = inside.cuts[0], inside.z[0]
+    t0 = inside.phase / w
+
+    def end(rtol: float) -> np.ndarray:
+        p = ScenarioSystem(system.scenario, rtol=rtol).prepare(bouncing.values)
+        seg = advance(p, t0, t0 + p.period, z[:2], cut.modes, tuple(cut.v0s(z[2:])))
+        return seg.y1 / np.array([L, V])
+
+    assert system.rtol == 1e-10
+    for rtol, bound in ((1e-10, (1e-8, 1e-6)), (1e-12, (1e-10, 1e-8))):
+        err = np.abs(end(rtol) - end(rtol / 100))
+        assert err[0] < bound[0] and err[1] < bound[1], (rtol, err)
+
+
 def test_period_doubling_and_switched_branch(system, bouncing) -> None:
     """Continuing the bouncing orbit finds one period doubling in [0.09, 0.13] mm; the
     period-2 branch born there is stable next to it and is no period-1 orbit."""
@@ -429,7 +464,7 @@ def test_a_step_onto_another_family_is_halved_and_finds_the_doubling(system) -> 
     component changed sign there without a zero (multipliers 0.005 +- 0.047i, then 2.98;
     it was once reported as a fold at 0.12875 mm with multipliers -1.24 and -0.003). The
     step is now tried again halved: the doubling is found where a branch of steps of at
-    most 0.01 finds it (there 0.1285027349677 mm), and the family ends at its grazing at
+    most 0.01 finds it (there 0.1285027101219 mm), and the family ends at its grazing at
     0.13013 mm as that branch's does."""
     rest = seed_orbit(system, {HA: 0.02e-3}, 1, method="fd")
     assert system.value("horn_gear.angular_velocity") == pytest.approx(4 * math.pi)
@@ -438,7 +473,7 @@ def test_a_step_onto_another_family_is_halved_and_finds_the_doubling(system) -> 
     )
     assert not [s for s in br.special if s.type == "fold" and 0.1272e-3 < s.value < 0.1308e-3]
     (pd,) = [s for s in br.special if s.type == "period_doubling"]
-    assert pd.value == pytest.approx(0.1285027349677e-3, rel=1e-9)
+    assert pd.value == pytest.approx(0.1285027101219e-3, rel=1e-9)
     assert not br.notes
     assert br.special[-1].type == "grazing"
     assert br.special[-1].value == pytest.approx(0.13013e-3, rel=1e-4)
