@@ -101,6 +101,35 @@ def test_multipliers_do_not_depend_on_the_cut(system, bouncing) -> None:
         assert np.all(np.abs(mu[2:]) < 1e-6)
 
 
+def test_newton_iterates_on_rough_maps_and_takes_the_multipliers_from_an_accurate_one(
+    system, bouncing
+) -> None:
+    """With the exact map, Newton's iterates take maps whose tangents are not held to the
+    tolerance (a sixth of the steps on a resting orbit) and the converged orbit's
+    monodromy is that of one map with them held: the same bits as a fresh accurate map at
+    the orbit, not the rough one's (its multipliers are 3e-3 off here: the tangents' field
+    is not smooth at the contact's onset and exit)."""
+    from braidsim.continuation.orbit import Shooter, monodromy_of, sort_multipliers
+
+    o = solve_fixed(system, bouncing.values, 1, bouncing.phase, bouncing.cuts, bouncing.z, "exact")
+    sh = Shooter(system, dict(o.values), None, o.period, o.phase, o.cuts, "exact")
+    U = sh.pack(o.z, None)
+    R, _, Js = sh.residual(U)
+    assert not sh.rough
+    np.testing.assert_array_equal(monodromy_of(Js), o.monodromy)
+    R_rough, _, J_rough = sh.residual(U, accurate=False)
+    assert sh.rough
+    mu_rough = sort_multipliers(np.linalg.eigvals(monodromy_of(J_rough)))
+    assert np.max(np.abs(mu_rough - o.multipliers)) > 1e-4
+    # the orbit is a fixed point of the rough maps (those of Newton's iterates), and of the
+    # accurate ones to Newton's tolerance: both integrate the state to the same tolerances
+    assert np.max(np.abs(R_rough)) < 1e-8 and np.max(np.abs(R)) < 1e-8
+    # central differences have no rough form: the flag stays down
+    fd = Shooter(system, dict(o.values), None, o.period, o.phase, o.cuts, "fd")
+    fd.residual(U, accurate=False)
+    assert not fd.rough
+
+
 def test_continuation_maps_hold_the_state_to_rtol_times_its_scales(system, bouncing) -> None:
     """The continuation's maps integrate with absolute tolerances of at most rtol times the
     state scales (L, L omega_h), not the plain run's 1e-13 m and 1e-9 m/s (2.7e-8 of L

@@ -322,12 +322,15 @@ class Continuer:
         """Newton on r(U) = 0, normal . (U - Up) = 0."""
         from braidsim.continuation.orbit import newton
 
-        def F(U: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
-            R, DR, Js = sh.residual(U)
+        def F(U: np.ndarray, accurate: bool = False) -> tuple[np.ndarray, np.ndarray, Any]:
+            R, DR, Js = sh.residual(U, accurate)
             G = np.concatenate([R, [float(normal @ (U - Up))]])
             return G, np.vstack([DR, normal]), Js
 
-        U, res, its, Js = newton(F, Up, self.tol, max_iter=8)
+        def final(U: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any] | None:
+            return F(U, True) if sh.rough else None
+
+        U, res, its, Js = newton(F, Up, self.tol, max_iter=8, final=final)
         o = finish(sh, U, res, its, Js)
         return o
 

@@ -89,6 +89,7 @@ def evaluate_map(
     v0s: FloatSeq,
     keys: Sequence[str] = (),
     method: str = "auto",
+    accurate: bool = True,
 ) -> FlowMap:
     """The flow map with its Jacobians: the one place where continuation asks for it.
 
@@ -96,6 +97,9 @@ def evaluate_map(
     carrier of a scenario, or a model record of the compiled core through
     :func:`braidsim.sensitivity.record_flow_map`), ``"fd"`` (central finite differences,
     :func:`braidsim.continuation.fdmap.fd_flow_map`) or ``"auto"`` (exact where available).
+    ``accurate`` False: the exact map's Jacobians over the state's steps, their error not
+    controlled (``control_tangents=False``), enough for a Newton step; central
+    differences are the same either way.
     """
     if method not in METHODS:
         raise InputError(f"method: {method!r} is not allowed; allowed {', '.join(METHODS)}")
@@ -118,6 +122,7 @@ def evaluate_map(
             (int(modes[0]), int(modes[1])),
             tuple(float(v) for v in v0s),
             tuple(keys),
+            control_tangents=accurate,
         )
     if use_exact:
         if not isinstance(system, ScenarioSystem):
@@ -133,6 +138,7 @@ def evaluate_map(
             v0s=tuple(float(v) for v in v0s),
             keys=tuple(keys),
             check_start=False,
+            control_tangents=accurate,
         )
         return fm  # type: ignore[return-value]  # the same fields (module docstring)
     return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
@@ -493,6 +499,9 @@ class Shooter:
     evaluations: int = 0
     # whether a map of the last residual's evaluation straddled a change of the contacts
     straddled: bool = False
+    # whether the last residual's Jacobian came from exact maps without the error control
+    # of their tangents (``residual(U, accurate=False)``): good for a Newton step only
+    rough: bool = False
     key2: str | None = None
     pscale2: float = 1.0
     # the state scales of each cut (fixed for the shooter: its base values and cuts)
@@ -576,9 +585,12 @@ class Shooter:
             i += s
         return out, lam
 
-    def residual(self, U: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    def residual(
+        self, U: np.ndarray, accurate: bool = True
+    ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
         """Scaled residuals r, their Jacobian (rows r, columns U) and the segment Jacobians
-        J_j (SI) of the state maps."""
+        J_j (SI) of the state maps; ``accurate`` False: the exact maps' Jacobians without
+        the error control of their tangents (:func:`evaluate_map`), for a Newton step."""
         z, _ = self.unpack(U)
         vals = self.values_of(U)
         try:
@@ -594,6 +606,7 @@ class Shooter:
         DR = np.zeros((N, U.size))
         Js = []
         self.straddled = False
+        self.rough = False
         n = 2 * prep.n_coords
         free = self.free
         keys = [k for k, _ in free]
@@ -604,11 +617,21 @@ class Shooter:
             v0 = cj.v0s(z[j][n:])
             try:
                 fm = evaluate_map(
-                    self.system, vals, tt[j], tt[j + 1], y0, cj.modes, v0, keys, self.method
+                    self.system,
+                    vals,
+                    tt[j],
+                    tt[j + 1],
+                    y0,
+                    cj.modes,
+                    v0,
+                    keys,
+                    self.method,
+                    accurate,
                 )
             except InputError as exc:  # a Newton iterate outside the map's domain (v0 <= 0)
                 raise ContinuationError(f"Newton left the map's domain ({exc})") from None
             self.evaluations += 1
+            self.rough = self.rough or not (accurate or isinstance(fm, FlowMap))
             self.straddled = self.straddled or bool(getattr(fm, "straddled", False))
             if tuple(fm.modes1) != tuple(cn.modes):
                 raise SectionChanged(
@@ -666,9 +689,19 @@ def monodromy_of(Js: Sequence[np.ndarray]) -> np.ndarray:
 
 
 def newton(
-    F: Any, U0: np.ndarray, tol: float = DEFAULT_TOL, max_iter: int = 10
+    F: Any,
+    U0: np.ndarray,
+    tol: float = DEFAULT_TOL,
+    max_iter: int = 10,
+    final: Any = None,
 ) -> tuple[np.ndarray, float, int, Any]:
     """Newton's method on F(U) -> (G, DG, extra); returns (U, |G|, iterations, extra).
+
+    ``final(U)``, where given, returns the (G, DG, extra) of F at its full accuracy or
+    None: F's iterates may take rougher Jacobians (the exact maps' without the error
+    control of their tangents: on a resting orbit a sixth of the steps), the converged
+    point's ``extra`` (the segment Jacobians, whose product gives the multipliers) is
+    then ``final``'s. The residual |G| is F's.
 
     Raises :class:`ContinuationError` when it does not converge in ``max_iter`` iterations or
     the residual grows tenfold."""
@@ -686,7 +719,8 @@ def newton(
         if not math.isfinite(g) or g > 10 * max(g0, tol):
             raise ContinuationError(f"Newton diverged (residual {g:.3g})")
         if g < tol and float(np.max(np.abs(dU))) < 100 * tol:
-            return U, g, it, extra
+            full = final(U) if final is not None else None
+            return U, g, it, extra if full is None else full[2]
     raise ContinuationError(
         f"Newton did not converge in {max_iter} iterations (residual {g:.3g} > {tol:g})"
     )
@@ -729,9 +763,12 @@ def solve_fixed(
     sh = Shooter(system, dict(values), None, int(period), float(phase), tuple(cuts), method)
 
     def F(U: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any]:
-        return sh.residual(U)
+        return sh.residual(U, accurate=False)
 
-    U, res, its, Js = newton(F, sh.pack(z, None), tol)
+    def final(U: np.ndarray) -> tuple[np.ndarray, np.ndarray, Any] | None:
+        return sh.residual(U) if sh.rough else None
+
+    U, res, its, Js = newton(F, sh.pack(z, None), tol, final=final)
     return finish(sh, U, res, its, Js)
 
 
