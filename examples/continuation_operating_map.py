@@ -28,11 +28,10 @@ Usage::
     python examples/continuation_operating_map.py [--out continuation_example] [--small]
 
 ``--small`` runs a reduced version (fewer points, 2 x 2 regime maps, the maps up to
-6 pi rad/s) for CI: 432 s of CPU with the default exact map on the development machine,
-compile included (2026-12-01; 293 s on 2026-11-25: about 250 s of it now go to the
-(clearance, speed) map's lift-off curve, whose exact-map corrector fails on long steps
-since steps end where a contact force reaches its clamp), 28 s with ``--method fd``; the
-full run takes about 5 minutes with ``--method fd``. Each stage is announced on stderr with
+6 pi rad/s) for CI: 196 s of CPU with the default exact map on the development machine,
+the compile cache warm (2026-12-01; 433 s earlier that day, before Newton's iterates took
+maps without the tangents' error control), 41 s with ``--method fd``; the full run takes
+about 4 minutes with ``--method fd``. Each stage is announced on stderr with
 the time it starts at.
 """
 
