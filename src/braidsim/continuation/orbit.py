@@ -699,7 +699,7 @@ def newton(
 
     ``final(U)``, where given, returns the (G, DG, extra) of F at its full accuracy or
     None: F's iterates may take rougher Jacobians (the exact maps' without the error
-    control of their tangents: on a resting orbit a sixth of the steps), the converged
+    control of their tangents: on a resting orbit less than half the time), the converged
     point's ``extra`` (the segment Jacobians, whose product gives the multipliers) is
     then ``final``'s. The residual |G| is F's.
 

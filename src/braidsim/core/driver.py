@@ -77,8 +77,8 @@ class Tangents:
         (True, the default: their accuracy follows the tolerance). False: the tangents are
         integrated over the steps the state's error control chooses and their error is
         not estimated; a Newton iteration, which needs a Jacobian good enough to converge,
-        not one at the tolerance, takes that (on a resting orbit a map with its tangents
-        controlled took 6 times the steps of the plain run).
+        not one at the tolerance, takes that (a period of paper-3.3's resting orbit at
+        6 pi rad/s: 100 ms with them controlled, 42 ms without, 1.5 ms the plain run).
     """
 
     records: Any
