@@ -545,7 +545,7 @@ def flow_map(
     The Jacobians are held to the run's relative tolerance by their own error estimate
     (``control_tangents``, default True). With False they are integrated over the steps
     the state's error control chooses, their error not estimated: enough for a Newton
-    iteration's Jacobian, not for the multipliers of a converged orbit (off by 3e-3 on
+    iteration's Jacobian, not for the multipliers of a converged orbit (up to 4e-3 off on
     paper-3.3's bouncing orbit, at any tolerance: the tangents' field is not smooth at the
     contact's onset and exit), and cheaper (a period of the resting orbit at 6 pi rad/s,
     h_a = 0.1 mm, at the continuation's tolerances: 42 ms against 100 ms).

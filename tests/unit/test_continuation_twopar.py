@@ -210,3 +210,50 @@ def test_a_corrector_started_on_the_curve_keeps_its_start() -> None:
     V, g, its, _, _ = aug.correct(off, normal, 1e-8, 1e-6)
     assert its >= 1 and abs(g) < 1e-12
     assert np.allclose(V, target, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("takes_over", [True, False])
+def test_a_stalled_central_difference_step_hands_over_to_the_exact_map(
+    doubling, monkeypatch, takes_over: bool
+) -> None:
+    """A central-difference curve step that the corrector's stall rule accepts with its
+    test function above tolerance (made so here: its g reported as 5e-4) hands the curve
+    over to the exact map at once, which follows the same closed-form doubling; where the
+    exact map cannot take over (made to fail here, as for a record without tangents) the
+    step is accepted as before and the curve goes on with central differences."""
+    from braidsim.continuation import twopar
+    from braidsim.continuation.orbit import ContinuationError
+
+    base, system, br, pd = doubling
+    correct = twopar.Augmented.correct
+    fd_calls = []
+
+    def stalled(self, Vp, normal, tol, gtol, max_iter=10):
+        V, g, its, DF, Js = correct(self, Vp, normal, tol, gtol, max_iter)
+        if self.method == "fd":
+            fd_calls.append(g)
+            if len(fd_calls) in (2, 3):  # (the first step after the located point, and
+                return V, 5e-4, its, DF, Js  # that step taken again: the same stall)
+        return V, g, its, DF, Js
+
+    monkeypatch.setattr(twopar.Augmented, "correct", stalled)
+    if not takes_over:
+        init = twopar.Augmented.__init__
+
+        def no_exact(self, system, orbit, kind, key1, key2, scales, method):
+            if method == "exact":
+                raise ContinuationError("no tangents (made so by the test)")
+            init(self, system, orbit, kind, key1, key2, scales, method)
+
+        monkeypatch.setattr(twopar.Augmented, "__init__", no_exact)
+    c = trace_boundary(
+        system, br, pd, F, 1.5, steps=4, method="fd", range1=(1.5, 3.5), range2=(0.5, 1.5)
+    )
+    assert c.stop.startswith("left the range of force_amplitude")
+    assert ("exact flow map from" in c.detail) is takes_over
+    assert (5e-4 in c.residuals) is not takes_over
+    for w, f in zip(c.p1, c.p2, strict=True):
+        ref, _ = pwl.critical_parameter(
+            base._replace(force_amplitude=f), W, w - 0.02, w + 0.02, steps=2
+        )
+        assert w == pytest.approx(ref, rel=1e-7)

@@ -53,9 +53,9 @@ CONTINUABLE_EXAMPLES = (
 
 DEFAULT_RTOL = 1e-10
 """Relative tolerance of the integrator in continuation runs (tighter than a plain run's
-1e-8: Newton's residual and the finite-difference monodromy can be no better than it). The
-absolute tolerances follow it: at most rtol times the state scales (see
-:meth:`ScenarioSystem.scenario_at`)."""
+1e-8: Newton's residual and the finite-difference monodromy can be no better than it). A
+scenario's absolute tolerances follow it: at most rtol times the state scales (see
+:meth:`ScenarioSystem.scenario_at`; a :class:`ModelSystem` has its own)."""
 
 
 @dataclass(frozen=True)

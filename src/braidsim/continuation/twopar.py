@@ -560,12 +560,13 @@ def _trace_smooth(
     curve.add(o.values[key1], o.values[key2], g, on_point, o)
     tau = aug.tangent(DF, None, direction)
     h = 0.5 * hmax
+    exact_ok = True  # (False once the exact map failed to take over from central differences)
     while len(curve.p1) < npts:
         plane = math.hypot(tau[-2], tau[-1])
         step = h / max(plane, 0.1)
         try:
             Vn, g, its, DFn, Js = aug.correct(V + step * tau, tau, tol, gtol)
-            if aug.method == "fd" and abs(g) > gtol and exact_available():
+            if aug.method == "fd" and abs(g) > gtol and exact_ok and exact_available():
                 # accepted by the corrector's stall rule (steps at the noise, g up to 1e3
                 # gtol): the central-difference monodromy no longer resolves the test
                 # function (next to a grazing det(M + I) is not smooth); with the maps held
@@ -595,16 +596,14 @@ def _trace_smooth(
                     # and det(M + I) jumps by as much between neighbouring orbits: the
                     # corrector stalls on noise, not on the curve. Go on with the exact map.
                     try:
-                        aug = Augmented(system, last, sp.type, key1, key2, scales, "exact")
-                        gtol = 1e-9
-                        V = aug.pack(last)
-                        V, g, _, DF, _ = aug.correct(V, tau, tol, gtol)
+                        exact = Augmented(system, last, sp.type, key1, key2, scales, "exact")
+                        Ve, g, _, DF, _ = exact.correct(exact.pack(last), tau, tol, 1e-9)
                         # oriented on the parameters' components (the noisy gradient of
                         # g tilted the old tangent's state components)
-                        tau_new = aug.tangent(DF, None, direction)
+                        tau_new = exact.tangent(DF, None, direction)
                         if float(tau_new[-2:] @ tau[-2:]) < 0:
                             tau_new = -tau_new
-                        tau = tau_new
+                        aug, V, tau, gtol = exact, Ve, tau_new, 1e-9
                         h = 0.5 * hmax
                         curve.detail += (
                             f"; exact flow map from {key2} = {curve.p2[-1]:.6g} on (the "
@@ -614,9 +613,10 @@ def _trace_smooth(
                     except _FAILURES:
                         pass
                 if noisy:
-                    h *= 0.5  # (the exact map did not take over: shorter steps, as before)
-                    if h >= hmin:
-                        continue
+                    # the exact map could not take over (a record without tangents): the
+                    # central-difference point is accepted by the stall rule, as before
+                    exact_ok = False
+                    continue
                 curve.stop = f"step below {hmin:g} at {key2} = {curve.p2[-1]:.6g} ({exc})"
                 if _at_grazing(curve, system):
                     a, b = curve.p1[-1], curve.p2[-1]
@@ -659,7 +659,8 @@ def _trace_smooth(
         ):
             try:
                 moved = _moved(system, on)
-                aug = Augmented(system, moved, sp.type, key1, key2, scales, method)
+                # (with the map the curve has now: the exact one once it took over)
+                aug = Augmented(system, moved, sp.type, key1, key2, scales, aug.method)
                 V = aug.pack(moved)
                 e2 = np.zeros(V.size)  # (the state's size may change with the cut)
                 e2[-1] = 1.0
