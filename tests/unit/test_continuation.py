@@ -644,3 +644,34 @@ def test_a_periodic_map_run_that_fails_says_why_and_what_to_change(system) -> No
     text = str(info.value)
     assert "status" not in text, text
     assert re.search(r"step budget of 50 steps was spent at t = .* s .*continuation\.period", text)
+
+
+def test_newton_halves_a_step_that_leaves_the_maps_domain() -> None:
+    """G(u) = ln(u / 0.01) from u = 1: the full Newton step lands at u = -3.6, where the
+    map refuses (as a latched speed pushed through 0 is refused); the step is halved until
+    the iterate is back in the domain, and Newton's method converges to u = 0.01."""
+    from braidsim.continuation.orbit import DOMAIN_HALVINGS, OutOfDomain, newton
+
+    calls: list[float] = []
+
+    def F(U: np.ndarray):
+        calls.append(float(U[0]))
+        if U[0] <= 0.0:
+            raise OutOfDomain("u must be > 0")
+        return np.array([math.log(U[0] / 0.01)]), np.array([[1.0 / U[0]]]), None
+
+    U, res, _, _ = newton(F, np.array([1.0]), tol=1e-12, max_iter=20)
+    assert U[0] == pytest.approx(0.01, rel=1e-12) and res < 1e-12
+    assert calls[1] == pytest.approx(1.0 - math.log(100.0))  # the full step, refused
+    # halved three times to u = 0.42, then twice more from there
+    assert sum(c <= 0.0 for c in calls) == 5
+    assert DOMAIN_HALVINGS >= 3
+    # a map defined at its start only: the refusal itself, after the halvings
+    calls.clear()
+
+    def only_at_start(U: np.ndarray):
+        return F(U if U[0] == 1.0 else np.zeros(1))
+
+    with pytest.raises(OutOfDomain):
+        newton(only_at_start, np.array([1.0]), tol=1e-12)
+    assert len(calls) == 2 + DOMAIN_HALVINGS

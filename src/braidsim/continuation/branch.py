@@ -457,7 +457,11 @@ class Continuer:
                 br.stop = f"found a {self.stop_on} point"
                 break
             # a grazing may have changed the cuts' structure: re-solve with the new one
-            nxt2 = self.restructure(nxt)
+            try:
+                nxt2 = self.restructure(nxt)
+            except ContinuationError as exc:
+                br.stop = str(exc)
+                break
             if nxt2 is not nxt:
                 nxt = nxt2
                 sh_new, U_new, tau_new = self.setup(nxt, None, _heading(tau, direction))
@@ -564,7 +568,11 @@ class Continuer:
         return bool(U0.size == U.size and np.linalg.norm(U - U0) < 0.5 * h)
 
     def restructure(self, o: Orbit) -> Orbit:
-        """The orbit re-solved with cuts that match its contacts, when they changed."""
+        """The orbit re-solved with cuts that match its contacts, when they changed (at the
+        same phase, else at a phase away from onsets and exits). Raises
+        :class:`ContinuationError` where neither converges: the orbit with the old cuts is a
+        fixed point of another map (a contact open at a cut held at the resting speed while
+        it re-latches within the period), not an orbit of the system."""
         prep = self.system.prepare(o.values)
         cuts = cuts_from(
             o.profile,
@@ -583,7 +591,11 @@ class Continuer:
         n = 2 * prep.n_coords
         c0 = o.cuts[0]
         t0 = o.phase / prep.omega
-        times = t0 + np.arange(o.segments) * o.profile.period / o.segments
+        # the states one period on: a contact open at a cut that now re-latches carries
+        # the speed of its onset there, where the old cut held the resting speed (from
+        # that, Newton's method failed on paper-3.3's xy carrier just past its lift-off,
+        # and the branch went on with the old cuts: orbits of another map)
+        times = t0 + o.profile.period * (1.0 + np.arange(o.segments) / o.segments)
         try:
             z = states_at(
                 self.system, o.values, t0, o.z[0][:n], c0.modes, c0.v0s(o.z[0][n:]), times, cuts
@@ -591,8 +603,15 @@ class Continuer:
             return solve_fixed(
                 self.system, o.values, o.period, o.phase, cuts, z, self.method, self.tol
             )
-        except (ContinuationError, SimulationError):
-            return o
+        except (ContinuationError, SimulationError) as exc:
+            try:
+                return reseat(o, self.system, self.method)
+            except (ContinuationError, SimulationError):
+                raise ContinuationError(
+                    f"the contacts at the cuts changed at {self.key} = "
+                    f"{o.values[self.key]:.6g} and the orbit did not converge with the new "
+                    f"ones ({exc})"
+                ) from None
 
     # -- detection and location ------------------------------------------------------
     def _secant_point(self, sh: Shooter, Ua: np.ndarray, Ub: np.ndarray, t: float) -> Orbit:
@@ -702,6 +721,9 @@ class Continuer:
         hist = [oa]
         la, lb, best_a, best_b = self._bisect(sig_a, lo, hi, oa, ob, hist, None)
 
+        def distance(o: Orbit) -> float:
+            return min(o.profile.approach, o.profile.feature)
+
         def zero() -> float | None:
             # the distance to grazing is linear in the parameter near a regular grazing: the
             # secant of the last two orbits' distances finds its zero when the corrector
@@ -712,23 +734,43 @@ class Continuer:
             # to vanish, approached from the impacting side, whose approach stays at the
             # far wall: that placed a forced oscillator's grazing 5.8e-4 to 1.3e-2 beyond
             # the closed form's, now within 2e-4)
-            return grazing_zero(
-                [(o.values[self.key], min(o.profile.approach, o.profile.feature)) for o in hist]
-            )
+            return grazing_zero([(o.values[self.key], distance(o)) for o in hist])
 
         lg = zero()
         reach = GRAZING_REACH * abs(hi - lo)
-        if (
-            lg is not None
-            and (lg - la) * (lb - la) > 0
-            and abs(lg - la) > max(reach, abs(lb - la))
-            and (hi - lg) * (hi - lo) > 0
-        ):
+
+        def short(lg: float | None) -> bool:
             # the bracket closed well short of the family's zero, which lies before the
-            # other structure's orbit: Newton's method at the continuation's tolerance failed
-            # on the map's own noise (see BRACKET_TOL); the family carried on at that one
+            # other structure's orbit
+            return (
+                lg is not None
+                and (lg - la) * (lb - la) > 0
+                and abs(lg - la) > max(reach, abs(lb - la))
+                and (hi - lg) * (hi - lo) > 0
+            )
+
+        if short(lg):
+            # Newton's method at the continuation's tolerance failed on the map's own noise
+            # (see BRACKET_TOL); the family carried on at that one
             la, lb, best_a, best_b = self._bisect(sig_a, la, hi, best_a, best_b, hist, BRACKET_TOL)
             lg = zero()
+        if short(lg) or distance(best_a) > 0.1 * max(distance(o) for o in hist):
+            # or Newton's method failed from the orbit as it is cut: cut anew, away from
+            # onsets and exits (paper-3.3's xy carrier past its lift-off, cut inside the
+            # contact whose latched speed is a state: Newton's method diverged from an
+            # orbit 1e-11 m of h_a away at 0.1037 mm, its distance to grazing still
+            # 2.2e-7 m; cut in the flight, the family carries on to 0.10587 mm)
+            try:
+                cut_anew = reseat(best_a, self.system, self.method)
+            except (ContinuationError, SimulationError):
+                cut_anew = None
+            # (the same onsets; the cuts' part of the signature is the new cuts')
+            if cut_anew is not None and signature(cut_anew)[0] == sig_a[0]:
+                hist.append(cut_anew)
+                la, lb, best_a, best_b = self._bisect(
+                    signature(cut_anew), la, hi, cut_anew, best_b, hist, None
+                )
+                lg = zero()
         self.grazing_value = float(la)
         if lg is not None and min(la, lb) <= lg <= max(la, lb):
             self.grazing_value = float(lg)

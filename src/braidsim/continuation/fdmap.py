@@ -96,7 +96,11 @@ def advance(
     sample_times: np.ndarray | None = None,
 ) -> Segment:
     """Integrate a prepared system (:class:`~braidsim.continuation.system.Prepared`) from t0
-    to t1, its contacts and latched speeds given. Raises :class:`SimulationError`."""
+    to t1, its contacts and latched speeds given. Raises :class:`SimulationError`.
+
+    ``y0`` and the result's ``y1`` hold the xy carrier's y in the slot's frame, y - s(t)
+    (:meth:`~braidsim.continuation.system.Prepared.to_ground`); the sampled series stay
+    in the ground frame."""
     opts = prep.options._replace(
         t_end=float(t1), record_events=sample_times is not None, energy=False
     )
@@ -113,7 +117,7 @@ def advance(
     raw = core_run(
         prep.record,
         opts,
-        np.asarray(y0, dtype=float),
+        prep.to_ground(float(t0), np.asarray(y0, dtype=float)),
         sample_times=sample_times,
         transfer_times=prep.transfers(t0, t1),
         series=sample_times is not None,
@@ -128,7 +132,7 @@ def advance(
     v1 = np.array(
         [float(rr["v0_0"]) if m1[0] else math.nan, float(rr["v0_1"]) if m1[1] else math.nan]
     )
-    return Segment(np.array(raw.y, dtype=float), m1, v1, raw.episodes, raw.series)
+    return Segment(prep.to_slot(float(t1), raw.y), m1, v1, raw.episodes, raw.series)
 
 
 @dataclass(frozen=True)

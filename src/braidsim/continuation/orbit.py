@@ -70,6 +70,11 @@ class SectionChanged(ContinuationError):
     """The contacts at a cut changed within one Newton iteration (an onset crossed it)."""
 
 
+class OutOfDomain(ContinuationError):
+    """A Newton iterate outside the map's domain: a latched speed at or below 0, or a
+    parameter outside its range (:func:`newton` shortens such a step)."""
+
+
 def exact_available() -> bool:
     """Whether the exact variational flow map (``braidsim.sensitivity``) is installed."""
     try:
@@ -113,17 +118,18 @@ def evaluate_map(
                 check_differentiable(prep.record)
             except InputError:  # a record without tangents: central differences
                 return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
-        return record_flow_map(  # type: ignore[return-value]  # the same fields
+        rfm = record_flow_map(
             prep.record,
             prep.options,
             t0,
             t1,
-            np.asarray(y0, dtype=float),
+            prep.to_ground(t0, np.asarray(y0, dtype=float)),
             (int(modes[0]), int(modes[1])),
             tuple(float(v) for v in v0s),
             tuple(keys),
             control_tangents=accurate,
         )
+        return _in_slot_frame(system, values, rfm, keys)
     if use_exact:
         if not isinstance(system, ScenarioSystem):
             raise InputError("method: 'exact' needs a scenario or a model record; allowed 'fd'")
@@ -133,15 +139,51 @@ def evaluate_map(
             system.scenario_at(values),
             t0,
             t1,
-            y0=np.asarray(y0, dtype=float),
+            y0=system.prepare(values).to_ground(t0, np.asarray(y0, dtype=float)),
             modes=(int(modes[0]), int(modes[1])),
             v0s=tuple(float(v) for v in v0s),
             keys=tuple(keys),
             check_start=False,
             control_tangents=accurate,
         )
-        return fm  # type: ignore[return-value]  # the same fields (module docstring)
+        # (the same fields, module docstring)
+        return _in_slot_frame(system, values, fm, keys)
     return fd_flow_map(system, values, t0, t1, y0, modes, v0s, keys)
+
+
+SLOT_REL_STEP = 1e-6
+"""Relative step of the central differences of the slot's travel s(t) in the parameters
+(:func:`_in_slot_frame`): s is a polynomial of degree at most 2 in each of them."""
+
+
+def _in_slot_frame(system: Any, values: Mapping[str, float], fm: Any, keys: Sequence[str]) -> Any:
+    """An exact map of the xy carrier taken to the slot's frame (``system`` module
+    docstring): y0 and y1 as y - s(t), and the parameters' columns at fixed y - s(t0)
+    rather than fixed y, d(y1 - s(t1))/dp = dy1/dp + dy1/dy0 ds(t0)/dp - ds(t1)/dp (the
+    latched speeds' likewise); ds/dp by central differences. The state's Jacobians do not
+    change. Other maps are returned as they are."""
+    prep = system.prepare(values)
+    if prep.slot_travel(fm.t0) == (0.0, 0.0) and prep.slot_travel(fm.t1) == (0.0, 0.0):
+        return fm
+    jac_p = np.array(fm.jac_p, dtype=float)
+    dv0_dp = np.array(fm.dv0_dp, dtype=float)
+    for j, key in enumerate(keys):
+        p = float(values[key]) if key in values else float(system.value(key))
+        d = SLOT_REL_STEP * max(abs(p), 1e-12)
+        hi = system.prepare({**values, key: p + d})
+        lo = system.prepare({**values, key: p - d})
+        ds0 = (hi.slot_travel(fm.t0)[0] - lo.slot_travel(fm.t0)[0]) / (2 * d)
+        ds1 = (hi.slot_travel(fm.t1)[0] - lo.slot_travel(fm.t1)[0]) / (2 * d)
+        jac_p[:, j] += np.asarray(fm.jac_y)[:, 2] * ds0
+        jac_p[2, j] -= ds1
+        dv0_dp[:, j] += np.asarray(fm.dv0_dy)[:, 2] * ds0
+    return replace(
+        fm,
+        y0=prep.to_slot(fm.t0, fm.y0),
+        y1=prep.to_slot(fm.t1, fm.y1),
+        jac_p=jac_p,
+        dv0_dp=dv0_dp,
+    )
 
 
 def frequency_key(system: Any) -> str:
@@ -426,7 +468,9 @@ class Orbit:
     cuts : tuple of Cut
         The discrete state at each of the m cuts.
     z : tuple of np.ndarray
-        The state at each cut (SI: m, m/s, and m/s for latched speeds).
+        The state at each cut (SI: m, m/s, and m/s for latched speeds): (x, vx[, y, vy],
+        latched speeds), the xy carrier's y in the slot's frame, y - s(t) (the
+        :mod:`~braidsim.continuation.system` module docstring).
     monodromy : np.ndarray
         The monodromy matrix on the state at cut 0.
     multipliers : np.ndarray
@@ -596,7 +640,7 @@ class Shooter:
         try:
             prep = self.system.prepare(vals)
         except InputError as exc:  # a Newton iterate outside the parameter's range
-            raise ContinuationError(f"parameter out of range in Newton's method ({exc})") from None
+            raise OutOfDomain(f"parameter out of range in Newton's method ({exc})") from None
         tt = self.times(vals)
         m = len(self.cuts)
         sizes = self.sizes()
@@ -629,7 +673,7 @@ class Shooter:
                     accurate,
                 )
             except InputError as exc:  # a Newton iterate outside the map's domain (v0 <= 0)
-                raise ContinuationError(f"Newton left the map's domain ({exc})") from None
+                raise OutOfDomain(f"Newton left the map's domain ({exc})") from None
             self.evaluations += 1
             self.rough = self.rough or not (accurate or isinstance(fm, FlowMap))
             self.straddled = self.straddled or bool(getattr(fm, "straddled", False))
@@ -657,13 +701,15 @@ class Shooter:
                 dp = np.concatenate([fm.jac_p[:, ip], np.asarray(fm.dv0_dp)[co, ip]])
                 if key == fkey:
                     # the cut times move with the forcing frequency: t_j = (theta_j) / Omega
+                    # (the rates of the state in the slot's frame: y' - s'(t) for the xy
+                    # carrier's y, system module docstring)
                     f1 = np.zeros(n)
                     f0 = np.zeros(n)
                     m1 = np.array(fm.modes1, dtype=np.int64)
                     derivatives.py(
                         prep.record,
                         tt[j + 1],
-                        fm.y1.copy(),
+                        prep.to_ground(tt[j + 1], fm.y1),
                         m1,
                         np.nan_to_num(np.asarray(fm.v0s1, dtype=float), nan=1.0),
                         n,
@@ -671,8 +717,17 @@ class Shooter:
                     )
                     m0 = np.array(cj.modes, dtype=np.int64)
                     derivatives.py(
-                        prep.record, tt[j], y0.copy(), m0, np.nan_to_num(v0, nan=1.0), n, f0
+                        prep.record,
+                        tt[j],
+                        prep.to_ground(tt[j], y0),
+                        m0,
+                        np.nan_to_num(v0, nan=1.0),
+                        n,
+                        f0,
                     )
+                    if n >= 4:
+                        f1[2] -= prep.slot_travel(tt[j + 1])[1]
+                        f0[2] -= prep.slot_travel(tt[j])[1]
                     w = prep.omega
                     dp[:n] += f1 * (-tt[j + 1] / w) - fm.jac_y @ f0 * (-tt[j] / w)
                 DR[offs[j] : offs[j + 1], N + ip] = dp * psc / Sn
@@ -686,6 +741,10 @@ def monodromy_of(Js: Sequence[np.ndarray]) -> np.ndarray:
     for J in Js:
         M = J @ M
     return M
+
+
+DOMAIN_HALVINGS = 6
+"""Newton's method halves a step whose iterate leaves the map's domain at most this often."""
 
 
 def newton(
@@ -703,6 +762,9 @@ def newton(
     point's ``extra`` (the segment Jacobians, whose product gives the multipliers) is
     then ``final``'s. The residual |G| is F's.
 
+    A step whose iterate F refuses as outside its domain (:class:`OutOfDomain`: a latched
+    speed of a contact pushed through 0) is halved, up to ``DOMAIN_HALVINGS`` times.
+
     Raises :class:`ContinuationError` when it does not converge in ``max_iter`` iterations or
     the residual grows tenfold."""
     U = np.array(U0, dtype=float)
@@ -713,8 +775,18 @@ def newton(
             dU = np.linalg.solve(DG, -G)
         except np.linalg.LinAlgError:
             dU = np.linalg.lstsq(DG, -G, rcond=None)[0]
+        for halvings in range(DOMAIN_HALVINGS + 1):
+            try:
+                G, DG, extra = F(U + dU)
+                break
+            except OutOfDomain:
+                # (paper-3.3's xy carrier past its lift-off: the latched speed of the
+                # contact open at the cut went below 0 on full steps near 0.1037 mm, and
+                # the branch's grazing search read the failures as the grazing, 2 % short)
+                if halvings == DOMAIN_HALVINGS:
+                    raise
+                dU = 0.5 * dU
         U = U + dU
-        G, DG, extra = F(U)
         g = float(np.max(np.abs(G)))
         if not math.isfinite(g) or g > 10 * max(g0, tol):
             raise ContinuationError(f"Newton diverged (residual {g:.3g})")
@@ -903,7 +975,8 @@ def reseat(orbit: Orbit, system: Any, method: str = "auto") -> Orbit:
 def simulate_state(
     system: Any, values: Mapping[str, float], cycles: float
 ) -> tuple[float, np.ndarray, tuple[int, int], np.ndarray]:
-    """Simulate the system's own start for ``cycles`` forcing periods: (t, y, modes, v0s)."""
+    """Simulate the system's own start for ``cycles`` forcing periods: (t, y, modes, v0s),
+    y in the slot's frame (``system`` module docstring)."""
     prep = system.prepare(values)
     t_end = cycles * prep.period
     if isinstance(system, ScenarioSystem):
@@ -916,7 +989,7 @@ def simulate_state(
         n = 2 * prep.n_coords
         m = (fs.track_mode, fs.slot_mode)
         v = np.array([fs.track_v0 if m[0] else math.nan, fs.slot_v0 if m[1] else math.nan])
-        return fs.t, np.array(fs.y[:n]), m, v
+        return fs.t, prep.to_slot(fs.t, np.array(fs.y[:n])), m, v
     y0, _ = system.initial_state(values)
     seg = advance(prep, 0.0, t_end, y0, (0, 0), (math.nan, math.nan))
     return t_end, seg.y1, seg.modes1, seg.v0s1

@@ -14,7 +14,8 @@ samples of a period-k orbit), ``cut`` and ``entry`` (the shooting state, for res
 * ``strobe_u``, ``strobe_v`` (point, strobe): the orbit at forcing phase 0 (position
   relative to the inner wall, speed), comparable with a brute-force bifurcation diagram;
 * ``phase`` (point), ``state`` (point, cut, entry), ``modes``, ``v0_state``, ``v0_fixed``
-  (point, cut, pair): enough to restart from any point (:func:`orbit_from_dataset`);
+  (point, cut, pair): enough to restart from any point (:func:`orbit_from_dataset`); the
+  xy carrier's y in ``state`` is its position in the horn-gear slot's frame, y - s(t);
 * ``special_type`` (special; a CF flag: 0 fold, 1 period_doubling, 2 neimark_sacker,
   3 grazing), ``special_value``, ``special_period``, ``special_index``.
 

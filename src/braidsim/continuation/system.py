@@ -19,6 +19,16 @@ of system are accepted:
 Both give the same things to the orbit solver: the model record and solver options at a
 parameter value, the forcing period, the transfer times in a span, and the length scales
 that make the state dimensionless.
+
+The carrier's tangential coordinate. The xy carrier's y is integrated in the ground frame,
+where it does not repeat: the horn-gear slot carries it along by s(t) = r_c int_0^t omega,
+r_c omega_mean T further each period. Its equations depend on y only through y - s(t)
+(the slot's walls move with s; the track's friction sees y'), so its orbits repeat in the
+slot's frame. Continuation's states therefore hold y - s(t) where the integrator holds y:
+:meth:`Prepared.to_ground` and :meth:`Prepared.to_slot` convert at the integrator's
+boundary (``fdmap.advance`` and ``orbit.evaluate_map``), and every state an orbit holds, a
+cut, a branch or a report shows is the position in the slot (x and the speeds are the
+same in either frame; a run's sampled series stay in the ground frame).
 """
 
 from __future__ import annotations
@@ -91,6 +101,35 @@ class Prepared:
     def period(self) -> float:
         """Forcing period T = 2 pi / omega [s]."""
         return 2.0 * math.pi / self.omega
+
+    def slot_travel(self, t: float) -> tuple[float, float]:
+        """(s(t) [m], s'(t) [m/s]): how far the horn-gear slot has carried the carrier's y
+        since t = 0, s = r_c int_0^t omega, and its speed r_c omega(t); (0, 0) for a model
+        without a y coordinate or a horn gear (module docstring)."""
+        hg = getattr(self.record, "horn_gear", None)
+        if self.n_coords < 2 or hg is None:
+            return 0.0, 0.0
+        from braidsim.core.physics.excitation import horn_gear_state
+
+        om, s = horn_gear_state(hg, float(t))
+        return float(s), float(hg.turning_radius) * float(om)
+
+    def to_ground(self, t: float, z: np.ndarray) -> np.ndarray:
+        """The state (x, vx[, y, vy, ...]) at t with y in the ground frame, from y - s(t)
+        (a copy; the same values where there is no slot)."""
+        z = np.array(z, dtype=float)
+        s, _ = self.slot_travel(t)
+        if s != 0.0:
+            z[2] += s
+        return z
+
+    def to_slot(self, t: float, y: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`to_ground`: y - s(t) from the ground frame's y (a copy)."""
+        y = np.array(y, dtype=float)
+        s, _ = self.slot_travel(t)
+        if s != 0.0:
+            y[2] -= s
+        return y
 
     def transfers(self, t0: float, t1: float) -> np.ndarray:
         """Transfer times in the open span (t0, t1) [s]."""
