@@ -12,7 +12,6 @@
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 import pytest
@@ -144,7 +143,6 @@ class _TwoFamilies:
     def __init__(self, *args) -> None:
         self.calls = 0
         self.known: list = []
-        self.careful = False
 
     def lam(self, q):
         return float(q[0]), float(q[1])
@@ -155,9 +153,10 @@ class _TwoFamilies:
         return np.array([q1, q[1]]), 0.0, None
 
 
-def _trace_on_stand_in(monkeypatch, plane: Any) -> Any:
-    """The grazing tracer run on a stand-in for the grazing plane (``plane``, called as
-    the plane's class is), from the grazing at a = 0.5, b = 0.1 towards larger b."""
+def test_a_grazing_curve_is_not_ended_by_another_familys_grazing_out_of_range(monkeypatch):
+    """The point a long step finds on the other family lies beyond the range of the first
+    parameter: it is a jump (far off the prediction), so the step is shortened and this
+    family's curve goes on; it must not end the curve as 'left the range'."""
     from dataclasses import dataclass
     from types import SimpleNamespace
 
@@ -168,21 +167,14 @@ def _trace_on_stand_in(monkeypatch, plane: Any) -> Any:
         values: dict
         profile: object
 
-    monkeypatch.setattr(twopar, "_GrazingPlane", plane)
+    monkeypatch.setattr(twopar, "_GrazingPlane", _TwoFamilies)
     monkeypatch.setattr(twopar, "grazing_name", lambda sp, side=None: "grazing")
     side = Side({"a": 0.45, "b": 0.1}, SimpleNamespace(approach=math.nan))
     sp = SimpleNamespace(orbit=None, value=0.5, type="grazing", period=1, detail="", other=None)
-    return twopar._trace_grazing(
+    curve = twopar._trace_grazing(
         None, sp, side, "a", "b", (0.0, 0.7, 0.0, 1.0), 1.0,
         hmax=0.2, hmin=1e-3, window=0.01, npts=100, method="fd", tol=1e-9, on_point=None,
     )  # fmt: skip
-
-
-def test_a_grazing_curve_is_not_ended_by_another_familys_grazing_out_of_range(monkeypatch):
-    """The point a long step finds on the other family lies beyond the range of the first
-    parameter: it is a jump (far off the prediction), so the step is shortened and this
-    family's curve goes on; it must not end the curve as 'left the range'."""
-    curve = _trace_on_stand_in(monkeypatch, _TwoFamilies)
     assert curve.stop == "left the range of b at 1"
     assert np.allclose(curve.p1, 0.5)
     assert curve.p2[-1] > 0.85
@@ -265,97 +257,3 @@ def test_a_stalled_central_difference_step_hands_over_to_the_exact_map(
             base._replace(force_amplitude=f), W, w - 0.02, w + 0.02, steps=2
         )
         assert w == pytest.approx(ref, rel=1e-7)
-
-
-class _CoexistingWorld:
-    """Orbits on the parameter plane (a, b) in [0, 1]^2 for ``_GrazingPlane.orbit``: the
-    approaching structure "A" exists for a < 0.5 (distance to grazing 0.5 - a); beyond,
-    Newton's method lands on the other structure "B"; and for 0.45 < a < 0.5 a step of the
-    carry longer than 0.003 lands on "B" as well, which coexists there (as an orbit that
-    leaves the wall once a cycle coexists with paper-3.3's resting one just short of its
-    lift-off). The source orbit's parameters travel as its state z."""
-
-    def __init__(self) -> None:
-        self.solves = 0
-
-    def scales(self, values):
-        return np.ones(2)
-
-    def orbit(self, a: float, b: float, sig: str):
-        from types import SimpleNamespace
-
-        approach = 0.5 - a if sig == "A" else 0.1
-        return SimpleNamespace(
-            values={"a": a, "b": b}, period=1, phase=0.0, cuts=(), z=np.array([a, b]),
-            profile=SimpleNamespace(approach=approach), sig=sig,
-        )  # fmt: skip
-
-    def solve_fixed(self, system, values, period, phase, cuts, z, method, tol):
-        self.solves += 1
-        a, b = values["a"], values["b"]
-        step = float(np.hypot(a - z[0], b - z[1]))
-        jumps = a >= 0.5 or (a > 0.45 and step > 0.003)
-        return self.orbit(a, b, "B" if jumps else "A")
-
-
-def test_careful_carrying_does_not_take_a_coexisting_orbit_for_the_end(monkeypatch) -> None:
-    """Carried towards a point short of the grazing, a step onto the coexisting structure
-    ends the carry (None) in the plain mode; in the careful mode (set by the tracer where a
-    step found no grazing) the step is made again shorter and the orbit of the approaching
-    structure is found, at the point asked for. Beyond the grazing both say None, the
-    careful one after a bounded number of solves."""
-    from braidsim.continuation import twopar
-
-    world = _CoexistingWorld()
-    monkeypatch.setattr(twopar, "solve_fixed", world.solve_fixed)
-    monkeypatch.setattr(twopar, "signature", lambda o: o.sig)
-    start = world.orbit(0.3, 0.5, "A")
-    plane = twopar._GrazingPlane(world, start, "a", "b", (0.0, 1.0, 0.0, 1.0), "fd", 1e-9)
-    target = np.array([0.46, 0.5])
-    assert plane.orbit(target) is None
-    plane.careful = True
-    o = plane.orbit(target)
-    assert o is not None and o.sig == "A"
-    assert (o.values["a"], o.values["b"]) == (0.46, 0.5)
-    assert o.profile.approach == pytest.approx(0.04)
-    for careful in (False, True):
-        plane.careful = careful
-        world.solves = 0
-        assert plane.orbit(np.array([0.55, 0.5])) is None
-        assert world.solves <= 2 + (twopar.CAREFUL_RETRIES if careful else 0) + 20
-
-
-class _CarefulOnly(_TwoFamilies):
-    """A stand-in for the grazing plane whose grazing (on q1 = 0.5) is found only by a
-    careful search between b = 0.3 and 0.5 (there, the plain carry falls onto the other
-    structure); it records the mode of each search."""
-
-    def __init__(self, *args) -> None:
-        super().__init__(*args)
-        self.modes: list[tuple[float, bool]] = []
-
-    def locate(self, q, n, first, span):
-        self.modes.append((float(q[1]), self.careful))
-        if 0.3 <= q[1] <= 0.5 and not self.careful:
-            return None
-        return np.array([0.5, q[1]]), 0.0, None
-
-
-def test_a_step_that_found_no_grazing_is_searched_again_carefully(monkeypatch) -> None:
-    """The tracer answers a step that found no grazing by the same step searched carefully
-    (not by halving it), and goes back to the plain search after the next point."""
-    planes: list[_CarefulOnly] = []
-
-    def make(*args):
-        planes.append(_CarefulOnly(*args))
-        return planes[-1]
-
-    curve = _trace_on_stand_in(monkeypatch, make)
-    assert curve.stop == "left the range of b at 1"
-    assert np.allclose(curve.p1, 0.5)
-    # no step was halved (the first is half the largest, 0.1; they grow from there)
-    assert min(np.diff(curve.p2[:-1])) > 0.1 - 1e-12
-    modes = planes[0].modes
-    refused = [i for i, (b, careful) in enumerate(modes) if 0.3 <= b <= 0.5 and not careful]
-    assert refused and all(modes[i + 1] == (modes[i][0], True) for i in refused)
-    assert any(b > 0.5 and not careful for b, careful in modes)

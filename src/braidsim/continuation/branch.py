@@ -754,7 +754,8 @@ class Continuer:
             # (see BRACKET_TOL); the family carried on at that one
             la, lb, best_a, best_b = self._bisect(sig_a, la, hi, best_a, best_b, hist, BRACKET_TOL)
             lg = zero()
-        if short(lg) or distance(best_a) > 0.1 * max(distance(o) for o in hist):
+        near = lg is not None and (lg - la) * (lb - la) > 0 and abs(lg - la) <= reach
+        if short(lg) or (not near and distance(best_a) > 0.1 * max(distance(o) for o in hist)):
             # or Newton's method failed from the orbit as it is cut: cut anew, away from
             # onsets and exits (paper-3.3's xy carrier past its lift-off, cut inside the
             # contact whose latched speed is a state: Newton's method diverged from an

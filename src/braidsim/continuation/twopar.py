@@ -75,6 +75,7 @@ from braidsim.continuation.orbit import (
     exact_available,
     finish,
     monodromy_of,
+    recut,
     resting_speed,
     solve_fixed,
     states_at,
@@ -93,9 +94,6 @@ distance to grazing away from it."""
 SUBSTEP = 0.005
 """Grazing: the longest step (units of the parameters' ranges) over which an orbit of the
 approaching structure is carried at fixed parameters."""
-CAREFUL_RETRIES = 8
-"""Grazing, careful carrying: how many times one carry shortens a step on which Newton's
-method fell onto the other structure before it takes the structure for ended."""
 _FAILURES = (ContinuationError, SimulationError, np.linalg.LinAlgError)
 
 
@@ -722,10 +720,6 @@ class _GrazingPlane:
         # an orbit this close to grazing is at it (a resting contact's least depth can
         # reach the integrator's noise, 1e-18 m, before Newton fails beyond it)
         self.atol = GRAZING_ATOL * float(system.scales(start.values)[0])
-        # careful: a step of the carry on which Newton's method converges onto the other
-        # structure is made again shorter (a coexisting orbit), not read as the end of the
-        # approaching structure; set by the tracer only where a step found no grazing
-        self.careful = False
 
     def q(self, o: Orbit) -> np.ndarray:
         return np.array([o.values[self.key1] / self.s1, o.values[self.key2] / self.s2])
@@ -745,7 +739,6 @@ class _GrazingPlane:
         pool = [kv for kv in self.known if kv[1].profile.approach >= CARRY_FROM * top]
         qc, o = min(pool or self.known, key=lambda kv: float(np.linalg.norm(kv[0] - q)))
         h = SUBSTEP
-        retries = CAREFUL_RETRIES if self.careful else 0
         for _ in range(math.ceil(float(np.linalg.norm(q - qc)) / SUBSTEP) + 64):
             d = float(np.linalg.norm(q - qc))
             if d == 0.0:
@@ -772,17 +765,7 @@ class _GrazingPlane:
             # (a gap minimum that reached zero has crossed the wall between the solver's
             # checks: beyond the grazing as well)
             if signature(ok) != self.sig or not (0.0 < ok.profile.approach < math.inf):
-                if qk is q or retries == 0 or signature(ok) == self.sig:
-                    return None
-                # short of q, onto the other structure: near paper-3.3's lift-off below
-                # 4 pi rad/s an orbit that leaves the wall once a cycle coexists with the
-                # resting one 1.5e-7 m on the resting side, and Newton's method from a
-                # resting orbit near the grazing lands on it from a step of SUBSTEP
-                retries -= 1
-                h *= 0.25
-                if h < SUBSTEP / 300:
-                    return None
-                continue
+                return None
             qc, o = qk.copy(), ok
             self.known.append((qc, o))
             h = min(2.0 * h, 4 * SUBSTEP)
@@ -987,6 +970,18 @@ def _trace_grazing(
     lo1, hi1, lo2, hi2 = box
     start = sp.orbit if sp.orbit is not None else side
     start = replace(start, values={**start.values, key2: side.values[key2]})
+    if (
+        sp.orbit is not None
+        and signature(start) != signature(side)
+        and signature(start)[0] == signature(side)[0]
+    ):
+        # the grazing's orbit was cut anew by the branch's bisection (Newton's method
+        # failed from the orbit as the branch cut it): the branch's orbit cut the same way,
+        # or every orbit carried from it would differ from the plane's in its cuts
+        try:
+            side = recut(side, system, start.phase, start.segments, method)
+        except (*_FAILURES, InputError):
+            pass
     # (the branch's orbit before the grazing too: the located one can be at the grazing)
     before = (side,) if side is not start and math.isfinite(side.profile.approach) else ()
     plane = _GrazingPlane(system, start, key1, key2, box, method, tol, before)
@@ -1021,23 +1016,12 @@ def _trace_grazing(
         try:
             found = plane.locate(qp, n_line, min(first, 0.5 * h + 1e-3), 3 * h)
         except GrazingLost as exc:
-            if not plane.careful:
-                plane.careful = True  # the same step again, carried carefully
-                continue
-            plane.careful = False
             if h > 4 * hmin:
                 h *= 0.5
                 continue
             curve.stop = str(exc)
             break
         if found is None or float(np.linalg.norm(found[0] - qs[-1])) > 3 * h:
-            if not plane.careful:
-                # the same step again, each orbit carried in shorter steps where Newton's
-                # method falls onto the other structure (a step that ends on it is not
-                # enough to say the approaching structure ends there)
-                plane.careful = True
-                continue
-            plane.careful = False
             h *= 0.5
             if h < hmin:
                 curve.stop = (
@@ -1046,7 +1030,6 @@ def _trace_grazing(
                 )
                 break
             continue
-        plane.careful = False
         qn, dist, _ = found
         chord = qn - qs[-1]
         t_new = chord / float(np.linalg.norm(chord))
