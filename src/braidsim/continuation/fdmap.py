@@ -140,7 +140,8 @@ class FlowMap:
     """The map from (t0, y0, contacts, latched speeds) to t1 and its Jacobians.
 
     The fields are those of :class:`braidsim.sensitivity.FlowMap` (same names, shapes and
-    meaning), so that either can serve continuation.
+    meaning), so that either can serve continuation; the xy carrier's y0, y1 and their
+    parameter columns in the slot's frame, as :func:`advance` takes and gives them.
     """
 
     y1: np.ndarray

@@ -153,7 +153,7 @@ def evaluate_map(
 
 SLOT_REL_STEP = 1e-6
 """Relative step of the central differences of the slot's travel s(t) in the parameters
-(:func:`_in_slot_frame`): s is a polynomial of degree at most 2 in each of them."""
+(:func:`_in_slot_frame`): s is linear in each parameter that moves it (omega_0, r_c)."""
 
 
 def _in_slot_frame(system: Any, values: Mapping[str, float], fm: Any, keys: Sequence[str]) -> Any:

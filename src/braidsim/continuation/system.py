@@ -27,8 +27,9 @@ r_c omega_mean T further each period. Its equations depend on y only through y -
 slot's frame. Continuation's states therefore hold y - s(t) where the integrator holds y:
 :meth:`Prepared.to_ground` and :meth:`Prepared.to_slot` convert at the integrator's
 boundary (``fdmap.advance`` and ``orbit.evaluate_map``), and every state an orbit holds, a
-cut, a branch or a report shows is the position in the slot (x and the speeds are the
-same in either frame; a run's sampled series stay in the ground frame).
+cut, a branch or a report shows is the position in the slot (x, x' and y' are the
+integrator's own, y' the ground frame's speed; a run's sampled series stay in the ground
+frame).
 """
 
 from __future__ import annotations
