@@ -163,7 +163,7 @@ def _in_slot_frame(system: Any, values: Mapping[str, float], fm: Any, keys: Sequ
     latched speeds' likewise); ds/dp by central differences. The state's Jacobians do not
     change. Other maps are returned as they are."""
     prep = system.prepare(values)
-    if prep.slot_travel(fm.t0) == (0.0, 0.0) and prep.slot_travel(fm.t1) == (0.0, 0.0):
+    if not prep.has_slot:
         return fm
     jac_p = np.array(fm.jac_p, dtype=float)
     dv0_dp = np.array(fm.dv0_dp, dtype=float)
@@ -725,7 +725,7 @@ class Shooter:
                         n,
                         f0,
                     )
-                    if n >= 4:
+                    if prep.has_slot:
                         f1[2] -= prep.slot_travel(tt[j + 1])[1]
                         f0[2] -= prep.slot_travel(tt[j])[1]
                     w = prep.omega

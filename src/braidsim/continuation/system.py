@@ -103,34 +103,38 @@ class Prepared:
         """Forcing period T = 2 pi / omega [s]."""
         return 2.0 * math.pi / self.omega
 
+    @property
+    def has_slot(self) -> bool:
+        """Whether the model's y is carried by a horn-gear slot (the xy carrier; module
+        docstring)."""
+        return self.n_coords >= 2 and getattr(self.record, "horn_gear", None) is not None
+
     def slot_travel(self, t: float) -> tuple[float, float]:
         """(s(t) [m], s'(t) [m/s]): how far the horn-gear slot has carried the carrier's y
         since t = 0, s = r_c int_0^t omega, and its speed r_c omega(t); (0, 0) for a model
-        without a y coordinate or a horn gear (module docstring)."""
-        hg = getattr(self.record, "horn_gear", None)
-        if self.n_coords < 2 or hg is None:
+        without a slot (:attr:`has_slot`)."""
+        if not self.has_slot:
             return 0.0, 0.0
         from braidsim.core.physics.excitation import horn_gear_state
 
+        hg = self.record.horn_gear
         om, s = horn_gear_state(hg, float(t))
         return float(s), float(hg.turning_radius) * float(om)
 
     def to_ground(self, t: float, z: np.ndarray) -> np.ndarray:
         """The state (x, vx[, y, vy, ...]) at t with y in the ground frame, from y - s(t)
         (a copy; the same values where there is no slot)."""
-        z = np.array(z, dtype=float)
-        s, _ = self.slot_travel(t)
-        if s != 0.0:
-            z[2] += s
-        return z
+        return self._slot_shifted(t, z, 1.0)
 
     def to_slot(self, t: float, y: np.ndarray) -> np.ndarray:
         """The inverse of :meth:`to_ground`: y - s(t) from the ground frame's y (a copy)."""
-        y = np.array(y, dtype=float)
-        s, _ = self.slot_travel(t)
-        if s != 0.0:
-            y[2] -= s
-        return y
+        return self._slot_shifted(t, y, -1.0)
+
+    def _slot_shifted(self, t: float, z: np.ndarray, sign: float) -> np.ndarray:
+        z = np.array(z, dtype=float)
+        if self.has_slot:
+            z[2] += sign * self.slot_travel(t)[0]
+        return z
 
     def transfers(self, t0: float, t1: float) -> np.ndarray:
         """Transfer times in the open span (t0, t1) [s]."""
