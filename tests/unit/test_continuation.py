@@ -101,6 +101,28 @@ def test_multipliers_do_not_depend_on_the_cut(system, bouncing) -> None:
         assert np.all(np.abs(mu[2:]) < 1e-6)
 
 
+def test_the_residuals_frequency_column_with_a_latched_speed_in_the_state(system, bouncing) -> None:
+    """With the forcing frequency free the cut times t_j = theta_j / Omega move with it. Cut
+    inside the contact, the latched speed out of the map moves with t_0 as -(dv0/dy0) f0
+    (the same trajectory started later); that term was missing (the column's latched-speed
+    entry came out 9 times too large). Every column of the residual's Jacobian against
+    central differences of the residual itself."""
+    from braidsim.continuation.orbit import Shooter, frequency_key
+    from reference.central_differences import residual_jacobian
+
+    prof = bouncing.profile
+    w = system.prepare(bouncing.values).omega
+    t_on = float(prof.onsets[0])
+    t_mid = t_on + 0.5 * (float(prof.exits[0]) - t_on) % prof.period
+    for o in (recut(bouncing, system, w * t_mid, method="exact"), bouncing):
+        key = frequency_key(system)
+        sh = Shooter(system, dict(o.values), key, o.period, o.phase, o.cuts, "exact", pscale=w)
+        U = sh.pack(o.z, w)
+        _, DR, _ = sh.residual(U)
+        fd = residual_jacobian(sh, U)
+        assert np.all(np.abs(DR - fd) <= 1e-6 * np.abs(fd).max(axis=0)), o.cuts
+
+
 def test_newton_iterates_on_rough_maps_and_takes_the_multipliers_from_an_accurate_one(
     system, bouncing
 ) -> None:

@@ -107,6 +107,24 @@ def test_the_maps_parameter_columns_hold_the_slots_travel(system, resting) -> No
     assert r_c * t1 > 3 * abs(exact.jac_p[2, 0])
 
 
+def test_the_residuals_frequency_column_moves_the_cuts_in_the_slots_frame(system, resting) -> None:
+    """With the track frequency free the cut times t_j = theta_j / Omega move with it: the
+    residual's column holds the flows' rates at both ends in the slot's frame (y' - s'(t)).
+    Against central differences of the residual itself (1e-5 of each column: the maps' y
+    error floor, docs/continuation.md)."""
+    from braidsim.continuation.orbit import Shooter, frequency_key
+    from reference.central_differences import residual_jacobian
+
+    o = resting
+    w = system.prepare(o.values).omega
+    key = frequency_key(system)
+    sh = Shooter(system, dict(o.values), key, o.period, o.phase, o.cuts, "exact", pscale=w)
+    U = sh.pack(o.z, w)
+    _, DR, _ = sh.residual(U)
+    fd = residual_jacobian(sh, U)
+    assert np.all(np.abs(DR - fd) <= 2e-5 * np.abs(fd).max(axis=0))
+
+
 @pytest.mark.slow
 def test_a_branch_past_the_lift_off_finds_the_x_only_carriers_next_grazing(system, resting) -> None:
     """Past the resting contact's lift-off (0.09829 mm) the contact open at the cut

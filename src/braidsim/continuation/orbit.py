@@ -729,7 +729,11 @@ class Shooter:
                         f1[2] -= prep.slot_travel(tt[j + 1])[1]
                         f0[2] -= prep.slot_travel(tt[j])[1]
                     w = prep.omega
+                    # the end state moves with t_1 along the flow, and every output with
+                    # t_0 as -(d out / d y0) f0 (the same trajectory started later); a
+                    # latched speed out of this map is constant once set: no t_1 term
                     dp[:n] += f1 * (-tt[j + 1] / w) - fm.jac_y @ f0 * (-tt[j] / w)
+                    dp[n:] -= np.asarray(fm.dv0_dy)[co, :] @ f0 * (-tt[j] / w)
                 DR[offs[j] : offs[j + 1], N + ip] = dp * psc / Sn
         # a change of the section structure along the way (a contact that stays open)
         return R, DR, Js
