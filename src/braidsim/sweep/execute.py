@@ -395,9 +395,13 @@ class DaskExecutor:
             self._conn = self._connect()
         client = self._conn[0]
         try:
-            (base_f,) = client.scatter([base], broadcast=True)  # one object, on every worker
+            # the base scenario (a few kB) goes inside each task, not scattered once: a
+            # scattered object has no recipe, and distributed's active memory manager
+            # drops a broadcast's extra replicas within seconds (ReduceReplicas), so a
+            # killed worker could take the last copy with it and every task on it was
+            # cancelled ("already forgotten"); inline, a lost worker only re-runs its tasks
             futs = {
-                client.submit(self.task, base_f, t, retries=self.retries, pure=False): t
+                client.submit(self.task, base, t, retries=self.retries, pure=False): t
                 for t in tasks
             }
             for fut in as_completed(list(futs)):
