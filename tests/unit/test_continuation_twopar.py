@@ -12,6 +12,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pytest
@@ -133,6 +134,14 @@ def test_neimark_sacker_of_the_linear_oscillator() -> None:
     assert max(abs(x) for x in c.p1) < 1e-8
 
 
+@dataclass
+class _Side:
+    """The branch's orbit before the grazing, as the stand-ins below need it."""
+
+    values: dict
+    profile: object
+
+
 class _TwoFamilies:
     """A stand-in for the grazing plane (scaled coordinates = parameters): this family's
     grazing lies on the line q1 = 0.5; a coexisting family's, 0.3 to its right, is what the
@@ -153,32 +162,60 @@ class _TwoFamilies:
         return np.array([q1, q[1]]), 0.0, None
 
 
-def test_a_grazing_curve_is_not_ended_by_another_familys_grazing_out_of_range(monkeypatch):
-    """The point a long step finds on the other family lies beyond the range of the first
-    parameter: it is a jump (far off the prediction), so the step is shortened and this
-    family's curve goes on; it must not end the curve as 'left the range'."""
-    from dataclasses import dataclass
+def _trace_stand_in(monkeypatch, plane: type, hmax: float):
+    """A grazing curve of the parameters (a, b) in the box [0, 0.7] x [0, 1] traced on a
+    stand-in plane, from the branch's grazing at a = 0.5, b = 0.1."""
     from types import SimpleNamespace
 
     from braidsim.continuation import twopar
 
-    @dataclass
-    class Side:
-        values: dict
-        profile: object
-
-    monkeypatch.setattr(twopar, "_GrazingPlane", _TwoFamilies)
+    monkeypatch.setattr(twopar, "_GrazingPlane", plane)
     monkeypatch.setattr(twopar, "grazing_name", lambda sp, side=None: "grazing")
-    side = Side({"a": 0.45, "b": 0.1}, SimpleNamespace(approach=math.nan))
+    side = _Side({"a": 0.45, "b": 0.1}, SimpleNamespace(approach=math.nan))
     sp = SimpleNamespace(orbit=None, value=0.5, type="grazing", period=1, detail="", other=None)
-    curve = twopar._trace_grazing(
+    return twopar._trace_grazing(
         None, sp, side, "a", "b", (0.0, 0.7, 0.0, 1.0), 1.0,
-        hmax=0.2, hmin=1e-3, window=0.01, npts=100, method="fd", tol=1e-9, on_point=None,
+        hmax=hmax, hmin=1e-3, window=0.01, npts=100, method="fd", tol=1e-9, on_point=None,
     )  # fmt: skip
+
+
+def test_a_grazing_curve_is_not_ended_by_another_familys_grazing_out_of_range(monkeypatch):
+    """The point a long step finds on the other family lies beyond the range of the first
+    parameter: it is a jump (far off the prediction), so the step is shortened and this
+    family's curve goes on; it must not end the curve as 'left the range'."""
+    curve = _trace_stand_in(monkeypatch, _TwoFamilies, hmax=0.2)
     assert curve.stop == "left the range of b at 1"
     assert np.allclose(curve.p1, 0.5)
     assert curve.p2[-1] > 0.85
     assert all(0.0 <= b <= 1.0 for b in curve.p2)
+
+
+class _EdgeFromAfar(_TwoFamilies):
+    """A stand-in whose grazing lies on q1 = 0.5 and whose search along the range's edge
+    (q2 = 1, the line along q1) finds nothing from a last point more than 0.1 below the
+    edge: carried that far, Newton's method fell onto a coexisting orbit (paper-3.3's
+    lift-off curve from 4 pi up to 10 pi rad/s with the exact map)."""
+
+    last = 0.0
+
+    def locate(self, q, n, first, span):
+        self.calls += 1
+        if abs(n[1]) == 0.0 and q[1] == 1.0:
+            return (np.array([0.5, 1.0]), 0.0, None) if 1.0 - self.last <= 0.1 else None
+        if q[1] <= 1.0:  # (a point the tracer keeps)
+            self.last = float(q[1])
+        return np.array([0.5, q[1]]), 0.0, None
+
+
+def test_a_grazing_curve_whose_edge_search_fails_steps_shorter_to_the_edge(monkeypatch):
+    """The edge's grazing not found from the last point: a shorter step inside the range,
+    and the edge again from there (before, the curve ended at its last point inside,
+    reported as having left the range)."""
+    curve = _trace_stand_in(monkeypatch, _EdgeFromAfar, hmax=0.3)
+    assert curve.stop == "left the range of b at 1"
+    assert curve.p2[-1] == 1.0 and curve.p2[-2] >= 0.9
+    assert np.allclose(curve.p1, 0.5)
+    assert np.all(np.diff(curve.p2) > 0)
 
 
 def test_a_corrector_started_on_the_curve_keeps_its_start() -> None:

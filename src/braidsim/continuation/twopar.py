@@ -1067,10 +1067,20 @@ def _trace_grazing(
                 fe = plane.locate(qe, line, min(first, 0.5 * h + 1e-3), 3 * h)
             except GrazingLost:
                 fe = None
+            on_edge = False
             if fe is not None:
                 ae, be = plane.lam(fe[0])
                 if lo1 - 1e-12 <= ae <= hi1 + 1e-12 and lo2 - 1e-12 <= be <= hi2 + 1e-12:
                     curve.add(ae, be, fe[1], on_point, fe[2])
+                    on_edge = True
+            if not on_edge and h > 4 * hmin:
+                # the edge's grazing not found: carried over the whole step from the orbits
+                # before it, Newton's method can fall onto a coexisting orbit of the other
+                # structure on the way (paper-3.3's lift-off curve from 4 pi up to 10 pi
+                # rad/s ended so at 30.12 rad/s, a step of 1.3 rad/s short of the edge). A
+                # shorter step, inside the range, and the edge again from there.
+                h *= 0.5
+                continue
             curve.stop = f"left the range of {key2 if out2 else key1} at {edge:.6g}"
             break
         if turns_back:
